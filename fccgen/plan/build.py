@@ -1,0 +1,288 @@
+"""From a validated model to the element plan: coordinates, elements, classes,
+parameters, and the initial state the user asked for."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import ModelError
+from ..model.types import (BodyPoint, Distance, Force, Model, PointOnLine, PointRef,
+                           Spring, Torque, Where)
+from .classes import END_FOLDABLE, FOLDABLE, ElementClass
+from .geometry import body_frame_numbers, body_rotation, point_coefficients
+
+
+@dataclass
+class Element:
+    """One instance of an element class: where its coordinates are and its numbers."""
+    cls: ElementClass
+    label: str                   # the model item it comes from, e.g. "bodies.arm"
+    slots: tuple[int, ...]       # global triple index of each moving triple, in order
+    params: np.ndarray           # values of cls.param_names
+    where: Where
+
+    def q_index(self) -> np.ndarray:
+        """Global coordinate indices of the local coordinates (3 per slot)."""
+        return np.array([3 * s + k for s in self.slots for k in range(3)], dtype=np.intp)
+
+
+@dataclass
+class Plan:
+    model: Model
+    triples: list[tuple[str, str]]          # moving triples: (name, "point"|"vector")
+    index: dict[str, int]                   # triple name -> triple index
+    elements: list[Element]
+    classes: list[ElementClass]             # distinct classes, first-appearance order
+    class_of: list[int]                     # per element: index into classes
+    bodies: list[tuple[str, int]]           # moving bodies: (name, element index)
+    q0: np.ndarray                          # initial coordinates as given
+    v_target: np.ndarray                    # initial speeds as given (may be inconsistent)
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def n_q(self) -> int:
+        return 3 * len(self.triples)
+
+    @property
+    def n_g(self) -> int:
+        return sum(e.cls.n_g for e in self.elements)
+
+    def columns(self) -> list[str]:
+        """Result column names (DESIGN section 4), without ``t``."""
+        cols = []
+        for name, _ in self.triples:
+            cols += [f"{name}.{c}" for c in ("x", "y", "z", "vx", "vy", "vz")]
+        for name, _ in self.bodies:
+            cols += [f"{name}.{c}" for c in ("cx", "cy", "cz", "wx", "wy", "wz")]
+        return cols + ["energy", "constraint_error"]
+
+
+class _Builder:
+    def __init__(self, model: Model):
+        self.model = model
+        self.triples: list[tuple[str, str]] = []
+        self.index: dict[str, int] = {}
+        for p in model.points.values():
+            if not p.fixed:
+                self.index[p.name] = len(self.triples)
+                self.triples.append((p.name, "point"))
+        for v in model.vectors.values():
+            if not v.fixed:
+                self.index[v.name] = len(self.triples)
+                self.triples.append((v.name, "vector"))
+        self.frames = {b.name: body_frame_numbers(model.points[b.i].at, model.points[b.j].at,
+                                                  model.vectors[b.u].along)
+                       for b in model.bodies.values()}
+
+    # -- triples -----------------------------------------------------------------
+    def value(self, name: str) -> np.ndarray:
+        m = self.model
+        return m.points[name].at if name in m.points else m.vectors[name].along
+
+    def triple(self, name: str):
+        """(moving?, slot or fixed value)."""
+        if name in self.index:
+            return True, self.index[name]
+        return False, np.asarray(self.value(name), float)
+
+    # -- ends --------------------------------------------------------------------
+    def end(self, ref: PointRef, prefix: str):
+        """(end kind, {scalar: value}, [(triple name, model name)])."""
+        if isinstance(ref, BodyPoint):
+            body = self.model.bodies[ref.body]
+            l, alpha, beta = self.frames[body.name]
+            b = point_coefficients(ref.at, l, alpha, beta)
+            scalars = dict(zip(("l", "alpha", "beta", "b1", "b2", "b3"), (l, alpha, beta, *b)))
+            return ("body_point", {f"{prefix}.{k}": v for k, v in scalars.items()},
+                    [(f"{prefix}.ri", body.i), (f"{prefix}.rj", body.j), (f"{prefix}.u", body.u)])
+        return "point", {}, [(f"{prefix}.r", ref)]
+
+    def element(self, kind, label, where, scalars: dict, triples: list, ends=()):
+        fixed, slots, fixed_vals = [], [], []
+        for _, model_name in triples:
+            moving, val = self.triple(model_name)
+            fixed.append(not moving)
+            if moving:
+                slots.append(val)
+            else:
+                fixed_vals.extend(val)
+        foldable = FOLDABLE[kind] | {n for n in scalars if n.split(".")[-1] in END_FOLDABLE
+                                     and "." in n}
+        zeros = frozenset(n for n, v in scalars.items() if n in foldable and v == 0.0)
+        cls = ElementClass(kind, tuple(ends), tuple(fixed), zeros)
+        params = np.array([scalars[n] for n in cls.scalar_names] + fixed_vals, float)
+        return Element(cls, label, tuple(slots), params, where)
+
+    # -- elements ----------------------------------------------------------------
+    def body(self, body) -> Element:
+        l, alpha, beta = self.frames[body.name]
+        a = point_coefficients(body.center, l, alpha, beta)
+        I = body.inertia
+        g = self.model.gravity
+        scalars = {"l": l, "alpha": alpha, "beta": beta, "a1": a[0], "a2": a[1], "a3": a[2],
+                   "m": body.mass, "Ixx": I[0, 0], "Iyy": I[1, 1], "Izz": I[2, 2],
+                   "Ixy": I[0, 1], "Ixz": I[0, 2], "Iyz": I[1, 2],
+                   "gx": g[0], "gy": g[1], "gz": g[2]}
+        triples = [("ri", body.i), ("rj", body.j), ("u", body.u)]
+        return self.element("body", f"bodies.{body.name}", body.where,
+                            {k: float(v) for k, v in scalars.items()}, triples)
+
+    def with_ends(self, kind, label, where, own: dict, refs, names):
+        scalars, triples, ends = dict(own), [], []
+        for ref, prefix in zip(refs, names):
+            end_kind, s, t = self.end(ref, prefix)
+            ends.append(end_kind)
+            scalars.update(s)
+            triples += t
+        return self.element(kind, label, where, scalars, triples, ends)
+
+    def body_load(self, kind, label, where, body_name, own: dict):
+        body = self.model.bodies[body_name]
+        l, alpha, beta = self.frames[body_name]
+        scalars = {"l": l, "alpha": alpha, "beta": beta, **own}
+        return self.element(kind, label, where, scalars,
+                            [("ri", body.i), ("rj", body.j), ("u", body.u)])
+
+    def point_position(self, ref: PointRef) -> np.ndarray:
+        if isinstance(ref, BodyPoint):
+            b = self.model.bodies[ref.body]
+            R = body_rotation(self.model.points[b.i].at, self.model.points[b.j].at,
+                              self.model.vectors[b.u].along)
+            return self.model.points[b.i].at + R @ np.asarray(ref.at, float)
+        return np.asarray(self.model.points[ref].at, float)
+
+
+def _require_moving(el: Element, model: Model, what: str):
+    if el.cls.n_q == 0:
+        raise ModelError(model.source, el.where.line, el.label,
+                         f"{what} involves no moving point or vector, so it would have no effect",
+                         show_value=False)
+
+
+def make_plan(model: Model) -> Plan:
+    """Lay out coordinates and elements of a validated model."""
+    b = _Builder(model)
+    elements: list[Element] = []
+    bodies: list[tuple[str, int]] = []
+    notes: list[str] = []
+    for body in model.bodies.values():
+        el = b.body(body)
+        if el.cls.n_q == 0:
+            notes.append(f"body {body.name} has only fixed points and vectors: it is ground")
+            continue
+        bodies.append((body.name, len(elements)))
+        elements.append(el)
+    for name, _kind in b.triples:
+        if name in model.vectors:
+            v = model.vectors[name]
+            elements.append(b.element("unit_vector", f"vectors.{name}", v.where, {},
+                                      [("u", name)]))
+    for k, c in enumerate(model.constraints):
+        label = f"constraints[{k}]"
+        if isinstance(c, PointOnLine):
+            el = b.with_ends("point_on_line", label, c.where, {},
+                             (c.point, *c.line), ("K", "A", "B"))
+        elif isinstance(c, Distance):
+            el = b.with_ends("distance", label, c.where, {"L": float(c.length)},
+                             c.points, ("A", "B"))
+        else:  # pragma: no cover - the loader admits no other type
+            raise TypeError(type(c))
+        _require_moving(el, model, f"this {c.type} constraint")
+        elements.append(el)
+    for k, ld in enumerate(model.loads):
+        label = f"loads[{k}]"
+        if isinstance(ld, Force):
+            body = model.bodies[ld.body]
+            l, alpha, beta = b.frames[ld.body]
+            rho = body.center if ld.at is None else ld.at
+            c = point_coefficients(rho, l, alpha, beta)
+            own = {"b1": c[0], "b2": c[1], "b3": c[2],
+                   "Fx": ld.value[0], "Fy": ld.value[1], "Fz": ld.value[2]}
+            el = b.body_load("force", label, ld.where, ld.body,
+                             {k2: float(v) for k2, v in own.items()})
+        elif isinstance(ld, Torque):
+            own = {"Tx": ld.value[0], "Ty": ld.value[1], "Tz": ld.value[2]}
+            el = b.body_load("torque", label, ld.where, ld.body,
+                             {k2: float(v) for k2, v in own.items()})
+        elif isinstance(ld, Spring):
+            length = ld.length
+            if length is None:
+                length = float(np.linalg.norm(b.point_position(ld.ends[1])
+                                              - b.point_position(ld.ends[0])))
+            el = b.with_ends("spring", label, ld.where,
+                             {"k": float(ld.stiffness), "L0": float(length),
+                              "c": float(ld.damping)}, ld.ends, ("A", "B"))
+        else:  # pragma: no cover
+            raise TypeError(type(ld))
+        _require_moving(el, model, f"this {ld.type} load")
+        elements.append(el)
+
+    classes: list[ElementClass] = []
+    seen: dict[ElementClass, int] = {}
+    class_of = []
+    for el in elements:
+        if el.cls not in seen:
+            seen[el.cls] = len(classes)
+            classes.append(el.cls)
+        class_of.append(seen[el.cls])
+
+    q0 = np.concatenate([b.value(n) for n, _ in b.triples]) if b.triples else np.zeros(0)
+    v_target = _initial_speeds(model, b)
+    return Plan(model, b.triples, b.index, elements, classes, class_of, bodies,
+                q0.astype(float), v_target, notes)
+
+
+def _initial_speeds(model: Model, b: _Builder) -> np.ndarray:
+    """Speeds from the user's point velocities and body angular velocities.
+
+    Unspecified points start at rest unless a body with a given angular velocity
+    carries them: then r_j' = r_i' + w x r_ij (or the other way round) and u' = w x u.
+    The result may violate B q' = 0; the solver projects it and reports the residual.
+    """
+    n = len(b.triples)
+    v = np.zeros((n, 3))
+    known: set[str] = set()
+    for name, vel in model.initial.point_velocities.items():
+        if name in b.index:
+            v[b.index[name]] = vel
+        known.add(name)                      # fixed points are known at rest
+    for p in model.points.values():
+        if p.fixed:
+            known.add(p.name)
+    omegas = {}
+    for name, w in model.initial.body_angular_velocities.items():
+        body = model.bodies[name]
+        if w.frame == "body":
+            R = body_rotation(model.points[body.i].at, model.points[body.j].at,
+                              model.vectors[body.u].along)
+            omegas[name] = R @ w.value
+        else:
+            omegas[name] = np.asarray(w.value, float)
+
+    def vel(name):
+        return v[b.index[name]] if name in b.index else np.zeros(3)
+
+    def set_vel(name, value):
+        if name in b.index:
+            v[b.index[name]] = value
+        known.add(name)
+
+    pending = list(omegas)
+    while pending:
+        ready = [n for n in pending
+                 if model.bodies[n].i in known or model.bodies[n].j in known]
+        if not ready:                    # no carried point known: the first one is at rest
+            known.add(model.bodies[pending[0]].i)
+            continue
+        for name in ready:
+            body, w = model.bodies[name], omegas[name]
+            rij = model.points[body.j].at - model.points[body.i].at
+            if body.i not in known:
+                set_vel(body.i, vel(body.j) - np.cross(w, rij))
+            if body.j not in known:
+                set_vel(body.j, vel(body.i) + np.cross(w, rij))
+            if body.u not in known:
+                set_vel(body.u, np.cross(w, model.vectors[body.u].along))
+            pending.remove(name)
+    return v.reshape(-1)

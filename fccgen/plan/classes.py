@@ -1,0 +1,171 @@
+"""Element classes: the structure that one generated kernel serves.
+
+An *element* is a body, a unit-vector constraint, a joint constraint or a load. Its
+kinematics depend on *triples*: the three coordinates of a point or of a unit vector.
+A triple is either moving (its coordinates are generalized coordinates) or fixed (its
+values are parameters). Two elements share a class, and so one kernel, when they have
+the same kind, the same kinds of ends, the same fixed pattern and the same structural
+zeros; their numbers are runtime parameters.
+
+Layout conventions every stage follows (derive, numeric, runtime):
+
+* local coordinates ``q``: the moving triples in ``triple_names`` order, 3 numbers each;
+  local speeds ``v`` likewise;
+* parameters ``p``: ``scalar_names`` in order, then ``x, y, z`` of every *fixed* triple
+  in ``triple_names`` order (see :attr:`ElementClass.param_names`);
+* matrices are row-major: mass matrix ``n_q x n_q``, constraint Jacobian ``n_g x n_q``;
+* ``energy`` is ``[kinetic, potential]``; ``body_outputs`` is ``[cx, cy, cz, wx, wy, wz]``
+  (mass centre and angular velocity, global frame).
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import dataclass
+from functools import cached_property
+
+# Scalars of a point end that sits on a body ("body point"): the body's frame numbers
+# and the point's coefficients b1..b3 (r = r_i + b1 r_ij + b2 u + b3 (r_ij x u)/(alpha l)).
+BODY_POINT_SCALARS = ("l", "alpha", "beta", "b1", "b2", "b3")
+BODY_TRIPLES = ("ri", "rj", "u")
+
+# Per kind: own scalars, names of point ends, own triples.
+KIND_SCALARS = {
+    "body": ("l", "alpha", "beta", "a1", "a2", "a3", "m",
+             "Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz", "gx", "gy", "gz"),
+    "unit_vector": (),
+    "distance": ("L",),
+    "point_on_line": (),
+    "force": ("l", "alpha", "beta", "b1", "b2", "b3", "Fx", "Fy", "Fz"),
+    "torque": ("l", "alpha", "beta", "Tx", "Ty", "Tz"),
+    "spring": ("k", "L0", "c"),
+}
+KIND_ENDS = {
+    "body": (), "unit_vector": (), "force": (), "torque": (),
+    "distance": ("A", "B"),
+    "point_on_line": ("K", "A", "B"),
+    "spring": ("A", "B"),
+}
+KIND_TRIPLES = {
+    "body": BODY_TRIPLES, "force": BODY_TRIPLES, "torque": BODY_TRIPLES,
+    "unit_vector": ("u",), "distance": (), "point_on_line": (), "spring": (),
+}
+# Scalars that may be folded to zero when they are exactly zero (structural zeros).
+FOLDABLE = {
+    "body": {"beta", "a1", "a2", "a3", "Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz",
+             "gx", "gy", "gz"},
+    "unit_vector": set(),
+    "distance": set(),
+    "point_on_line": set(),
+    "force": {"beta", "b1", "b2", "b3", "Fx", "Fy", "Fz"},
+    "torque": {"beta", "Tx", "Ty", "Tz"},
+    "spring": {"L0", "c"},
+}
+END_FOLDABLE = {"beta", "b1", "b2", "b3"}
+KINDS = tuple(KIND_SCALARS)
+END_KINDS = ("point", "body_point")
+
+
+@dataclass(frozen=True)
+class ElementClass:
+    """The structure of an element; see the module docstring for layouts."""
+    kind: str
+    ends: tuple[str, ...]          # per end of KIND_ENDS[kind]: "point" | "body_point"
+    fixed: tuple[bool, ...]        # per triple of triple_names
+    zeros: frozenset[str]          # scalar names folded to zero
+
+    def __post_init__(self):
+        if self.kind not in KIND_SCALARS:
+            raise ValueError(f"unknown element kind {self.kind!r}")
+        if len(self.ends) != len(KIND_ENDS[self.kind]):
+            raise ValueError(f"{self.kind}: expected {len(KIND_ENDS[self.kind])} ends")
+        if len(self.fixed) != len(self.triple_names):
+            raise ValueError(f"{self.kind}: fixed mask has the wrong length")
+        unknown = set(self.zeros) - set(self.scalar_names)
+        if unknown:
+            raise ValueError(f"{self.kind}: zeros name unknown scalars {sorted(unknown)}")
+
+    @cached_property
+    def scalar_names(self) -> tuple[str, ...]:
+        names = list(KIND_SCALARS[self.kind])
+        for end, end_kind in zip(KIND_ENDS[self.kind], self.ends):
+            if end_kind == "body_point":
+                names += [f"{end}.{s}" for s in BODY_POINT_SCALARS]
+        return tuple(names)
+
+    @cached_property
+    def triple_names(self) -> tuple[str, ...]:
+        names = list(KIND_TRIPLES[self.kind])
+        for end, end_kind in zip(KIND_ENDS[self.kind], self.ends):
+            if end_kind == "body_point":
+                names += [f"{end}.{t}" for t in BODY_TRIPLES]
+            else:
+                names.append(f"{end}.r")
+        return tuple(names)
+
+    @cached_property
+    def moving_triples(self) -> tuple[str, ...]:
+        return tuple(t for t, f in zip(self.triple_names, self.fixed) if not f)
+
+    @cached_property
+    def param_names(self) -> tuple[str, ...]:
+        names = list(self.scalar_names)
+        for t, f in zip(self.triple_names, self.fixed):
+            if f:
+                names += [f"{t}.x", f"{t}.y", f"{t}.z"]
+        return tuple(names)
+
+    @property
+    def n_q(self) -> int:
+        return 3 * len(self.moving_triples)
+
+    @property
+    def n_p(self) -> int:
+        return len(self.param_names)
+
+    @cached_property
+    def constraint_rows(self) -> tuple[str, ...]:
+        """Names of the constraint equations this element contributes, in order."""
+        if self.kind == "body":
+            fi, fj, fu = self.fixed
+            rows = []
+            if not (fi and fj):
+                rows.append("length")      # r_ij . r_ij - l^2
+            if not (fi and fj and fu):
+                rows.append("angle")       # r_ij . u - l beta
+            return tuple(rows)
+        if self.kind == "unit_vector":
+            return ("unit",)               # u . u - 1
+        if self.kind == "distance":
+            return ("distance",)           # d . d - L^2, d = r_B - r_A
+        if self.kind == "point_on_line":
+            return ("cross.x", "cross.y", "cross.z")   # (r_K - r_A) x (r_B - r_A)
+        return ()
+
+    @property
+    def n_g(self) -> int:
+        return len(self.constraint_rows)
+
+    @cached_property
+    def key(self) -> str:
+        """Canonical text of the structure (stable across runs and machines)."""
+        return json.dumps({"kind": self.kind, "ends": list(self.ends),
+                           "fixed": [int(f) for f in self.fixed],
+                           "zeros": sorted(self.zeros)}, sort_keys=True,
+                          separators=(",", ":"))
+
+    @cached_property
+    def name(self) -> str:
+        """C identifier of the class: kind and a short hash of the key."""
+        digest = hashlib.sha256(self.key.encode()).hexdigest()[:8]
+        return f"{self.kind}_{digest}"
+
+    def describe(self) -> str:
+        """One line for generated headers and reports."""
+        fixed = [t for t, f in zip(self.triple_names, self.fixed) if f]
+        parts = [self.kind]
+        if self.ends:
+            parts.append("ends " + "/".join(self.ends))
+        parts.append("fixed " + (",".join(fixed) if fixed else "none"))
+        parts.append("zeros " + (",".join(sorted(self.zeros)) if self.zeros else "none"))
+        return "; ".join(parts)

@@ -1,0 +1,46 @@
+"""The kernels every element class may have: the list is data, in the order of the
+fields of ``fcc_element_class`` (fccgen/runtime/fccgen_model.h)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+from .classes import ElementClass
+
+
+@dataclass(frozen=True)
+class KernelSpec:
+    name: str
+    uses_v: bool                              # signature (q, v, p, out) or (q, p, out)
+    size: Callable[[ElementClass], int]       # number of outputs (row-major)
+    equation: str                             # one line for generated headers
+
+    def applies(self, cls: ElementClass) -> bool:
+        """Whether the kernel can exist for the class at all (it may still be
+        identically zero, in which case derive drops it)."""
+        return self.size(cls) > 0
+
+
+def _body_only(n: int):
+    return lambda cls: n if cls.kind == "body" else 0
+
+
+KERNELS: tuple[KernelSpec, ...] = (
+    KernelSpec("mass_matrix", False,
+               lambda c: c.n_q * c.n_q if c.kind == "body" else 0,
+               "M = m Dhat^T Dhat + Phi_b^T I_b Phi_b"),
+    KernelSpec("h_vector", True, lambda c: c.n_q if c.kind == "body" else 0,
+               "h = m Dhat^T (2c r_ij' x u') + Phi_b^T (I_b c_w + w_b x I_b w_b)"),
+    KernelSpec("applied_forces", True,
+               lambda c: c.n_q if c.kind in ("body", "force", "torque", "spring") else 0,
+               "f = sum Dhat^T F + Phi^T T"),
+    KernelSpec("constraints", False, lambda c: c.n_g, "g(q)"),
+    KernelSpec("constraint_jacobian", False, lambda c: c.n_g * c.n_q, "B = dg/dq"),
+    KernelSpec("constraint_bias", True, lambda c: c.n_g, "(dB/dt) q' = q'^T (d2g/dq2) q'"),
+    KernelSpec("energy", True,
+               lambda c: 2 if c.kind in ("body", "force", "spring") else 0,
+               "[kinetic, potential]"),
+    KernelSpec("body_outputs", True, _body_only(6), "[r_G, w] (global frame)"),
+)
+
+KERNEL_NAMES = tuple(k.name for k in KERNELS)
