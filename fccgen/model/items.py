@@ -1,0 +1,167 @@
+"""Reading the sections that refer to points and bodies: constraints, loads, initial
+velocities and simulation defaults."""
+from __future__ import annotations
+
+from .fields import Reader, child, listing
+from .types import (AngularVelocity, Body, BodyPoint, Constraint, Distance, Force,
+                    Initial, Load, Point, PointOnLine, PointRef, SimulateDefaults, Spring,
+                    Torque, Where)
+from .yamlnodes import YMap, YNode
+
+# Keys of each item type: (required, optional).
+CONSTRAINT_KEYS = {
+    "point_on_line": (("type", "point", "line"), ()),
+    "distance": (("type", "points", "length"), ()),
+}
+LOAD_KEYS = {
+    "force": (("type", "body", "value"), ("at",)),
+    "torque": (("type", "body", "value"), ()),
+    "spring": (("type", "ends", "stiffness"), ("length", "damping")),
+}
+BODY_POINT_KEYS = (("body", "at"), ())
+INITIAL_KEYS = ((), ("points", "bodies"))
+INITIAL_BODY_KEYS = (("angular_velocity",), ("frame",))
+SIMULATE_KEYS = ((), ("t_end", "dt", "method", "output_dt"))
+FRAMES = ("global", "body")
+
+
+class ItemReader(Reader):
+    """Reads items that name the model's points and bodies (already validated)."""
+
+    def __init__(self, source: str, points: dict[str, Point], bodies: dict[str, Body]):
+        super().__init__(source)
+        self.points = points
+        self.bodies = bodies
+
+    # -- point references --------------------------------------------------------------
+    def ref(self, node: YNode, item: str) -> PointRef:
+        """A point name, or ``{body: NAME, at: [x, y, z]}`` (a point on a body)."""
+        if isinstance(node, YMap):
+            m = self.mapping(node, item, *BODY_POINT_KEYS)
+            body = self.body_name(m.entries["body"], child(item, "body"))
+            at = self.vec3(m.entries["at"], child(item, "at"))
+            return BodyPoint(body, tuple(float(x) for x in at))
+        return self.name_in(node, item, self.points, "point", "points")
+
+    def ref_list(self, node: YNode, item: str) -> tuple[PointRef, ...]:
+        """Two or more point references, all different."""
+        refs = tuple(self.ref(n, child(item, k)) for k, n in enumerate(node.items))
+        if len(set(refs)) != len(refs):
+            raise self.bad(node, item, "must name different points")
+        return refs
+
+    def body_name(self, node: YNode, item: str) -> str:
+        return self.name_in(node, item, self.bodies, "body", "bodies")
+
+    def typed(self, node: YNode, item: str, keys: dict) -> YMap:
+        """A mapping whose ``type`` is a key of ``keys``, with that type's keys."""
+        m = self.mapping_any(node, item)
+        if "type" not in m.entries:
+            raise self.fail(m.line, child(item, "type"), "missing required key",
+                            show_value=False)
+        kind = self.choice(m.entries["type"], child(item, "type"), keys, "type")
+        return self.mapping(m, item, *keys[kind])
+
+    # -- constraints -------------------------------------------------------------------
+    def constraints(self, node: YNode) -> list[Constraint]:
+        seq = self.sequence(node, "constraints")
+        return [self.constraint(n, f"constraints[{k}]") for k, n in enumerate(seq.items)]
+
+    def constraint(self, node: YNode, item: str) -> Constraint:
+        m = self.typed(node, item, CONSTRAINT_KEYS)
+        e, where = m.entries, Where(self.source, m.line)
+        if e["type"].text == "point_on_line":
+            line_item = child(item, "line")
+            ends = self.sequence(e["line"], line_item, 2)
+            point = self.ref(e["point"], child(item, "point"))
+            a, b = self.ref_list(ends, line_item)
+            if point in (a, b):
+                raise self.bad(e["point"], child(item, "point"),
+                               "must not be an end of its own line")
+            return PointOnLine(point, (a, b), where)
+        points_item = child(item, "points")
+        pair = self.ref_list(self.sequence(e["points"], points_item, 2), points_item)
+        length = self.positive(e["length"], child(item, "length"))
+        return Distance(pair, length, where)
+
+    # -- loads ----------------------------------------------------------------------------
+    def loads(self, node: YNode) -> list[Load]:
+        seq = self.sequence(node, "loads")
+        return [self.load(n, f"loads[{k}]") for k, n in enumerate(seq.items)]
+
+    def load(self, node: YNode, item: str) -> Load:
+        m = self.typed(node, item, LOAD_KEYS)
+        e, where, kind = m.entries, Where(self.source, m.line), m.entries["type"].text
+        if kind in ("force", "torque"):
+            body = self.body_name(e["body"], child(item, "body"))
+            value = self.vec3(e["value"], child(item, "value"))
+            if kind == "torque":
+                return Torque(body, value, where)
+            at = None
+            if "at" in e:
+                at = tuple(float(x) for x in self.vec3(e["at"], child(item, "at")))
+            return Force(body, value, at, where)
+        ends_item = child(item, "ends")
+        ends = self.ref_list(self.sequence(e["ends"], ends_item, 2), ends_item)
+        stiffness = self.nonnegative(e["stiffness"], child(item, "stiffness"))
+        length = (self.nonnegative(e["length"], child(item, "length"))
+                  if "length" in e else None)
+        damping = (self.nonnegative(e["damping"], child(item, "damping"))
+                   if "damping" in e else 0.0)
+        return Spring(ends, stiffness, length, damping, where)
+
+    # -- initial state ---------------------------------------------------------------------
+    def initial(self, node: YNode) -> Initial:
+        m = self.mapping(node, "initial", *INITIAL_KEYS)
+        result = Initial()
+        if "points" in m.entries:
+            for name, line, value, item in self.entries(m.entries["points"],
+                                                        "initial.points"):
+                if name not in self.points:
+                    raise self.fail(line, item, "names no point; points are: "
+                                    + listing(self.points), name)
+                if self.points[name].fixed:
+                    raise self.fail(line, item, "is a fixed point; only moving points "
+                                    "can be given a velocity", name)
+                result.point_velocities[name] = self.vec3(value, item)
+        if "bodies" in m.entries:
+            for name, line, value, item in self.entries(m.entries["bodies"],
+                                                        "initial.bodies"):
+                if name not in self.bodies:
+                    raise self.fail(line, item, "names no body; bodies are: "
+                                    + listing(self.bodies), name)
+                result.body_angular_velocities[name] = self.angular_velocity(value, item,
+                                                                              line)
+        return result
+
+    def angular_velocity(self, node: YNode, item: str, line: int) -> AngularVelocity:
+        e = self.mapping(node, item, *INITIAL_BODY_KEYS).entries
+        w = self.vec3(e["angular_velocity"], child(item, "angular_velocity"))
+        frame = (self.choice(e["frame"], child(item, "frame"), FRAMES, "frame")
+                 if "frame" in e else "global")
+        return AngularVelocity(w, frame, Where(self.source, line))
+
+    # -- simulation defaults ---------------------------------------------------------------
+    def simulate(self, node: YNode | None, methods: tuple[str, ...]) -> SimulateDefaults:
+        """Defaults of ``fccgen simulate`` (DESIGN section 5); ``node`` None: all defaults."""
+        out = SimulateDefaults()
+        if node is None:
+            return out
+        e = self.mapping(node, "simulate", *SIMULATE_KEYS).entries
+        if "t_end" in e:
+            out.t_end = self.positive(e["t_end"], "simulate.t_end")
+        if "dt" in e:
+            out.dt = self.positive(e["dt"], "simulate.dt")
+        if "method" in e:
+            out.method = self.choice(e["method"], "simulate.method", methods, "method")
+        if "output_dt" in e:
+            out.output_dt = self.positive(e["output_dt"], "simulate.output_dt")
+        if out.dt > out.t_end:
+            key = "dt" if "dt" in e else "t_end"
+            rule = (f"must be at most t_end ({out.t_end:g})" if key == "dt"
+                    else f"must be at least dt ({out.dt:g}, the default)")
+            raise self.bad(e[key], f"simulate.{key}", rule)
+        if out.output_dt is not None and out.output_dt < out.dt:
+            raise self.bad(e["output_dt"], "simulate.output_dt",
+                           f"must be at least dt ({out.dt:g})")
+        return out

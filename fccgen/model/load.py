@@ -1,0 +1,197 @@
+"""Load a model file (DESIGN section 2) into a validated :class:`Model`.
+
+The file is read with a safe YAML loader into line-aware nodes; each section is then
+read by one method of :class:`_ModelReader`. The first rule broken raises
+:class:`~fccgen.errors.ModelError` naming the file, the line, the item (a path such as
+``bodies.arm.mass`` or ``constraints[0].line[1]``), the rule and the value seen.
+"""
+from __future__ import annotations
+
+import keyword
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ModelError
+from . import checks
+from .fields import IDENTIFIER, IDENTIFIER_RULE, Reader, child, listing
+from .items import ItemReader
+from .types import Body, Initial, Model, Point, Vector, Where
+from .yamlnodes import YMap, YNode, parse_yaml
+
+# Integration methods a model may name in ``simulate.method``.
+METHODS: tuple[str, ...] = ("rk4",)
+
+MAX_NAME_LENGTH = 64          # the model name becomes a module name
+
+# Keys of each kind of mapping: (required, optional).
+TOP_KEYS = (("name", "points", "bodies"),
+            ("gravity", "vectors", "constraints", "loads", "initial", "simulate"))
+POINT_KEYS = (("at",), ("fixed",))
+VECTOR_KEYS = (("along",), ("fixed",))
+BODY_KEYS = (("points", "vector", "mass", "inertia"), ("center",))
+
+
+def load_model(path) -> Model:
+    """Read and validate the model file at ``path`` (``Model.source`` is ``str(path)``)."""
+    source = str(path)
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise ModelError(source, None, "model file", f"is not UTF-8 text ({exc.reason})",
+                         show_value=False) from None
+    except OSError as exc:
+        raise ModelError(source, None, "model file",
+                         f"cannot be read ({exc.strerror or exc})", show_value=False) from None
+    return load_model_text(text, source)
+
+
+def load_model_text(text: str, source: str = "<string>") -> Model:
+    """Validate a model given as YAML text; ``source`` names it in messages."""
+    root = parse_yaml(text, source)
+    if root is None:
+        raise ModelError(source, None, "model file",
+                         f"is empty; it needs the keys {listing(TOP_KEYS[0])}",
+                         show_value=False)
+    return _ModelReader(source).model(root)
+
+
+class _ModelReader(Reader):
+    """Reads the sections of a model file in order, keeping what later ones refer to."""
+
+    def __init__(self, source: str):
+        super().__init__(source)
+        self.names: dict[str, tuple[str, int]] = {}    # name -> (kind, line)
+        self.points: dict[str, Point] = {}
+        self.vectors: dict[str, Vector] = {}
+        self.bodies: dict[str, Body] = {}
+
+    def where(self, line: int | None) -> Where:
+        return Where(self.source, line)
+
+    def model(self, root: YNode) -> Model:
+        if not isinstance(root, YMap):
+            raise self.bad(root, "model file",
+                           f"must be a mapping with the keys {listing(TOP_KEYS[0])}")
+        top = self.mapping(root, "", *TOP_KEYS)
+        e = top.entries
+        name = self.model_name(e["name"])
+        gravity = self.vec3(e["gravity"], "gravity") if "gravity" in e else np.zeros(3)
+        self.read_points(e["points"])
+        if "vectors" in e:
+            self.read_vectors(e["vectors"])
+        self.read_bodies(e["bodies"])
+        self.check_membership()
+        items = ItemReader(self.source, self.points, self.bodies)
+        constraints = items.constraints(e["constraints"]) if "constraints" in e else []
+        loads = items.loads(e["loads"]) if "loads" in e else []
+        initial = items.initial(e["initial"]) if "initial" in e else Initial()
+        simulate = items.simulate(e.get("simulate"), METHODS)
+        return Model(name=name, source=self.source, gravity=gravity, points=self.points,
+                     vectors=self.vectors, bodies=self.bodies, constraints=constraints,
+                     loads=loads, initial=initial, simulate=simulate,
+                     where={k: self.where(line) for k, line in top.key_lines.items()})
+
+    # -- names ---------------------------------------------------------------------
+    def model_name(self, node: YNode) -> str:
+        name = self.identifier(node, "name")
+        if len(name) > MAX_NAME_LENGTH:
+            raise self.fail(node.line, "name",
+                            f"must be at most {MAX_NAME_LENGTH} characters long", name)
+        if keyword.iskeyword(name):
+            raise self.fail(node.line, "name",
+                            "must not be a Python keyword (it becomes a module name)", name)
+        return name
+
+    def claim(self, name: str, kind: str, line: int, item: str):
+        """Check a point/vector/body name and reserve it: names become result columns,
+        so they must be unique across points, vectors and bodies."""
+        if not IDENTIFIER.fullmatch(name):
+            raise self.fail(line, item, IDENTIFIER_RULE, name)
+        if name in self.names:
+            other, other_line = self.names[name]
+            raise self.fail(line, item, f"name already used by the {other} on line "
+                                        f"{other_line} (point, vector and body names "
+                                        "must differ)", name)
+        self.names[name] = (kind, line)
+
+    # -- points and vectors ------------------------------------------------------------
+    def short_or_long(self, node: YNode, item: str, key: str, keys) -> tuple[np.ndarray, bool]:
+        """``[x, y, z]`` (moving) or ``{<key>: [x, y, z], fixed: bool}``."""
+        if isinstance(node, YMap):
+            m = self.mapping(node, item, *keys)
+            fixed = self.boolean(m.entries["fixed"], child(item, "fixed")) \
+                if "fixed" in m.entries else False
+            return self.vec3(m.entries[key], child(item, key)), fixed
+        return self.vec3(node, item), False
+
+    def read_points(self, node: YNode):
+        for name, line, value, item in self.entries(node, "points"):
+            self.claim(name, "point", line, item)
+            at, fixed = self.short_or_long(value, item, "at", POINT_KEYS)
+            self.points[name] = Point(name, at, fixed, self.where(line))
+
+    def read_vectors(self, node: YNode):
+        for name, line, value, item in self.entries(node, "vectors"):
+            self.claim(name, "vector", line, item)
+            along, fixed = self.short_or_long(value, item, "along", VECTOR_KEYS)
+            problem = checks.unit_vector_problem(along)
+            if problem:
+                raise self.bad(value, item, problem)
+            along = along / np.linalg.norm(along)
+            self.vectors[name] = Vector(name, along, fixed, self.where(line))
+
+    # -- bodies ----------------------------------------------------------------------------
+    def read_bodies(self, node: YNode):
+        bodies = self.mapping_any(node, "bodies")
+        if not bodies.entries:
+            raise self.bad(bodies, "bodies", "must name at least one body")
+        for name, line, value, item in self.entries(bodies, "bodies"):
+            self.claim(name, "body", line, item)
+            self.bodies[name] = self.body(name, line, value, item)
+
+    def body(self, name: str, line: int, node: YNode, item: str) -> Body:
+        m = self.mapping(node, item, *BODY_KEYS)
+        e = m.entries
+        ends = self.sequence(e["points"], child(item, "points"), 2)
+        i, j = (self.name_in(n, child(child(item, "points"), k), self.points,
+                             "point", "points") for k, n in enumerate(ends.items))
+        if i == j:
+            raise self.bad(ends, child(item, "points"), "must be two different points")
+        u = self.name_in(e["vector"], child(item, "vector"), self.vectors,
+                         "vector", "vectors")
+        mass = self.positive(e["mass"], child(item, "mass"))
+        center = self.vec3(e["center"], child(item, "center")) if "center" in e \
+            else np.zeros(3)
+        inertia = checks.inertia_tensor(self.numbers(e["inertia"], child(item, "inertia"),
+                                                     (3, 6)))
+        problem = checks.inertia_problem(inertia)
+        if problem:
+            raise self.bad(e["inertia"], child(item, "inertia"), problem)
+        self.check_geometry(name, i, j, u, ends, e["vector"], item)
+        return Body(name, i, j, u, mass, center, inertia, self.where(line))
+
+    def check_geometry(self, name, i, j, u, ends_node, vector_node, item):
+        """Points i, j must be apart and u must not be parallel to r_ij."""
+        ri, rj = self.points[i].at, self.points[j].at
+        if checks.coincide(ri, rj):
+            raise self.bad(ends_node, child(item, "points"),
+                           f"points {i} and {j} are at the same place "
+                           f"[{', '.join(f'{x:g}' for x in ri)}]; a body needs two "
+                           "distinct points")
+        angle = checks.parallel_angle(ri, rj, self.vectors[u].along)
+        if angle is not None:
+            raise self.bad(vector_node, child(item, "vector"),
+                           f"vector {u} is parallel to the line from {i} to {j} (angle "
+                           f"{angle:.3g} degrees); a body needs sin(angle) >= "
+                           f"{checks.PARALLEL_SIN:g}")
+
+    def check_membership(self):
+        """Every moving point and vector must belong to a body, or it has no mass."""
+        used = {n for b in self.bodies.values() for n in (b.i, b.j, b.u)}
+        for kind, table in (("point", self.points), ("vector", self.vectors)):
+            for obj in table.values():
+                if not obj.fixed and obj.name not in used:
+                    raise self.fail(obj.where.line, f"{kind}s.{obj.name}",
+                                    f"moving {kind} belongs to no body, so it has no mass; "
+                                    "put it in a body or make it fixed", obj.name)
