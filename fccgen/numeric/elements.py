@@ -1,0 +1,250 @@
+"""The eight kernels of every element kind in NumPy (docs/elements.md), with the layouts
+of fccgen/plan/kernels.py: local coordinates and speeds of the moving triples, row-major
+matrices, ``energy = [kinetic, potential]``, ``body_outputs = [r_G, w]``.
+
+One :class:`ElementKernels` object holds one element at one state; its kinematics are
+computed once, when a kernel first needs them, so that a solver asking several kernels
+of the same element pays for them once.
+"""
+from __future__ import annotations
+
+from functools import cached_property
+
+import numpy as np
+
+from ..plan.classes import ElementClass
+from ..plan.kernels import KERNELS
+from .kinematics import (Local, body_frame, body_point, cross, end_point, inertia_tensor,
+                         skew)
+
+_SPECS = {k.name: k for k in KERNELS}
+
+
+class ElementKernels:
+    """Kernels of one element at (q, v); subclasses implement the ones of their kind.
+
+    Constraint elements implement ``_rows()``: per constraint row, its value g, its
+    partials (per triple) and its bias q'^T (d2g/dq2) q'.
+    """
+
+    def __init__(self, cls: ElementClass, q, v, p):
+        self.cls = cls
+        self.x = Local(cls, q, v, p)
+
+    def evaluate(self, name: str) -> np.ndarray | None:
+        """Flattened row-major output of kernel ``name``, or None if it does not apply."""
+        spec = _SPECS[name]
+        if not spec.applies(self.cls):
+            return None
+        out = np.array(getattr(self, name)(), float).reshape(-1)
+        if out.size != spec.size(self.cls):  # pragma: no cover - a layout bug
+            raise AssertionError(f"{self.cls.name}.{name}: {out.size} outputs, "
+                                 f"expected {spec.size(self.cls)}")
+        return out
+
+    # -- constraints, from _rows() -------------------------------------------------
+    def _rows(self) -> list[tuple[float, dict, float]]:
+        return []
+
+    @cached_property
+    def _row_data(self):
+        return self._rows()
+
+    def constraints(self) -> np.ndarray:
+        return np.array([g for g, _, _ in self._row_data])
+
+    def constraint_jacobian(self) -> np.ndarray:
+        rows = [self.x.columns(blocks, 1) for _, blocks, _ in self._row_data]
+        return np.vstack(rows) if rows else np.zeros((0, self.cls.n_q))
+
+    def constraint_bias(self) -> np.ndarray:
+        return np.array([b for _, _, b in self._row_data])
+
+
+class BodyKernels(ElementKernels):
+    """A rigid body: mass centre r_G (a body point with a1..a3), frame, constraints."""
+
+    @cached_property
+    def G(self):
+        s = self.x.s
+        return body_point(*self.x.body_triples(), s["l"], s["alpha"], s["a1"], s["a2"],
+                          s["a3"])
+
+    @cached_property
+    def frame(self):
+        s = self.x.s
+        return body_frame(*self.x.body_triples(), s["l"], s["alpha"], s["beta"])
+
+    @cached_property
+    def dhat(self) -> np.ndarray:
+        return self.x.columns(self.G.dhat, 3)
+
+    @cached_property
+    def phi_b(self) -> np.ndarray:
+        return self.x.columns(self.frame.phi_b, 3)
+
+    @cached_property
+    def inertia(self) -> np.ndarray:
+        return inertia_tensor(self.x.s)
+
+    @property
+    def gravity(self) -> np.ndarray:
+        s = self.x.s
+        return np.array([s["gx"], s["gy"], s["gz"]])
+
+    def mass_matrix(self):
+        """M = m Dhat^T Dhat + Phi_b^T I_b Phi_b."""
+        D, P = self.dhat, self.phi_b
+        return self.x.s["m"] * D.T @ D + P.T @ self.inertia @ P
+
+    def h_vector(self):
+        """h = m Dhat^T a_bias + Phi_b^T (I_b c_w + w_b x I_b w_b)."""
+        F, I = self.frame, self.inertia
+        moment = I @ F.c_w + cross(F.w_b, I @ F.w_b)
+        return self.x.s["m"] * self.dhat.T @ self.G.bias + self.phi_b.T @ moment
+
+    def applied_forces(self):
+        """f = Dhat^T (m g)."""
+        return self.dhat.T @ (self.x.s["m"] * self.gravity)
+
+    def _rows(self):
+        x, s = self.x, self.x.s
+        names, (ri, rj, u), (dri, drj, du) = x.body_triples()
+        rij, drij = rj - ri, drj - dri
+        rows = []
+        for row in self.cls.constraint_rows:
+            if row == "length":
+                rows.append((rij @ rij - s["l"] ** 2,
+                             {names[0]: -2.0 * rij, names[1]: 2.0 * rij},
+                             2.0 * drij @ drij))
+            else:  # "angle"
+                rows.append((rij @ u - s["l"] * s["beta"],
+                             {names[0]: -u, names[1]: u, names[2]: rij},
+                             2.0 * drij @ du))
+        return rows
+
+    def energy(self):
+        """[m v_G.v_G / 2 + w_b.I_b w_b / 2, -m g.r_G]."""
+        m, G, w_b = self.x.s["m"], self.G, self.frame.w_b
+        return [0.5 * m * G.v @ G.v + 0.5 * w_b @ self.inertia @ w_b,
+                -m * self.gravity @ G.r]
+
+    def body_outputs(self):
+        """[r_G, R w_b]."""
+        return np.concatenate([self.G.r, self.frame.w])
+
+
+class UnitVectorKernels(ElementKernels):
+    """u . u - 1 = 0 for a moving unit vector."""
+
+    def _rows(self):
+        u, du = self.x.pos["u"], self.x.vel["u"]
+        return [(u @ u - 1.0, {"u": 2.0 * u}, 2.0 * du @ du)]
+
+
+class DistanceKernels(ElementKernels):
+    """d . d - L^2 = 0, d = r_B - r_A."""
+
+    def _rows(self):
+        A, B = end_point(self.x, "A"), end_point(self.x, "B")
+        d, dd = B.r - A.r, B.v - A.v
+        blocks = _combine((2.0 * d, B.dhat), (-2.0 * d, A.dhat))
+        bias = 2.0 * dd @ dd + 2.0 * d @ (B.bias - A.bias)
+        return [(d @ d - self.x.s["L"] ** 2, blocks, bias)]
+
+
+class PointOnLineKernels(ElementKernels):
+    """(r_K - r_A) x (r_B - r_A) = 0 (three rows, rank two)."""
+
+    def _rows(self):
+        K, A, B = (end_point(self.x, e) for e in ("K", "A", "B"))
+        a, b = K.r - A.r, B.r - A.r
+        da, db = K.v - A.v, B.v - A.v
+        g = cross(a, b)
+        # dg = a' x b + a x b' = -~b a' + ~a b'
+        blocks = _combine((-skew(b), K.dhat), (skew(b) - skew(a), A.dhat), (skew(a), B.dhat))
+        bias = (cross(K.bias - A.bias, b) + 2.0 * cross(da, db)
+                + cross(a, B.bias - A.bias))
+        return [(g[k], {n: blk[k] for n, blk in blocks.items()}, bias[k]) for k in range(3)]
+
+
+class ForceKernels(ElementKernels):
+    """A constant global force F at a body point: f = Dhat^T F, energy [0, -F . r]."""
+
+    @cached_property
+    def P(self):
+        s = self.x.s
+        return body_point(*self.x.body_triples(), s["l"], s["alpha"], s["b1"], s["b2"],
+                          s["b3"])
+
+    @property
+    def force(self) -> np.ndarray:
+        s = self.x.s
+        return np.array([s["Fx"], s["Fy"], s["Fz"]])
+
+    def applied_forces(self):
+        return self.x.columns(self.P.dhat, 3).T @ self.force
+
+    def energy(self):
+        return [0.0, -self.force @ self.P.r]
+
+
+class TorqueKernels(ElementKernels):
+    """A constant global torque T: f = Phi_b^T (R^T T) (not conservative: no energy)."""
+
+    def applied_forces(self):
+        s = self.x.s
+        F = body_frame(*self.x.body_triples(), s["l"], s["alpha"], s["beta"])
+        T = np.array([s["Tx"], s["Ty"], s["Tz"]])
+        return self.x.columns(F.phi_b, 3).T @ (F.R.T @ T)
+
+
+class SpringKernels(ElementKernels):
+    """A linear spring-damper between ends A and B: tension k (L - L0) + c L'."""
+
+    @cached_property
+    def geometry(self):
+        A, B = end_point(self.x, "A"), end_point(self.x, "B")
+        d = B.r - A.r
+        L = float(np.sqrt(d @ d))
+        return A, B, L, d / L, (B.v - A.v)
+
+    def applied_forces(self):
+        """f = -T (Dhat_B - Dhat_A)^T n."""
+        s = self.x.s
+        A, B, L, n, dd = self.geometry
+        tension = s["k"] * (L - s["L0"]) + s["c"] * (n @ dd)
+        blocks = _combine((-tension * n, B.dhat), (tension * n, A.dhat))
+        return self.x.columns(blocks, 1).reshape(-1)
+
+    def energy(self):
+        s = self.x.s
+        L = self.geometry[2]
+        return [0.0, 0.5 * s["k"] * (L - s["L0"]) ** 2]
+
+
+def _combine(*terms) -> dict[str, np.ndarray]:
+    """Per triple, sum of ``left @ dhat[triple]`` over the (left, dhat) terms."""
+    out: dict[str, np.ndarray] = {}
+    for left, dhat in terms:
+        for name, block in dhat.items():
+            out[name] = out.get(name, 0.0) + left @ block
+    return out
+
+
+KIND_KERNELS: dict[str, type[ElementKernels]] = {
+    "body": BodyKernels, "unit_vector": UnitVectorKernels, "distance": DistanceKernels,
+    "point_on_line": PointOnLineKernels, "force": ForceKernels, "torque": TorqueKernels,
+    "spring": SpringKernels,
+}
+
+
+def element_kernels(cls: ElementClass, q, v, p) -> ElementKernels:
+    """The kernels object of an element of class ``cls`` at state (q, v)."""
+    return KIND_KERNELS[cls.kind](cls, q, v, p)
+
+
+def element_kernel(cls: ElementClass, name: str, q, v, p) -> np.ndarray | None:
+    """Flattened row-major output of kernel ``name`` (same length as
+    ``KernelSpec.size(cls)``), or None if the kernel does not apply to the class."""
+    return element_kernels(cls, q, v, p).evaluate(name)
