@@ -1,0 +1,175 @@
+"""Kernel expressions of every element kind (docs/elements.md).
+
+Each builder takes the class symbols and returns ``{kernel name: outputs}`` for the
+kernels of its kind, outputs as flat row-major lists; :func:`fccgen.derive.derive_class`
+turns them into the :class:`~fccgen.derive.derived.DerivedClass`. Constraint Jacobians
+and biases are written in closed form (B = dg/dq, (dB/dt) q'); the tests check them
+against finite differences.
+"""
+from __future__ import annotations
+
+from typing import Callable
+
+import sympy
+
+from ..plan.classes import KIND_ENDS
+from .kinematics import (BodyFrame, PointKin, body_frame, cross, dot, end_point,
+                         lin_combine, lin_row, skew)
+from .symbols import ClassSymbols, Lin
+
+Outputs = dict[str, list[sympy.Expr]]
+
+
+def _flat(m: sympy.Matrix) -> list[sympy.Expr]:
+    """Row-major entries of a matrix."""
+    return list(m)
+
+
+def _gram(a: sympy.Matrix, w: sympy.Matrix | None = None) -> sympy.Matrix:
+    """a^T w a (w symmetric, default E), built on the upper triangle and mirrored so
+    the result is exactly symmetric; zero products are left out."""
+    k = a if w is None else w * a
+    n = a.cols
+    out = sympy.zeros(n, n)
+    for i in range(n):
+        for j in range(i, n):
+            out[i, j] = out[j, i] = sympy.Add(*[a[r, i] * k[r, j] for r in range(a.rows)
+                                                 if a[r, i] != 0 and k[r, j] != 0])
+    return out
+
+
+def _generalized(s: ClassSymbols, lin: Lin, x: sympy.Matrix) -> list[sympy.Expr]:
+    """L^T x in local coordinates (n_q outputs)."""
+    return _flat(s.local(lin_row(x, lin), 1))
+
+
+def _jacobian_rows(s: ClassSymbols, rows: list[Lin]) -> list[sympy.Expr]:
+    """Row-major n_g x n_q Jacobian from one per-triple map (1 x 3 blocks) per row."""
+    return [e for row in rows for e in _flat(s.local(row, 1))]
+
+
+def _points(s: ClassSymbols) -> list[PointKin]:
+    return [end_point(s, end, kind) for end, kind in zip(KIND_ENDS[s.cls.kind], s.cls.ends)]
+
+
+def _vec(s: ClassSymbols, *names: str) -> sympy.Matrix:
+    return sympy.Matrix([s.scalar(n) for n in names])
+
+
+# -- body -------------------------------------------------------------------------
+
+def _inertia(s: ClassSymbols) -> sympy.Matrix:
+    xx, yy, zz, xy, xz, yz = (s.scalar(n) for n in ("Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz"))
+    return sympy.Matrix([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+
+
+def _body_constraints(s: ClassSymbols, f: BodyFrame) -> Outputs:
+    """Rows "length" r_ij.r_ij - l^2 and "angle" r_ij.u - l beta (as the class lists)."""
+    rij, rd, u = f.rij, f.rij_dot, f.u
+    rows = {"length": (dot(rij, rij) - f.l ** 2, f.rij_blocks(2 * rij.T), 2 * dot(rd, rd)),
+            "angle": (dot(rij, u.pos) - f.l * f.beta,
+                      {**f.rij_blocks(u.pos.T), **({u.name: rij.T} if u.moving else {})},
+                      2 * dot(rd, u.vel))}
+    chosen = [rows[name] for name in s.cls.constraint_rows]
+    return {"constraints": [g for g, _, _ in chosen],
+            "constraint_jacobian": _jacobian_rows(s, [b for _, b, _ in chosen]),
+            "constraint_bias": [c for _, _, c in chosen]}
+
+
+def body(s: ClassSymbols) -> Outputs:
+    """Mass matrix, inertia terms, gravity, rigid-body constraints, energy and outputs;
+    the mass centre is the body point (a1, a2, a3)."""
+    f = body_frame(s)
+    m, ib = s.scalar("m"), _inertia(s)
+    g = _vec(s, "gx", "gy", "gz")
+    cg = f.point(s.scalar("a1"), s.scalar("a2"), s.scalar("a3"))
+    dhat, phi = s.local(cg.dhat, 3), s.local(f.phi_b, 3)
+    mass = m * _gram(dhat) + _gram(phi, ib)
+    i_w = ib * f.w_b
+    rot = ib * f.c_w + cross(f.w_b, i_w)
+    h = [m * x + y for x, y in zip(_generalized(s, cg.dhat, cg.bias),
+                                   _generalized(s, f.phi_b, rot))]
+    return {"mass_matrix": _flat(mass),
+            "h_vector": h,
+            "applied_forces": [m * e for e in _generalized(s, cg.dhat, g)],
+            **_body_constraints(s, f),
+            "energy": [m * dot(cg.vel, cg.vel) / 2 + dot(f.w_b, i_w) / 2,
+                       -m * dot(g, cg.pos)],
+            "body_outputs": _flat(cg.pos) + _flat(f.w)}
+
+
+# -- constraints ------------------------------------------------------------------
+
+def unit_vector(s: ClassSymbols) -> Outputs:
+    """g = u.u - 1, B = 2 u^T, bias 2 u'.u'."""
+    u = s.triple("u")
+    return {"constraints": [dot(u.pos, u.pos) - 1],
+            "constraint_jacobian": _jacobian_rows(s, [{u.name: 2 * u.pos.T}] if u.moving
+                                                  else [{}]),
+            "constraint_bias": [2 * dot(u.vel, u.vel)]}
+
+
+def distance(s: ClassSymbols) -> Outputs:
+    """g = d.d - L^2 (d = r_B - r_A), B = 2 d^T (Dhat_B - Dhat_A),
+    bias 2 d'.d' + 2 d.(bias_B - bias_A)."""
+    a, b = _points(s)
+    d, dd = b.pos - a.pos, b.vel - a.vel
+    delta = lin_combine((1, b.dhat), (-1, a.dhat))
+    return {"constraints": [dot(d, d) - s.scalar("L") ** 2],
+            "constraint_jacobian": _jacobian_rows(s, [lin_combine((2 * d.T, delta))]),
+            "constraint_bias": [2 * dot(dd, dd) + 2 * dot(d, b.bias - a.bias)]}
+
+
+def point_on_line(s: ClassSymbols) -> Outputs:
+    """g = a x b, a = r_K - r_A, b = r_B - r_A; B = -~b Da + ~a Db;
+    bias = a'' x b + 2 a' x b' + a x b'' at q'' = 0."""
+    k, pa, pb = _points(s)
+    a, b = k.pos - pa.pos, pb.pos - pa.pos
+    ad, bd = k.vel - pa.vel, pb.vel - pa.vel
+    da = lin_combine((1, k.dhat), (-1, pa.dhat))
+    db = lin_combine((1, pb.dhat), (-1, pa.dhat))
+    jac = s.local(lin_combine((-skew(b), da), (skew(a), db)), 3)
+    bias = (cross(k.bias - pa.bias, b) + 2 * cross(ad, bd) + cross(a, pb.bias - pa.bias))
+    return {"constraints": _flat(cross(a, b)),
+            "constraint_jacobian": _flat(jac),
+            "constraint_bias": _flat(bias)}
+
+
+# -- loads ------------------------------------------------------------------------
+
+def force(s: ClassSymbols) -> Outputs:
+    """f = Dhat^T F at the body point (b1, b2, b3); potential -F.r."""
+    f = body_frame(s)
+    pt = f.point(s.scalar("b1"), s.scalar("b2"), s.scalar("b3"))
+    F = _vec(s, "Fx", "Fy", "Fz")
+    return {"applied_forces": _generalized(s, pt.dhat, F),
+            "energy": [sympy.S.Zero, -dot(F, pt.pos)]}
+
+
+def torque(s: ClassSymbols) -> Outputs:
+    """f = Phi_b^T (R^T T); a constant torque has no potential (energy [0, 0])."""
+    f = body_frame(s)
+    T = _vec(s, "Tx", "Ty", "Tz")
+    t_body = sympy.Matrix([dot(f.e1, T), dot(f.e2, T), dot(f.e3, T)])
+    return {"applied_forces": _generalized(s, f.phi_b, t_body),
+            "energy": [sympy.S.Zero, sympy.S.Zero]}
+
+
+def spring(s: ClassSymbols) -> Outputs:
+    """f = -T (Dhat_B - Dhat_A)^T n with T = k (L - L0) + c L', n = d / L; the scalar
+    -T / L multiplies (Dhat_B - Dhat_A)^T d once per output."""
+    a, b = _points(s)
+    k, l0, c = s.scalar("k"), s.scalar("L0"), s.scalar("c")
+    d, dd = b.pos - a.pos, b.vel - a.vel
+    length = sympy.sqrt(dot(d, d))
+    tension = k * (length - l0) + c * dot(d, dd) / length
+    delta = lin_combine((1, b.dhat), (-1, a.dhat))
+    scale = -tension / length
+    return {"applied_forces": [scale * e for e in _generalized(s, delta, d)],
+            "energy": [sympy.S.Zero, k * (length - l0) ** 2 / 2]}
+
+
+BUILDERS: dict[str, Callable[[ClassSymbols], Outputs]] = {
+    "body": body, "unit_vector": unit_vector, "distance": distance,
+    "point_on_line": point_on_line, "force": force, "torque": torque, "spring": spring,
+}
