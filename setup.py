@@ -5,13 +5,16 @@ Generated kernel modules are built later, per model, by ``fccgen.build``.
 from Cython.Build import cythonize
 from setuptools import Extension, setup
 
+RUNTIME_MODULES = ("_solve", "_assemble", "_engine", "_rk4")   # in cimport order
+
 extensions = [
     Extension(
-        "fccgen.runtime._engine",
-        ["fccgen/runtime/_engine.pyx"],
+        f"fccgen.runtime.{name}",
+        [f"fccgen/runtime/{name}.pyx"],
         include_dirs=["fccgen/runtime"],
         extra_compile_args=["-O2"],
-    ),
+    )
+    for name in RUNTIME_MODULES
 ]
 
 setup(

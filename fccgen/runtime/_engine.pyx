@@ -1,0 +1,252 @@
+# cython: language_level=3
+"""The compiled engine: accelerations and projections, in C without the GIL.
+
+An Engine owns an Assembler (the element kernels bound to a plan) and one constrained
+solve (_solve.pyx); integrators (_rk4.pyx) drive its nogil building blocks. Every
+work array is allocated once, with the Engine.
+
+Failures (a singular reduced mass matrix, a non-finite quantity) set an error record
+in C; the Python side turns it into a SimulationError saying what failed (and, in a
+run, when), so nothing continues on NaN.
+"""
+from libc.math cimport isfinite
+from libc.stdlib cimport calloc, free
+from libc.string cimport memcpy
+
+import time
+
+import numpy as np
+
+from fccgen.errors import SimulationError
+
+from ._assemble cimport ASM_B, ASM_C, ASM_F, ASM_G, ASM_H, ASM_M, Assembler
+from ._solve cimport CSolve, csolve_apply, csolve_factor, csolve_free, csolve_init
+
+from ._messages import error_message
+
+
+cdef bint finite(const double *x, Py_ssize_t n) noexcept nogil:
+    cdef Py_ssize_t i
+    for i in range(n):
+        if not isfinite(x[i]):
+            return False
+    return True
+
+
+cdef class Engine:
+    """Accelerations and projections for one Assembler.
+
+    rank_tol: relative rank threshold of the constraint Jacobian; position_tol: Newton
+    stops when max_k |g_k| / ||B_k|| <= position_tol; max_newton: iteration limit.
+    """
+
+    def __cinit__(self, Assembler asm, double rank_tol=1e-10, double position_tol=1e-11,
+                  int max_newton=20):
+        if asm.n_q <= 0:
+            raise ValueError("the model has no moving coordinates: nothing to simulate")
+        if not (rank_tol > 0 and position_tol > 0 and max_newton >= 0):
+            raise ValueError("rank_tol and position_tol must be positive, max_newton >= 0")
+        self.asm = asm
+        self.n = asm.n_q
+        self.m = asm.n_g
+        self.position_tol = position_tol
+        self.max_newton = max_newton
+        csolve_init(&self.sol, self.n, self.m, rank_tol)
+        self.work = <double *>calloc(4 * self.n + self.m + 1, sizeof(double))
+        if self.work == NULL:
+            raise MemoryError("cannot allocate the engine's work arrays")
+        self.rhs = self.work
+        self.nb = self.rhs + self.n
+        self.dq = self.nb + self.m
+        self.vtmp = self.dq + self.n
+        self.stages = <double *>calloc(10 * self.n, sizeof(double))
+        if self.stages == NULL:
+            raise MemoryError("cannot allocate the engine's work arrays")
+
+    def __dealloc__(self):
+        csolve_free(&self.sol)
+        free(self.work)
+        free(self.stages)
+
+    @property
+    def rank_tol(self):
+        return self.sol.rank_tol
+
+    @property
+    def rank(self):
+        """Numerical rank of B at the last factorisation."""
+        return self.sol.r
+
+    # -- building blocks (nogil) ---------------------------------------------------
+    cdef int fail(self, int code, int info, int detail) noexcept nogil:
+        self.err = code
+        self.err_info = info
+        self.err_detail = detail
+        return -1
+
+    cdef int nonfinite_input(self, const double *q, const double *v, int flags) noexcept nogil:
+        """1-based index (see _messages.INPUTS) of the first non-finite input, 0 if none."""
+        cdef int n = self.n, m = self.m
+        if q != NULL and not finite(q, n): return 1
+        if v != NULL and not finite(v, n): return 2
+        if flags & ASM_M and not finite(self.asm.M, n * n): return 3
+        if flags & ASM_H and not finite(self.asm.h, n): return 4
+        if flags & ASM_F and not finite(self.asm.f, n): return 5
+        if flags & ASM_B and not finite(self.asm.B, m * n): return 6
+        if flags & ASM_C and not finite(self.asm.c, m): return 7
+        if flags & ASM_G and not finite(self.asm.g, m): return 8
+        return 0
+
+    cdef int factor(self, const double *q) noexcept nogil:
+        """Factor the assembled M and B; on failure, blame a non-finite input first."""
+        cdef int info = csolve_factor(&self.sol, self.asm.M, self.asm.B), bad
+        self.factor_valid = False
+        if info == 0:
+            return 0
+        bad = self.nonfinite_input(q, NULL, ASM_M | ASM_B)
+        if bad:
+            return self.fail(ERR_NONFINITE_INPUT, 0, bad)
+        return self.fail(ERR_SINGULAR if info > 0 else ERR_LAPACK, info, 0)
+
+    cdef int accelerations_at(self, const double *q, const double *v, double *a,
+                              bint reuse) noexcept nogil:
+        """a = q'' at (q, v); reuse: sol already holds the factorisation at q."""
+        cdef int i, flags = ASM_H | ASM_F | ASM_C
+        if not reuse:
+            flags |= ASM_M | ASM_B
+        self.asm.assemble(q, v, flags)
+        if not reuse and self.factor(q) < 0:
+            return -1
+        for i in range(self.n):
+            self.rhs[i] = self.asm.f[i] - self.asm.h[i]
+        for i in range(self.m):
+            self.nb[i] = -self.asm.c[i]
+        csolve_apply(&self.sol, self.rhs, NULL, self.nb, a)
+        if not finite(a, self.n):
+            i = self.nonfinite_input(q, v, flags)
+            return self.fail(ERR_NONFINITE_INPUT if i else ERR_NONFINITE_RESULT, 0, i)
+        return 0
+
+    cdef int project_positions_at(self, double *q, int *iterations) noexcept nogil:
+        """Newton on g(q) = 0, in place: dq = argmin dq^T M dq / 2 subject to
+        B dq = -g, with g and B at every iterate and the metric M at the starting
+        point. Returns 0 (converged), 1 (not within max_newton) or -1 (error). Leaves g
+        and B assembled at the final q."""
+        cdef int i, it = 0
+        cdef double res
+        self.asm.assemble(q, NULL, ASM_G | ASM_B)
+        res = self.asm.scaled_residual()
+        while True:
+            if not isfinite(res):
+                iterations[0] = it
+                return self.fail(ERR_NONFINITE_INPUT, 0,
+                                 self.nonfinite_input(q, NULL, ASM_G | ASM_B) or 8)
+            if res <= self.position_tol:
+                break
+            if it >= self.max_newton:
+                iterations[0] = it
+                return 1
+            if it == 0:
+                self.asm.assemble(q, NULL, ASM_M)
+            if self.factor(q) < 0:
+                iterations[0] = it
+                return -1
+            for i in range(self.m):
+                self.nb[i] = -self.asm.g[i]
+            csolve_apply(&self.sol, NULL, NULL, self.nb, self.dq)
+            for i in range(self.n):
+                q[i] += self.dq[i]
+            it += 1
+            self.asm.assemble(q, NULL, ASM_G | ASM_B)
+            res = self.asm.scaled_residual()
+        iterations[0] = it
+        return 0
+
+    cdef int project_velocities_at(self, const double *q, double *v,
+                                   bint have_B) noexcept nogil:
+        """v <- the M-orthogonal projection of v onto B v = 0, in place. Leaves the
+        factorisation of (M, B) at q in sol; have_B: B is already assembled at q."""
+        cdef int i
+        self.asm.assemble(q, NULL, ASM_M if have_B else ASM_M | ASM_B)
+        if self.factor(q) < 0:
+            return -1
+        csolve_apply(&self.sol, NULL, v, NULL, self.vtmp)
+        if not finite(self.vtmp, self.n):
+            i = self.nonfinite_input(q, v, ASM_M | ASM_B)
+            return self.fail(ERR_NONFINITE_INPUT if i else ERR_NONFINITE_RESULT, 0, i)
+        memcpy(v, self.vtmp, self.n * sizeof(double))
+        self.factor_valid = True
+        return 0
+
+    # -- Python access -------------------------------------------------------------
+    cdef double[::1] vector(self, object x, str name, bint copy=True):
+        """x as a contiguous float64 vector of length n; a private copy unless the
+        caller only reads it."""
+        a = np.array(x, dtype=float) if copy else np.ascontiguousarray(x, dtype=float)
+        if not a.flags.writeable:                         # typed views need writeable
+            a = a.copy()
+        if a.shape != (self.n,):
+            raise ValueError(f"{name} must have shape ({self.n},), got {a.shape}")
+        return a
+
+    cdef raise_error(self, int where):
+        self.err_where = where
+        raise SimulationError(error_message(self.error_record(), in_run=False))
+
+    cdef dict error_record(self):
+        return dict(code=self.err, info=self.err_info, detail=self.err_detail,
+                    where=self.err_where, stage=self.err_stage, t=self.err_t,
+                    h=self.err_h, rank=self.sol.r, n_q=self.n, n_g=self.m,
+                    nullity=self.sol.nr)
+
+    def accelerations(self, q, v):
+        """q'' at (q, v): a fresh array."""
+        cdef double[::1] qv = self.vector(q, "q", False), vv = self.vector(v, "v", False)
+        a = np.empty(self.n)
+        cdef double[::1] av = a
+        cdef int rc
+        with nogil:
+            rc = self.accelerations_at(&qv[0], &vv[0], &av[0], False)
+        if rc < 0:
+            self.raise_error(AT_CALL)
+        return a
+
+    def project_positions(self, q):
+        """(q_new, iterations, converged, residual): Newton projection of q onto
+        g(q) = 0; residual is max_k |g_k| / ||B_k|| at q_new."""
+        cdef double[::1] qv = self.vector(q, "q")
+        cdef int rc, it = 0
+        with nogil:
+            rc = self.project_positions_at(&qv[0], &it)
+        if rc < 0:
+            self.raise_error(AT_POSITIONS)
+        return np.asarray(qv), it, rc == 0, self.asm.scaled_residual()
+
+    def project_velocities(self, q, v):
+        """The M-orthogonal projection of v onto B(q) v = 0: a fresh array."""
+        cdef double[::1] qv = self.vector(q, "q", False), vv = self.vector(v, "v")
+        cdef int rc
+        with nogil:
+            rc = self.project_velocities_at(&qv[0], &vv[0], False)
+        if rc < 0:
+            self.raise_error(AT_VELOCITIES)
+        return np.asarray(vv)
+
+    def time_accelerations(self, q, v, long batch):
+        """Seconds taken by ``batch`` evaluations of the accelerations (assembly,
+        factorisation, solve) in one compiled loop."""
+        cdef double[::1] qv = self.vector(q, "q", False), vv = self.vector(v, "v", False)
+        a = np.empty(self.n)
+        cdef double[::1] av = a
+        cdef long i
+        cdef int rc = 0
+        t0 = time.perf_counter()
+        with nogil:
+            for i in range(batch):
+                rc = self.accelerations_at(&qv[0], &vv[0], &av[0], False)
+                if rc < 0:
+                    break
+        elapsed = time.perf_counter() - t0
+        if rc < 0:
+            self.raise_error(AT_CALL)
+        return elapsed

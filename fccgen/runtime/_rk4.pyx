@@ -1,0 +1,238 @@
+# cython: language_level=3
+"""Classical RK4 with projection: the whole per-step loop in C, without the GIL.
+
+After each step (if asked): Newton position projection onto g(q) = 0, then the
+M-orthogonal velocity projection onto B v = 0; the factorisation of the velocity
+projection is the one the next step's first stage needs (same M and B), so it is
+reused. The run leaves C only to pause about every 0.5 s of wall time, for signals
+(Ctrl-C) and an optional progress callback.
+"""
+from cpython.exc cimport PyErr_CheckSignals
+from libc.string cimport memcpy
+from posix.time cimport CLOCK_MONOTONIC, clock_gettime, timespec
+
+import numpy as np
+
+from fccgen.errors import SimulationError
+
+from ._assemble cimport ASM_BODY, ASM_E, ASM_G
+from ._engine cimport (AT_POSITIONS, AT_STAGE, AT_STEP, AT_VELOCITIES, ERR_NONE,
+                       ERR_NONFINITE_INPUT, Engine, finite)
+
+from ._messages import error_message
+
+cdef enum:
+    RUN_DONE = 0
+    RUN_PAUSE = 1
+    RUN_ERROR = -1
+
+
+cdef struct Run:
+    bint project
+    long k                    # steps done
+    long n_steps
+    long every                # record every this many steps
+    long n_out                # records written
+    double dt
+    double t_end
+    long n_rhs                # acceleration evaluations
+    long failures             # position projections that did not converge
+    int newton_max            # most Newton iterations in one projection
+    double max_cerr           # largest max |g| of a recorded or stepped state
+    double *q                 # state, stage states, stage accelerations (engine.stages)
+    double *v
+    double *qs
+    double *v2
+    double *v3
+    double *v4
+    double *a1
+    double *a2
+    double *a3
+    double *a4
+    double *t_out             # records, in numpy arrays owned by the caller
+    double *q_out
+    double *v_out
+    double *body_out
+    double *e_out
+    double *c_out
+
+
+cdef inline double _now() noexcept nogil:
+    cdef timespec ts
+    clock_gettime(CLOCK_MONOTONIC, &ts)
+    return ts.tv_sec + 1e-9 * ts.tv_nsec
+
+
+cdef int _stage(Engine e, Run *r, int stage, const double *q, const double *v, double *a,
+                bint reuse) noexcept nogil:
+    e.err_stage = stage
+    r.n_rhs += 1
+    return e.accelerations_at(q, v, a, reuse)
+
+
+cdef int _step(Engine e, Run *r, double h) noexcept nogil:
+    """One classical RK4 step of (q' = v, v' = a(q, v)) of size h, in place."""
+    cdef int i, n = e.n
+    cdef double h2 = 0.5 * h, h6 = h / 6.0
+    if _stage(e, r, 1, r.q, r.v, r.a1, e.factor_valid) < 0: return -1
+    for i in range(n):
+        r.qs[i] = r.q[i] + h2 * r.v[i]
+        r.v2[i] = r.v[i] + h2 * r.a1[i]
+    if _stage(e, r, 2, r.qs, r.v2, r.a2, False) < 0: return -1
+    for i in range(n):
+        r.qs[i] = r.q[i] + h2 * r.v2[i]
+        r.v3[i] = r.v[i] + h2 * r.a2[i]
+    if _stage(e, r, 3, r.qs, r.v3, r.a3, False) < 0: return -1
+    for i in range(n):
+        r.qs[i] = r.q[i] + h * r.v3[i]
+        r.v4[i] = r.v[i] + h * r.a3[i]
+    if _stage(e, r, 4, r.qs, r.v4, r.a4, False) < 0: return -1
+    for i in range(n):
+        r.q[i] += h6 * (r.v[i] + 2.0 * r.v2[i] + 2.0 * r.v3[i] + r.v4[i])
+        r.v[i] += h6 * (r.a1[i] + 2.0 * r.a2[i] + 2.0 * r.a3[i] + r.a4[i])
+    return 0
+
+
+cdef int _after_step(Engine e, Run *r) noexcept nogil:
+    """Check the new state, project it (if asked) and track max |g|."""
+    cdef int rc, it = 0
+    cdef double cerr
+    if not (finite(r.q, e.n) and finite(r.v, e.n)):
+        e.err_where = AT_STEP
+        return e.fail(ERR_NONFINITE_INPUT, 0, 1 if not finite(r.q, e.n) else 2)
+    if r.project:
+        e.err_where = AT_POSITIONS
+        rc = e.project_positions_at(r.q, &it)
+        if rc < 0:
+            return -1
+        r.failures += rc
+        if it > r.newton_max:
+            r.newton_max = it
+        cerr = e.asm.max_abs_g()             # g is left assembled at the final q
+        e.err_where = AT_VELOCITIES
+        if e.project_velocities_at(r.q, r.v, True) < 0:
+            return -1
+    else:
+        e.asm.assemble(r.q, NULL, ASM_G)
+        cerr = e.asm.max_abs_g()
+    if not cerr <= r.max_cerr:
+        r.max_cerr = cerr
+    return 0
+
+
+cdef void _record(Engine e, Run *r, double t) noexcept nogil:
+    """Write record r.n_out: t, q, v, body outputs, energy, max |g|."""
+    cdef Py_ssize_t j = r.n_out, n = e.n, nb6 = 6 * e.asm.n_bodies
+    e.asm.assemble(r.q, r.v, ASM_G | ASM_E | ASM_BODY)
+    r.t_out[j] = t
+    memcpy(r.q_out + j * n, r.q, n * sizeof(double))
+    memcpy(r.v_out + j * n, r.v, n * sizeof(double))
+    if nb6:
+        memcpy(r.body_out + j * nb6, e.asm.body, nb6 * sizeof(double))
+    r.e_out[j] = e.asm.energy[0] + e.asm.energy[1]
+    r.c_out[j] = e.asm.max_abs_g()
+    if not r.c_out[j] <= r.max_cerr:
+        r.max_cerr = r.c_out[j]
+    r.n_out += 1
+
+
+cdef int _run(Engine e, Run *r, double deadline) noexcept nogil:
+    """Steps until the end (RUN_DONE), an error (RUN_ERROR) or the wall-clock deadline
+    (RUN_PAUSE)."""
+    cdef double t, h
+    while r.k < r.n_steps:
+        t = r.k * r.dt
+        h = r.dt if r.k < r.n_steps - 1 else r.t_end - t
+        e.err_where = AT_STAGE
+        e.err_t = t
+        e.err_h = h
+        if _step(e, r, h) < 0:
+            return RUN_ERROR
+        r.k += 1
+        t = r.k * r.dt if r.k < r.n_steps else r.t_end
+        e.err_t = t
+        if _after_step(e, r) < 0:
+            return RUN_ERROR
+        if r.k % r.every == 0 or r.k == r.n_steps:
+            _record(e, r, t)
+        if r.k < r.n_steps and _now() >= deadline:
+            return RUN_PAUSE
+    return RUN_DONE
+
+
+cdef double *_data(object array):
+    """Pointer to the data of a fresh C-contiguous float64 array (NULL if empty)."""
+    cdef double[::1] flat = array.reshape(-1)
+    return &flat[0] if flat.shape[0] else NULL
+
+
+cdef void _start(Engine e, Run *r, double[::1] q0, double[::1] v0, dict arrays):
+    cdef int n = e.n
+    r.q, r.v, r.qs, r.v2, r.v3 = e.stages, e.stages + n, e.stages + 2 * n, \
+        e.stages + 3 * n, e.stages + 4 * n
+    r.v4, r.a1, r.a2, r.a3, r.a4 = e.stages + 5 * n, e.stages + 6 * n, \
+        e.stages + 7 * n, e.stages + 8 * n, e.stages + 9 * n
+    memcpy(r.q, &q0[0], n * sizeof(double))
+    memcpy(r.v, &v0[0], n * sizeof(double))
+    r.t_out, r.q_out, r.v_out = _data(arrays["t"]), _data(arrays["q"]), _data(arrays["v"])
+    r.body_out, r.e_out = _data(arrays["body"]), _data(arrays["energy"])
+    r.c_out = _data(arrays["constraint_error"])
+    e.factor_valid = False
+    e.err = ERR_NONE
+
+
+def simulate_rk4(Engine engine, q0, v0, double t_end, double dt, long n_steps,
+                 long output_every, bint project, progress=None,
+                 double progress_interval=0.5):
+    """Classical RK4 from (q0, v0) (used as given) over n_steps steps of dt, the last
+    one shortened to end at t_end; after each step, if project, position then velocity
+    projection. Records t = 0, every output_every steps and t_end.
+
+    progress(t) is called when the run pauses, at most every progress_interval seconds
+    of wall time. Returns (arrays, stats): fresh arrays t, q, v, body, energy,
+    constraint_error; stats steps, rhs_evaluations, max_newton_iterations,
+    projection_failures, max_constraint_error. Raises SimulationError (with the time
+    and what failed) on a singular mass matrix or a non-finite state.
+    """
+    if engine.running:
+        raise RuntimeError("this engine is already running a simulation")
+    if not (n_steps >= 1 and output_every >= 1 and dt > 0 and t_end > 0):
+        raise ValueError("need n_steps >= 1, output_every >= 1, dt > 0, t_end > 0")
+    if not (0 < t_end - (n_steps - 1) * dt <= dt * (1 + 1e-9)):
+        raise ValueError(f"{n_steps} steps of {dt!r} do not end at t_end = {t_end!r}")
+    cdef double[::1] qv = engine.vector(q0, "q0"), vv = engine.vector(v0, "v0")
+    if not (np.all(np.isfinite(qv)) and np.all(np.isfinite(vv))):
+        raise ValueError("q0 and v0 must be finite")
+    cdef Py_ssize_t n = engine.n
+    n_out = 1 + n_steps // output_every + (1 if n_steps % output_every else 0)
+    arrays = dict(t=np.zeros(n_out), q=np.zeros((n_out, n)), v=np.zeros((n_out, n)),
+                  body=np.zeros((n_out, engine.asm.n_bodies, 6)), energy=np.zeros(n_out),
+                  constraint_error=np.zeros(n_out))
+    cdef Run r
+    r.project, r.n_steps, r.every, r.dt, r.t_end = project, n_steps, output_every, dt, t_end
+    r.k = r.n_out = r.n_rhs = r.failures = 0
+    r.newton_max = 0
+    r.max_cerr = 0.0
+    _start(engine, &r, qv, vv, arrays)
+    cdef int status
+    cdef double deadline
+    engine.running = True
+    try:
+        _record(engine, &r, 0.0)
+        while True:
+            deadline = _now() + progress_interval
+            with nogil:
+                status = _run(engine, &r, deadline)
+            if status == RUN_DONE:
+                break
+            if status == RUN_ERROR:
+                raise SimulationError(error_message(engine.error_record(), in_run=True))
+            PyErr_CheckSignals()
+            if progress is not None:
+                progress(r.k * dt)
+            engine.factor_valid = False     # the callback may have used the engine
+    finally:
+        engine.running = False
+    stats = dict(steps=r.k, rhs_evaluations=r.n_rhs, max_newton_iterations=r.newton_max,
+                 projection_failures=r.failures, max_constraint_error=r.max_cerr)
+    return arrays, stats
