@@ -1,2 +1,14 @@
-"""fccgen: compiled solvers of the fully-Cartesian-coordinate form of Kane's equations."""
+"""fccgen: compiled solvers of the fully-Cartesian-coordinate form of Kane's equations.
+
+    import fccgen
+    solver = fccgen.load("examples/double_pendulum.yaml")   # generate + compile, cached
+    result = solver.simulate(t_end=2.0)
+
+The runtime path (loading a cached module, simulating) never imports SymPy.
+"""
 __version__ = "0.1.0"
+
+from .api import generate, load, load_numeric, simulate  # noqa: E402
+from .results import Result  # noqa: E402
+
+__all__ = ["__version__", "generate", "load", "load_numeric", "simulate", "Result"]

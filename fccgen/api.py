@@ -1,0 +1,68 @@
+"""The Python API: every command-line action is one call of a function here.
+
+Nothing here imports SymPy: generation (which does) is imported lazily by
+``fccgen.build`` only on a cache miss.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Callable
+
+from .model import load_model
+from .plan import make_plan
+
+DEFAULT_BUILD_DIR = "generated"
+Progress = Callable[[str], None] | None
+
+
+def plan_model(path):
+    """Load, validate and lay out a model file."""
+    return make_plan(load_model(path))
+
+
+def generate(path, build_dir=DEFAULT_BUILD_DIR, *, force=False, progress: Progress = None):
+    """Generate and compile a model's kernels (served from the cache when unchanged).
+
+    Returns ``(plan, built)`` with ``built`` a :class:`fccgen.build.BuiltModule`.
+    """
+    from .build import build_module
+    plan = plan_model(path)
+    built = build_module(plan, build_dir, force=force, progress=progress)
+    return plan, built
+
+
+def load(path, build_dir=DEFAULT_BUILD_DIR, *, progress: Progress = None, **solver_options):
+    """A compiled solver of the model (generated and compiled first if needed).
+
+    ``solver_options`` go to :class:`fccgen.runtime.CompiledSolver` (rank_tol,
+    position_tol, max_newton).
+    """
+    from .build import load_module
+    from .runtime import CompiledSolver
+    plan, built = generate(path, build_dir, progress=progress)
+    return CompiledSolver(plan, load_module(built), **solver_options)
+
+
+def load_numeric(path, **solver_options):
+    """The NumPy version of the same solver (slow; the cross-check and baseline)."""
+    from .numeric import NumericSolver
+    return NumericSolver(plan_model(path), **solver_options)
+
+
+def simulate(path, *, t_end=None, dt=None, method=None, output_dt=None, project=True,
+             numeric=False, out=None, build_dir=DEFAULT_BUILD_DIR,
+             progress: Progress = None):
+    """Simulate a model from its consistent initial state; write ``out`` if given.
+
+    Returns ``(result, initial_state)``.
+    """
+    solver = load_numeric(path) if numeric else load(path, build_dir, progress=progress)
+    init = solver.initial_state()
+    kwargs = dict(t_end=t_end, dt=dt, method=method, output_dt=output_dt,
+                  project=project, q0=init.q, v0=init.v)
+    if not numeric:
+        kwargs["progress"] = progress
+    result = solver.simulate(**kwargs)
+    if out is not None:
+        result.save(Path(out))
+    return result, init

@@ -1,0 +1,148 @@
+"""``fccgen bench``: the compiled version against the numeric one, measured in one run.
+
+Timings are medians over many repetitions of warm calls. Compiled kernels are timed
+inside compiled loops (no Python call in the measurement); the numeric version is timed
+through its Python functions, which is how it runs.
+"""
+from __future__ import annotations
+
+import statistics
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .plan.kernels import KERNEL_NAMES
+
+GLOBAL_KERNELS = {  # kernel -> (solver method, takes v)
+    "mass_matrix": ("mass_matrix", False),
+    "h_vector": ("h_vector", True),
+    "applied_forces": ("applied_forces", True),
+    "constraints": ("constraints", False),
+    "constraint_jacobian": ("constraint_jacobian", False),
+    "constraint_bias": ("constraint_bias", True),
+    "energy": ("energy", True),
+    "body_outputs": ("body_outputs", True),
+}
+
+
+@dataclass
+class BenchRow:
+    what: str
+    compiled: float        # seconds per call
+    numeric: float
+    max_rel_diff: float    # largest |compiled - numeric| / max |numeric|
+
+    @property
+    def speedup(self) -> float:
+        return self.numeric / self.compiled if self.compiled > 0 else float("inf")
+
+
+@dataclass
+class BenchReport:
+    name: str
+    n_q: int
+    n_g: int
+    rows: list[BenchRow] = field(default_factory=list)
+    build: dict = field(default_factory=dict)      # timings of the last real build
+    cache_hit_seconds: float = float("nan")
+
+    def row(self, what: str) -> BenchRow:
+        return next(r for r in self.rows if r.what == what)
+
+    def text(self) -> str:
+        out = [f"model {self.name}: {self.n_q} coordinates, {self.n_g} constraint equations",
+               f"{'':24}{'compiled':>12}{'numeric':>12}{'speed-up':>10}{'max rel diff':>14}"]
+        for r in self.rows:
+            out.append(f"{r.what:24}{_fmt(r.compiled):>12}{_fmt(r.numeric):>12}"
+                       f"{r.speedup:>9.1f}x{r.max_rel_diff:>14.2e}")
+        if self.build:
+            parts = ", ".join(f"{k} {v:.2f} s" for k, v in self.build.items())
+            out.append(f"last build: {parts}")
+        out.append(f"cache hit: {self.cache_hit_seconds * 1e3:.1f} ms")
+        return "\n".join(out)
+
+
+def _fmt(seconds: float) -> str:
+    if seconds < 1e-3:
+        return f"{seconds * 1e6:.2f} us"
+    if seconds < 1.0:
+        return f"{seconds * 1e3:.2f} ms"
+    return f"{seconds:.2f} s"
+
+
+def median_time(fn, repeats: int, min_batch_seconds: float = 2e-4) -> float:
+    """Median seconds per call of ``fn()``, calls batched so each sample is long enough
+    to time, after a warm-up."""
+    fn()
+    batch = 1
+    while True:
+        t0 = time.perf_counter()
+        for _ in range(batch):
+            fn()
+        if time.perf_counter() - t0 >= min_batch_seconds or batch >= 1 << 16:
+            break
+        batch *= 2
+    samples = []
+    for _ in range(max(repeats // 10, 5)):
+        t0 = time.perf_counter()
+        for _ in range(batch):
+            fn()
+        samples.append((time.perf_counter() - t0) / batch)
+    return statistics.median(samples)
+
+
+def _rel(a, b) -> float:
+    a, b = np.atleast_1d(np.asarray(a, float)), np.atleast_1d(np.asarray(b, float))
+    scale = float(np.max(np.abs(b))) if b.size else 0.0
+    return float(np.max(np.abs(a - b)) / scale) if scale > 0 else float(np.max(np.abs(a - b)))
+
+
+def bench_model(path, build_dir="generated", *, repeats=200, progress=None,
+                rk4_steps=2000, seed=0) -> BenchReport:
+    from .api import generate, load, load_numeric
+    from .build import load_module  # noqa: F401  (imported for its side effect: build)
+
+    t0 = time.perf_counter()
+    plan, built = generate(path, build_dir, progress=progress)
+    hit = time.perf_counter() - t0
+    cs = load(path, build_dir)
+    t0 = time.perf_counter()
+    generate(path, build_dir)
+    hit = min(hit, time.perf_counter() - t0)
+    ns = load_numeric(path)
+
+    rng = np.random.default_rng(seed)
+    init = ns.initial_state()
+    q, v = init.q, ns.project_velocities(init.q, init.v + rng.normal(size=init.v.shape))
+    report = BenchReport(plan.model.name, plan.n_q, plan.n_g,
+                         build=dict(built.timings), cache_hit_seconds=hit)
+    if progress:
+        progress(f"timing {len(KERNEL_NAMES)} kernels, accelerations and RK4 steps")
+    c_kernels = cs.time_kernels(q, v, repeats)
+    for kernel, (method, takes_v) in GLOBAL_KERNELS.items():
+        if kernel not in c_kernels:
+            continue
+        args = (q, v) if takes_v else (q,)
+        n_fn = getattr(ns, method)
+        report.rows.append(BenchRow(kernel, c_kernels[kernel], median_time(lambda: n_fn(*args),
+                                                                            repeats),
+                                    _rel(getattr(cs, method)(*args), n_fn(*args))))
+    report.rows.append(BenchRow(
+        "accelerations", cs.time_accelerations(q, v, repeats),
+        median_time(lambda: ns.accelerations(q, v), repeats),
+        _rel(cs.accelerations(q, v), ns.accelerations(q, v))))
+    dt = plan.model.simulate.dt
+    n_steps = 20
+    t_num = median_time(lambda: ns.simulate(t_end=n_steps * dt, dt=dt, q0=q, v0=v,
+                                            output_dt=n_steps * dt),
+                        max(repeats // 40, 3), min_batch_seconds=0.0) / n_steps
+    c_steps = []
+    for _ in range(5):
+        r = cs.simulate(t_end=rk4_steps * dt, dt=dt, q0=q, v0=v, output_dt=rk4_steps * dt)
+        c_steps.append(r.info["wall_time"] / rk4_steps)
+    rn = ns.simulate(t_end=n_steps * dt, dt=dt, q0=q, v0=v, output_dt=n_steps * dt)
+    rc = cs.simulate(t_end=n_steps * dt, dt=dt, q0=q, v0=v, output_dt=n_steps * dt)
+    diff = max(_rel(rc[c], rn[c]) for c in rn.columns if c != "constraint_error")
+    report.rows.append(BenchRow("rk4 step (projected)", statistics.median(c_steps), t_num, diff))
+    return report

@@ -1,0 +1,91 @@
+"""``fccgen check``: what a model is made of, its degrees of freedom counted and by
+rank, which constraint equations are redundant, and the assembly residual."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg
+
+RANK_TOL = 1e-10      # relative to the largest pivot, as in the solvers
+
+
+@dataclass
+class CheckReport:
+    name: str
+    source: str
+    n_points: int
+    n_vectors: int
+    n_bodies: int
+    n_q: int
+    n_g: int
+    rank: int
+    rows: list[str]                           # label of every constraint equation
+    redundant: list[str]                      # equations that depend on the others
+    classes: list[str]                        # element class descriptions
+    init_report: str
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def dof_counted(self) -> int:
+        return self.n_q - self.n_g
+
+    @property
+    def dof(self) -> int:
+        return self.n_q - self.rank
+
+    def text(self) -> str:
+        lines = [
+            f"model {self.name} ({self.source})",
+            f"  moving points {self.n_points}, moving vectors {self.n_vectors}, "
+            f"moving bodies {self.n_bodies}",
+            f"  coordinates {self.n_q}, constraint equations {self.n_g}, "
+            f"rank {self.rank}",
+            f"  degrees of freedom: {self.dof_counted} counted (coordinates - equations), "
+            f"{self.dof} by rank",
+            f"  redundant constraint equations: {len(self.redundant)}",
+        ]
+        lines += [f"    {r}" for r in self.redundant]
+        lines.append(f"  element classes: {len(self.classes)}")
+        lines += [f"    {c}" for c in self.classes]
+        lines.append("  initial state:")
+        lines += ["    " + s for s in self.init_report.splitlines()]
+        lines += [f"  note: {n}" for n in self.notes]
+        return "\n".join(lines)
+
+
+def constraint_row_labels(plan) -> list[str]:
+    return [f"{el.label} ({row})" for el in plan.elements for row in el.cls.constraint_rows]
+
+
+def rank_and_redundant(B: np.ndarray, labels: list[str], tol: float = RANK_TOL):
+    """Rank of B (rows scaled to unit norm) and the rows that depend on earlier ones,
+    by QR with column pivoting of B^T."""
+    if B.shape[0] == 0:
+        return 0, []
+    norms = np.linalg.norm(B, axis=1)
+    scaled = B / np.where(norms > 0, norms, 1.0)[:, None]
+    _, R, piv = scipy.linalg.qr(scaled.T, mode="economic", pivoting=True)
+    diag = np.abs(np.diag(R))
+    rank = int(np.sum(diag > tol * diag[0])) if diag.size and diag[0] > 0 else 0
+    redundant = sorted(int(k) for k in piv[rank:])
+    return rank, [labels[k] for k in redundant]
+
+
+def check_model(path) -> CheckReport:
+    """Validate a model and report its structure (needs no compiler)."""
+    from .api import load_numeric
+    solver = load_numeric(path)
+    plan = solver.plan
+    init = solver.initial_state()
+    labels = constraint_row_labels(plan)
+    B = solver.constraint_jacobian(init.q)
+    rank, redundant = rank_and_redundant(B, labels)
+    model = plan.model
+    return CheckReport(
+        name=model.name, source=str(model.source),
+        n_points=len(model.moving_points), n_vectors=len(model.moving_vectors),
+        n_bodies=len(plan.bodies), n_q=plan.n_q, n_g=plan.n_g, rank=rank,
+        rows=labels, redundant=redundant,
+        classes=[f"{c.name}: {c.describe()}" for c in plan.classes],
+        init_report=init.report(), notes=list(plan.notes))

@@ -1,0 +1,154 @@
+"""Command line (DESIGN section 5): a thin layer over :mod:`fccgen.api`.
+
+    fccgen MODEL.yaml                 generate and compile (cached)
+    fccgen simulate MODEL.yaml ...    simulate and write results
+    fccgen bench MODEL.yaml           compiled vs numeric timings and differences
+    fccgen check MODEL.yaml           validate and report structure
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+
+from . import __version__
+from .errors import FccgenError, ModelError
+
+COMMANDS = ("simulate", "bench", "check", "generate")
+
+
+class _Progress:
+    """Stage messages and long-run progress on stderr; at most one line per second
+    when stderr is not a terminal."""
+
+    def __init__(self, quiet: bool):
+        self.quiet = quiet
+        self.tty = sys.stderr.isatty()
+        self.last = 0.0
+
+    def __call__(self, message: str) -> None:
+        if self.quiet:
+            return
+        now = time.monotonic()
+        transient = message.startswith("t = ")
+        if transient and not self.tty and now - self.last < 5.0:
+            return
+        self.last = now
+        end = "\r" if (transient and self.tty) else "\n"
+        sys.stderr.write(f"fccgen: {message}{' ' * 8 if end == chr(13) else ''}{end}")
+        sys.stderr.flush()
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="fccgen",
+        description="Generate, compile and run solvers of the FCC form of Kane's equations.",
+        epilog="With no command, 'fccgen MODEL.yaml' generates and compiles the model.")
+    p.add_argument("--version", action="version", version=f"fccgen {__version__}")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND")
+
+    def common(sp):
+        sp.add_argument("model", help="model file (YAML)")
+        sp.add_argument("--build-dir", default="generated",
+                        help="where compiled modules go (default: ./generated)")
+        sp.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
+
+    g = sub.add_parser("generate", help="generate and compile (the default command)")
+    common(g)
+    g.add_argument("--force", action="store_true", help="rebuild even if cached")
+
+    s = sub.add_parser("simulate", help="simulate from the model's initial state")
+    common(s)
+    s.add_argument("--t-end", type=float, help="end time (default: model's simulate.t_end)")
+    s.add_argument("--dt", type=float, help="time step (default: model's simulate.dt)")
+    s.add_argument("--method", help="integration method (default: model's simulate.method)")
+    s.add_argument("--output-dt", type=float,
+                   help="output interval, a multiple of dt (default: every step)")
+    s.add_argument("--out", help="write results to FILE.csv or FILE.npz")
+    s.add_argument("--no-project", action="store_true",
+                   help="do not project positions and velocities onto the constraints")
+    s.add_argument("--numeric", action="store_true",
+                   help="use the NumPy version instead of the compiled one (slow)")
+
+    b = sub.add_parser("bench", help="time compiled vs numeric versions")
+    common(b)
+    b.add_argument("--repeats", type=int, default=200,
+                   help="timed repetitions per measurement (median reported)")
+
+    c = sub.add_parser("check", help="validate and report coordinates, constraints, DOF")
+    common(c)
+    return p
+
+
+def main(argv=None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv and argv[0] not in COMMANDS and not argv[0].startswith("-"):
+        argv.insert(0, "generate")
+    args = _parser().parse_args(argv)
+    if args.command is None:
+        _parser().print_help()
+        return 2
+    progress = _Progress(args.quiet)
+    try:
+        return _run(args, progress)
+    except ModelError as exc:
+        print(f"fccgen: error: {exc}", file=sys.stderr)
+        return 2
+    except (FccgenError, ValueError) as exc:
+        print(f"fccgen: error: {exc}", file=sys.stderr)
+        return 1
+
+
+def _run(args, progress) -> int:
+    from . import api
+    if args.command == "generate":
+        t0 = time.perf_counter()
+        plan, built = api.generate(args.model, args.build_dir, force=args.force,
+                                   progress=progress)
+        how = "served from the cache" if built.cache_hit else "built"
+        print(f"{plan.model.name}: {how} in {time.perf_counter() - t0:.2f} s "
+              f"({plan.n_q} coordinates, {plan.n_g} constraint equations, "
+              f"{len(plan.classes)} element classes)")
+        print(f"module: {built.path}")
+        print("use it from Python:\n"
+              "    import fccgen\n"
+              f"    solver = fccgen.load({str(args.model)!r}"
+              + ("" if args.build_dir == "generated" else f", build_dir={args.build_dir!r}")
+              + ")\n"
+              "    result = solver.simulate()        # result['t'], result.names\n"
+              "or import the kernel module itself:\n"
+              f"    import sys; sys.path.insert(0, {str(built.directory)!r})\n"
+              f"    import {built.module_name}")
+        return 0
+    if args.command == "simulate":
+        result, init = api.simulate(
+            args.model, t_end=args.t_end, dt=args.dt, method=args.method,
+            output_dt=args.output_dt, project=not args.no_project, numeric=args.numeric,
+            out=args.out, build_dir=args.build_dir, progress=progress)
+        print(init.report())
+        info = result.info
+        e = result["energy"]
+        print(f"{info.get('method')}: {info.get('steps')} steps to t = {result.t[-1]:.6g} in "
+              f"{info.get('wall_time', float('nan')):.3g} s; max constraint error "
+              f"{info.get('max_constraint_error', float('nan')):.3g}; energy drift "
+              f"{abs(e[-1] - e[0]):.3g} (from {e[0]:.6g})")
+        if args.out:
+            print(f"results: {args.out} ({len(result.t)} rows, {len(result.names)} columns)")
+        else:
+            print("no --out given: results not written")
+        return 0
+    if args.command == "bench":
+        from .bench import bench_model
+        report = bench_model(args.model, args.build_dir, repeats=args.repeats,
+                             progress=progress)
+        print(report.text())
+        return 0
+    if args.command == "check":
+        from .check import check_model
+        print(check_model(args.model).text())
+        return 0
+    raise AssertionError(args.command)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,43 @@
+"""Shared fixtures: each example is generated and compiled once per test session."""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+EXAMPLES = ROOT / "examples"
+REFERENCE = Path(__file__).resolve().parent / "reference"
+sys.path.insert(0, str(Path(__file__).resolve().parent))   # tests/minimal.py
+
+
+@pytest.fixture(scope="session")
+def build_dir(tmp_path_factory) -> Path:
+    return tmp_path_factory.mktemp("generated")
+
+
+@pytest.fixture(scope="session")
+def compiled(build_dir):
+    """compiled(name) -> CompiledSolver of examples/<name>.yaml, built once."""
+    import fccgen
+    cache = {}
+
+    def get(name: str):
+        if name not in cache:
+            cache[name] = fccgen.load(EXAMPLES / f"{name}.yaml", build_dir)
+        return cache[name]
+    return get
+
+
+@pytest.fixture(scope="session")
+def numeric():
+    """numeric(name) -> NumericSolver of examples/<name>.yaml."""
+    import fccgen
+    cache = {}
+
+    def get(name: str):
+        if name not in cache:
+            cache[name] = fccgen.load_numeric(EXAMPLES / f"{name}.yaml")
+        return cache[name]
+    return get
