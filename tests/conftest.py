@@ -41,3 +41,18 @@ def numeric():
             cache[name] = fccgen.load_numeric(EXAMPLES / f"{name}.yaml")
         return cache[name]
     return get
+
+
+def run_python(code: str, cwd: Path, check: bool = True):
+    """Run ``python -c code`` in a fresh interpreter that imports the same fccgen as
+    this test session (source tree or installed), from ``cwd`` -- never from the
+    repository root, whose source package would shadow an installed one."""
+    import os
+    import subprocess
+
+    import fccgen
+    package_parent = str(Path(fccgen.__file__).resolve().parent.parent)
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+        [package_parent, *filter(None, [os.environ.get("PYTHONPATH")])])}
+    return subprocess.run([sys.executable, "-c", code], cwd=cwd, env=env,
+                          capture_output=True, text=True, check=check)

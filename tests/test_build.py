@@ -105,10 +105,12 @@ def test_cache_hit_does_not_import_sympy(first_build):
         f"built = build_module(make_plan(helpers.pendulum_model()), {str(out_dir)!r})\n"
         "load_module(built).table_capsule()\n"
         "print(built.cache_hit, 'sympy' in sys.modules)\n")
+    # the fccgen this test imported (source tree or installed), never the working dir
+    package_parent = str(Path(fccgen.__file__).resolve().parent.parent)
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(
-        [str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])])}
+        [package_parent, *filter(None, [os.environ.get("PYTHONPATH")])])}
     run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
-                         cwd=ROOT, env=env)
+                         cwd=out_dir, env=env)
     assert run.returncode == 0, run.stderr
     assert run.stdout.split() == ["True", "False"]
 

@@ -1,7 +1,5 @@
 """Valid model files load into the expected dataclasses, and the plan accepts them."""
 import math
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -260,6 +258,7 @@ def test_methods_is_data():
     assert METHODS == ("rk4",)
 
 
-def test_import_does_not_load_sympy():
+def test_import_does_not_load_sympy(tmp_path):
+    from conftest import run_python
     code = "import fccgen.model, sys; assert 'sympy' not in sys.modules"
-    subprocess.run([sys.executable, "-c", code], cwd=REPO, check=True)
+    run_python(code, tmp_path)

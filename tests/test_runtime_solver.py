@@ -7,8 +7,6 @@ from __future__ import annotations
 import ctypes
 import dataclasses
 import math
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -312,10 +310,11 @@ def test_timing_helpers(solvers):
     assert all(t > 0 for t in times.values()) and cs.time_accelerations(q, v, 10) > 0
 
 
-def test_runtime_does_not_import_sympy():
+def test_runtime_does_not_import_sympy(tmp_path):
+    from conftest import run_python
     code = ("import sys, fccgen.runtime, fccgen.runtime.solver, fccgen.runtime._engine;"
             "assert 'sympy' not in sys.modules, 'sympy imported'")
-    subprocess.run([sys.executable, "-c", code], check=True, cwd=ROOT)
+    run_python(code, tmp_path)
 
 
 # -- errors ------------------------------------------------------------------------------------
