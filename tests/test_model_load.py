@@ -232,9 +232,9 @@ def test_heavy_top_of_the_design_page():
 
 
 def test_nearly_parallel_vector_allowed():
-    """sin(angle) = 1e-7 is above the 1e-8 limit, so the body is accepted."""
-    model = load_model_text(MINIMAL.replace("along: [0, 0, 1]", "along: [1, 1e-7, 0]"))
-    assert model.vectors["z"].along[1] == pytest.approx(1e-7, rel=1e-12)  # rounding only
+    """sin(angle) = 2e-3 is above the 1e-3 limit, so the body is accepted."""
+    model = load_model_text(MINIMAL.replace("along: [0, 0, 1]", "along: [0.999998, 2e-3, 0]"))
+    assert model.vectors["z"].along[1] == pytest.approx(2e-3, rel=1e-9)  # normalised only
 
 
 def test_load_from_file(tmp_path):
