@@ -306,7 +306,7 @@ def test_timing_helpers(solvers):
     times = cs.time_kernels(q, v, repeats=10)
     assert set(times) == {"mass_matrix", "h_vector", "applied_forces", "constraints",
                           "constraint_jacobian", "constraint_bias", "energy",
-                          "body_outputs"}
+                          "body_outputs", "force_jacobian_q", "force_jacobian_v"}
     assert all(t > 0 for t in times.values()) and cs.time_accelerations(q, v, 10) > 0
 
 

@@ -165,11 +165,43 @@ def spring(s: ClassSymbols) -> Outputs:
     tension = k * (length - l0) + c * dot(d, dd) / length
     delta = lin_combine((1, b.dhat), (-1, a.dhat))
     scale = -tension / length
-    return {"applied_forces": [scale * e for e in _generalized(s, delta, d)],
-            "energy": [sympy.S.Zero, k * (length - l0) ** 2 / 2]}
+    w = _generalized(s, delta, d)
+    # product rule on f_i = scale w_i keeps scale, w_i and their derivatives as shared
+    # subtrees (differentiating the expanded f is much slower and gives larger trees)
+    d_scale_q = [sympy.diff(scale, x) for x in s.q]
+    d_scale_v = [sympy.diff(scale, x) for x in s.v]
+    return {"applied_forces": [scale * e for e in w],
+            "energy": [sympy.S.Zero, k * (length - l0) ** 2 / 2],
+            "force_jacobian_q": [scale * sympy.diff(wi, x) + wi * ds
+                                 for wi in w for x, ds in zip(s.q, d_scale_q)],
+            "force_jacobian_v": [wi * ds for wi in w for ds in d_scale_v]}
+
+
+# -- force Jacobians ------------------------------------------------------------------
+
+def _jacobian(exprs: list[sympy.Expr], wrt: tuple[sympy.Symbol, ...]) -> list[sympy.Expr]:
+    """Row-major d(exprs)/d(wrt), square when len(exprs) == len(wrt)."""
+    return [sympy.diff(e, x) for e in exprs for x in wrt]
+
+
+def with_force_jacobians(builder: Callable[[ClassSymbols], Outputs]
+                         ) -> Callable[[ClassSymbols], Outputs]:
+    """The builder plus ``force_jacobian_q`` = df/dq and ``force_jacobian_v`` = df/dq'
+    of its applied forces f, by differentiating the expressions of f (the checks
+    compare them with finite differences and with the NumPy version)."""
+    def build(s: ClassSymbols) -> Outputs:
+        out = builder(s)
+        f = out.get("applied_forces")
+        if f is not None and s.q and "force_jacobian_q" not in out:
+            out["force_jacobian_q"] = _jacobian(f, s.q)
+            out["force_jacobian_v"] = _jacobian(f, s.v)
+        return out
+    build.__doc__ = builder.__doc__
+    return build
 
 
 BUILDERS: dict[str, Callable[[ClassSymbols], Outputs]] = {
-    "body": body, "unit_vector": unit_vector, "distance": distance,
-    "point_on_line": point_on_line, "force": force, "torque": torque, "spring": spring,
+    "body": with_force_jacobians(body), "unit_vector": unit_vector, "distance": distance,
+    "point_on_line": point_on_line, "force": with_force_jacobians(force),
+    "torque": with_force_jacobians(torque), "spring": with_force_jacobians(spring),
 }

@@ -1,4 +1,4 @@
-"""The eight kernels of every element kind in NumPy (docs/elements.md), with the layouts
+"""The kernels of every element kind in NumPy (docs/elements.md), with the layouts
 of fccgen/plan/kernels.py: local coordinates and speeds of the moving triples, row-major
 matrices, ``energy = [kinetic, potential]``, ``body_outputs = [r_G, w]``.
 
@@ -12,10 +12,10 @@ from functools import cached_property
 
 import numpy as np
 
-from ..plan.classes import ElementClass
+from ..plan.classes import KIND_ENDS, ElementClass
 from ..plan.kernels import KERNELS
-from .kinematics import (Local, body_frame, body_point, cross, end_point, inertia_tensor,
-                         skew)
+from .kinematics import (EYE, Local, body_frame, body_point, cross, end_point,
+                         inertia_tensor, skew)
 
 _SPECS = {k.name: k for k in KERNELS}
 
@@ -133,6 +133,13 @@ class BodyKernels(ElementKernels):
         """[r_G, R w_b]."""
         return np.concatenate([self.G.r, self.frame.w])
 
+    def force_jacobian_q(self):
+        """d(Dhat^T m g)/dq: Dhat depends on q through its c ~u and c ~r_ij blocks."""
+        s = self.x.s
+        c = s["a3"] / (s["alpha"] * s["l"])
+        return _square(self.x, _dhat_t_jacobian(("ri", "rj", "u"), c,
+                                                s["m"] * self.gravity))
+
 
 class UnitVectorKernels(ElementKernels):
     """u . u - 1 = 0 for a moving unit vector."""
@@ -188,6 +195,12 @@ class ForceKernels(ElementKernels):
     def energy(self):
         return [0.0, -self.force @ self.P.r]
 
+    def force_jacobian_q(self):
+        """d(Dhat^T F)/dq for the constant F at the point (b1, b2, b3)."""
+        s = self.x.s
+        c = s["b3"] / (s["alpha"] * s["l"])
+        return _square(self.x, _dhat_t_jacobian(("ri", "rj", "u"), c, self.force))
+
 
 class TorqueKernels(ElementKernels):
     """A constant global torque T: f = Phi_b^T (R^T T) (not conservative: no energy)."""
@@ -197,6 +210,32 @@ class TorqueKernels(ElementKernels):
         F = body_frame(*self.x.body_triples(), s["l"], s["alpha"], s["beta"])
         T = np.array([s["Tx"], s["Ty"], s["Tz"]])
         return self.x.columns(F.phi_b, 3).T @ (F.R.T @ T)
+
+    def force_jacobian_q(self):
+        """df/dq with f written out per triple: with s_k = T . e_k,
+        f_u = s1 e3 / alpha and f_rij = -beta s1 e3 / (alpha l) - s2 e3 / l + s3 e2 / l
+        (f_ri = -f_rij, f_rj = f_rij); each product s_k e_j differentiates to
+        e_j (T^T de_k) + s_k de_j with the derivatives of e1, e2, e3 below."""
+        s = self.x.s
+        l, alpha, beta = s["l"], s["alpha"], s["beta"]
+        T = np.array([s["Tx"], s["Ty"], s["Tz"]])
+        _, (ri, rj, u), _ = self.x.body_triples()
+        rij = rj - ri
+        e = [rij / l, (u - beta * rij / l) / alpha, cross(rij, u) / (alpha * l)]
+        de = {"rij": [EYE / l, -beta / (alpha * l) * EYE, -skew(u) / (alpha * l)],
+              "u": [np.zeros((3, 3)), EYE / alpha, skew(rij) / (alpha * l)]}
+        blocks = {}
+        for var, d in de.items():
+            def prod(k, j):          # d(s_k e_j)/d var
+                return np.outer(e[j], T @ d[k]) + (T @ e[k]) * d[j]
+            f_u = prod(0, 2) / alpha
+            f_rij = (-beta / (alpha * l) * prod(0, 2) - prod(1, 2) / l + prod(2, 1) / l)
+            cols = {"ri": -1.0, "rj": 1.0} if var == "rij" else {"u": 1.0}
+            for col, sign in cols.items():
+                blocks[("u", col)] = sign * f_u
+                blocks[("ri", col)] = -sign * f_rij
+                blocks[("rj", col)] = sign * f_rij
+        return _square(self.x, blocks)
 
 
 class SpringKernels(ElementKernels):
@@ -221,6 +260,87 @@ class SpringKernels(ElementKernels):
         s = self.x.s
         L = self.geometry[2]
         return [0.0, 0.5 * s["k"] * (L - s["L0"]) ** 2]
+
+    @cached_property
+    def _delta(self) -> np.ndarray:
+        """Delta = Dhat_B - Dhat_A (3 x n_q): d' = Delta q'."""
+        A, B = self.geometry[:2]
+        return self.x.columns(_combine((EYE, B.dhat), (-EYE, A.dhat)), 3)
+
+    def force_jacobian_q(self):
+        """With f = -T Delta^T n, n = d / L, P = E - n n^T:
+        df/dq = -(Delta^T n) dT/dq - T (Delta^T P Delta / L + H), where
+        dT/dq = k n^T Delta + c (d'^T P Delta / L + n^T V); H = d(Delta^T w)/dq and
+        V = d(Delta q')/dq hold the q-dependence of the ends' Dhat (body points)."""
+        s, x = self.x.s, self.x
+        A, B, L, n, dd = self.geometry
+        D = self._delta
+        P = EYE - np.outer(n, n)
+        tension = s["k"] * (L - s["L0"]) + s["c"] * (n @ dd)
+        H = (_end_square(x, "B", lambda names, c: _dhat_t_jacobian(names, c, n))
+             - _end_square(x, "A", lambda names, c: _dhat_t_jacobian(names, c, n)))
+        V = _end_velocity_jacobian(x, "B") - _end_velocity_jacobian(x, "A")
+        dT = s["k"] * n @ D + s["c"] * (dd @ P @ D / L + n @ V)
+        return -np.outer(D.T @ n, dT) - tension * (D.T @ P @ D / L + H)
+
+    def force_jacobian_v(self):
+        """df/dq' = -c (Delta^T n)(n^T Delta): only the damper term reads speeds."""
+        Dn = self._delta.T @ self.geometry[3]
+        return -self.x.s["c"] * np.outer(Dn, Dn)
+
+
+def _dhat_t_jacobian(names, c: float, w) -> dict[tuple[str, str], np.ndarray]:
+    """d(Dhat^T w)/dq at fixed w for the body point with c = b3 / (alpha l) of the
+    triples names = (ri, rj, u): Dhat^T w is (1 - b1) w + c w x u on ri,
+    b1 w - c w x u on rj and b2 w + c w x r_ij on u, so only c ~w blocks remain.
+    Blocks are keyed (row triple, column triple)."""
+    ri, rj, u = names
+    sw = c * skew(w)
+    return {(ri, u): sw, (rj, u): -sw, (u, rj): sw, (u, ri): -sw}
+
+
+def _velocity_jacobian(names, c: float, vel) -> dict[str, np.ndarray]:
+    """d(Dhat q')/dq at fixed q' for a body point: its velocity holds
+    c (r_ij' x u + r_ij x u'), whose q-derivatives are c ~r_ij' (on u) and
+    -c ~u' (on r_ij)."""
+    ri, rj, u = names
+    dri, drj, du = vel
+    return {u: c * skew(drj - dri), rj: -c * skew(du), ri: c * skew(du)}
+
+
+def _end_data(x, end: str):
+    """(triple names, c, speeds) of a body-point end, or None for a named point."""
+    kind = x.cls.ends[KIND_ENDS[x.cls.kind].index(end)]
+    if kind == "point":
+        return None
+    s = x.s
+    names, _, vel = x.body_triples(f"{end}.")
+    return names, s[f"{end}.b3"] / (s[f"{end}.alpha"] * s[f"{end}.l"]), vel
+
+
+def _end_square(x, end: str, blocks_of) -> np.ndarray:
+    data = _end_data(x, end)
+    if data is None:
+        return np.zeros((x.cls.n_q, x.cls.n_q))
+    return _square(x, blocks_of(data[0], data[1]))
+
+
+def _end_velocity_jacobian(x, end: str) -> np.ndarray:
+    data = _end_data(x, end)
+    if data is None:
+        return np.zeros((3, x.cls.n_q))
+    return x.columns(_velocity_jacobian(*data), 3)
+
+
+def _square(x, blocks: dict[tuple[str, str], np.ndarray]) -> np.ndarray:
+    """An n_q x n_q matrix from 3x3 blocks keyed (row triple, column triple); blocks
+    touching a fixed triple are dropped."""
+    at = {name: 3 * k for k, name in enumerate(x.cls.moving_triples)}
+    out = np.zeros((x.cls.n_q, x.cls.n_q))
+    for (r, c), block in blocks.items():
+        if r in at and c in at:
+            out[at[r]:at[r] + 3, at[c]:at[c] + 3] += block
+    return out
 
 
 def _combine(*terms) -> dict[str, np.ndarray]:

@@ -1,5 +1,10 @@
 """The kernels every element class may have: the list is data, in the order of the
-fields of ``fcc_element_class`` (fccgen/runtime/fccgen_model.h)."""
+fields of ``fcc_element_class`` (fccgen/runtime/fccgen_model.h).
+
+The two force Jacobians return the derivatives of the applied forces f themselves,
+``df/dq`` and ``df/dq'`` (n_q x n_q, row-major). Implicit integrators build their
+tangent from K = -df/dq and C = -df/dq' (e.g. M + (dt/2) C + (dt^2/4) K).
+"""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -21,6 +26,9 @@ class KernelSpec:
         return self.size(cls) > 0
 
 
+_LOADED = ("body", "force", "torque", "spring")    # kinds with applied forces
+
+
 def _body_only(n: int):
     return lambda cls: n if cls.kind == "body" else 0
 
@@ -32,7 +40,7 @@ KERNELS: tuple[KernelSpec, ...] = (
     KernelSpec("h_vector", True, lambda c: c.n_q if c.kind == "body" else 0,
                "h = m Dhat^T (2c r_ij' x u') + Phi_b^T (I_b c_w + w_b x I_b w_b)"),
     KernelSpec("applied_forces", True,
-               lambda c: c.n_q if c.kind in ("body", "force", "torque", "spring") else 0,
+               lambda c: c.n_q if c.kind in _LOADED else 0,
                "f = sum Dhat^T F + Phi^T T"),
     KernelSpec("constraints", False, lambda c: c.n_g, "g(q)"),
     KernelSpec("constraint_jacobian", False, lambda c: c.n_g * c.n_q, "B = dg/dq"),
@@ -41,6 +49,14 @@ KERNELS: tuple[KernelSpec, ...] = (
                lambda c: 2 if c.kind in ("body", "force", "spring") else 0,
                "[kinetic, potential]"),
     KernelSpec("body_outputs", True, _body_only(6), "[r_G, w] (global frame)"),
+    # f of a spring-damper depends on q' only linearly, so df/dq' needs no speeds;
+    # df/dq of a damper does.
+    KernelSpec("force_jacobian_q", True,
+               lambda c: c.n_q * c.n_q if c.kind in _LOADED else 0,
+               "df/dq of the applied forces (tangent stiffness K = -df/dq)"),
+    KernelSpec("force_jacobian_v", False,
+               lambda c: c.n_q * c.n_q if c.kind == "spring" else 0,
+               "df/dq' of the applied forces (tangent damping C = -df/dq')"),
 )
 
 KERNEL_NAMES = tuple(k.name for k in KERNELS)

@@ -18,6 +18,8 @@ from .c99 import KernelPrinter, slot_map
 MATRIX_SHAPES = {
     "mass_matrix": lambda c: (c.n_q, c.n_q),
     "constraint_jacobian": lambda c: (c.n_g, c.n_q),
+    "force_jacobian_q": lambda c: (c.n_q, c.n_q),
+    "force_jacobian_v": lambda c: (c.n_q, c.n_q),
 }
 
 

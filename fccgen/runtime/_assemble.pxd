@@ -11,6 +11,8 @@ cdef enum:
     ASM_C = 32         # constraint bias (dB/dt) v
     ASM_E = 64         # energy [kinetic, potential]
     ASM_BODY = 128     # body outputs, 6 per body
+    ASM_KQ = 256       # df/dq of the applied forces (n_q x n_q); stiffness K = -df/dq
+    ASM_KV = 512       # df/dq' of the applied forces (n_q x n_q); damping C = -df/dq'
 
 
 cdef class Assembler:
@@ -37,6 +39,8 @@ cdef class Assembler:
     cdef double *c
     cdef double energy[2]
     cdef double *body
+    cdef double *fq                      # df/dq
+    cdef double *fv                      # df/dq'
 
     cdef _check_classes(self, list names, object sizes)
     cdef _copy_instance(self, int[::1] cof, int[::1] qp, int[::1] qi, int[::1] pp,

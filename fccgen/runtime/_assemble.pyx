@@ -3,8 +3,8 @@
 
 Each element gathers its local coordinates and speeds from the global ones, calls its
 class's kernels (a NULL kernel is identically zero and skipped; a kernel writes every
-entry of its output, fccgen_model.h) and scatters the results: M, h, f are sums of
-element blocks; g, B and the constraint bias hold one row per constraint equation, in
+entry of its output, fccgen_model.h) and scatters the results: M, h, f and the force
+Jacobians df/dq, df/dq' are sums of element blocks; g, B and the constraint bias hold one row per constraint equation, in
 element order. All buffers are allocated once.
 """
 from cpython.pycapsule cimport PyCapsule_GetPointer, PyCapsule_IsValid
@@ -163,12 +163,15 @@ cdef class Assembler:
         self.B = <double *>_alloc(<size_t>self.n_g * n, sizeof(double))
         self.c = <double *>_alloc(self.n_g, sizeof(double))
         self.body = <double *>_alloc(6 * self.n_bodies, sizeof(double))
+        self.fq = <double *>_alloc(n * n, sizeof(double))
+        self.fv = <double *>_alloc(n * n, sizeof(double))
 
     def __dealloc__(self):
         free(self.cls); free(self.qptr); free(self.qidx); free(self.pptr)
         free(self.params); free(self.gptr); free(self.body_of); free(self.out)
         free(self.lq); free(self.lv); free(self.zeros); free(self.M); free(self.h)
         free(self.f); free(self.g); free(self.B); free(self.c); free(self.body)
+        free(self.fq); free(self.fv)
 
     cdef void assemble(self, const double *q, const double *v, int flags) noexcept nogil:
         """Assemble the quantities named by ``flags`` (ASM_*) at (q, v); v may be NULL
@@ -188,6 +191,8 @@ cdef class Assembler:
         if flags & ASM_C: memset(self.c, 0, <size_t>self.n_g * sizeof(double))
         if flags & ASM_E: self.energy[0] = 0.0; self.energy[1] = 0.0
         if flags & ASM_BODY: memset(self.body, 0, <size_t>self.n_bodies * 6 * sizeof(double))
+        if flags & ASM_KQ: memset(self.fq, 0, <size_t>N * N * sizeof(double))
+        if flags & ASM_KV: memset(self.fv, 0, <size_t>N * N * sizeof(double))
         for e in range(self.n_el):
             k = self.cls[e]
             n = k.n_q
@@ -232,6 +237,16 @@ cdef class Assembler:
                 k.body_outputs(self.lq, self.lv, p, o)
                 for i in range(6):
                     self.body[6 * self.body_of[e] + i] = o[i]
+            if flags & ASM_KQ and k.force_jacobian_q != NULL:
+                k.force_jacobian_q(self.lq, self.lv, p, o)
+                for i in range(n):
+                    for j in range(n):
+                        self.fq[idx[i] * N + idx[j]] += o[i * n + j]
+            if flags & ASM_KV and k.force_jacobian_v != NULL:
+                k.force_jacobian_v(self.lq, p, o)
+                for i in range(n):
+                    for j in range(n):
+                        self.fv[idx[i] * N + idx[j]] += o[i * n + j]
 
     cdef double scaled_residual(self) noexcept nogil:
         """max_k |g_k| / ||B_k|| of the assembled g and B (|g_k| for a zero row);
@@ -279,6 +294,8 @@ cdef class Assembler:
         if flag == ASM_C: return _copy(self.c, self.n_g, (self.n_g,))
         if flag == ASM_E: return self.energy[0], self.energy[1]
         if flag == ASM_BODY: return _copy(self.body, 6 * self.n_bodies, (self.n_bodies, 6))
+        if flag == ASM_KQ: return _copy(self.fq, N * N, (N, N))
+        if flag == ASM_KV: return _copy(self.fv, N * N, (N, N))
         raise ValueError(f"flag {flag} names no single quantity")
 
     cdef double[::1] _state(self, object x, str name):
@@ -319,7 +336,9 @@ cdef class Assembler:
                         | (ASM_C if k.constraint_bias != NULL else 0)
                         | (ASM_E if k.energy != NULL else 0)
                         | (ASM_BODY if k.body_outputs != NULL and self.body_of[e] >= 0
-                           else 0))
+                           else 0)
+                        | (ASM_KQ if k.force_jacobian_q != NULL else 0)
+                        | (ASM_KV if k.force_jacobian_v != NULL else 0))
         return {name: flag for name, flag in FLAGS.items() if present & flag}
 
 
@@ -334,4 +353,5 @@ cdef object _copy(const double *src, Py_ssize_t n, tuple shape):
 
 FLAGS = {"mass_matrix": ASM_M, "h_vector": ASM_H, "applied_forces": ASM_F,
          "constraints": ASM_G, "constraint_jacobian": ASM_B, "constraint_bias": ASM_C,
-         "energy": ASM_E, "body_outputs": ASM_BODY}
+         "energy": ASM_E, "body_outputs": ASM_BODY, "force_jacobian_q": ASM_KQ,
+         "force_jacobian_v": ASM_KV}

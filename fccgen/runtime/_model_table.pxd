@@ -23,6 +23,8 @@ cdef extern from "fccgen_model.h":
         fcc_kernel_qv constraint_bias
         fcc_kernel_qv energy
         fcc_kernel_qv body_outputs
+        fcc_kernel_qv force_jacobian_q
+        fcc_kernel_q force_jacobian_v
 
     ctypedef struct fcc_model_table:
         int abi_version

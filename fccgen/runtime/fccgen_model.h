@@ -12,7 +12,7 @@
 #ifndef FCCGEN_MODEL_H
 #define FCCGEN_MODEL_H
 
-#define FCC_ABI_VERSION 1
+#define FCC_ABI_VERSION 2
 #define FCC_CAPSULE_NAME "fccgen.model_table"
 
 typedef void (*fcc_kernel_q)(const double *q, const double *p, double *out);
@@ -31,6 +31,8 @@ typedef struct {
     fcc_kernel_qv constraint_bias;        /* out[n_g]: (dB/dt) v */
     fcc_kernel_qv energy;                 /* out[2]: kinetic, potential */
     fcc_kernel_qv body_outputs;           /* out[6]: mass centre, angular velocity */
+    fcc_kernel_qv force_jacobian_q;       /* out[n_q*n_q]: df/dq (K = -df/dq) */
+    fcc_kernel_q  force_jacobian_v;       /* out[n_q*n_q]: df/dq' (C = -df/dq') */
 } fcc_element_class;
 
 typedef struct {
