@@ -1,11 +1,26 @@
-"""Builds fccgen's own compiled runtime (the integrator and the constrained solve).
+"""Builds fccgen's own compiled runtime (the constrained solve, the engine, the
+integrators).
 
-Generated kernel modules are built later, per model, by ``fccgen.build``.
+Every ``fccgen/runtime/_*.pyx`` is built: first those named in CIMPORT_ORDER (each one
+cimports only modules before it), then any other, in name order (integrators that
+cimport only the engine). Generated kernel modules are built later, per model, by
+``fccgen.build``.
 """
+from pathlib import Path
+
 from Cython.Build import cythonize
 from setuptools import Extension, setup
 
-RUNTIME_MODULES = ("_solve", "_assemble", "_engine", "_rk4")   # in cimport order
+CIMPORT_ORDER = ("_solve", "_assemble", "_engine")
+
+
+def runtime_modules() -> list[str]:
+    """Module names of every runtime .pyx, in a dependency-correct order."""
+    runtime = Path(__file__).resolve().parent / "fccgen" / "runtime"
+    found = sorted(p.stem for p in runtime.glob("_*.pyx"))
+    return [m for m in CIMPORT_ORDER if m in found] + [m for m in found
+                                                       if m not in CIMPORT_ORDER]
+
 
 extensions = [
     Extension(
@@ -14,7 +29,7 @@ extensions = [
         include_dirs=["fccgen/runtime"],
         extra_compile_args=["-O2"],
     )
-    for name in RUNTIME_MODULES
+    for name in runtime_modules()
 ]
 
 setup(

@@ -51,18 +51,18 @@ def load_numeric(path, **solver_options):
 
 def simulate(path, *, t_end=None, dt=None, method=None, output_dt=None, project=True,
              numeric=False, out=None, build_dir=DEFAULT_BUILD_DIR,
-             progress: Progress = None):
+             progress: Progress = None, rtol=None, atol=None, **method_options):
     """Simulate a model from its consistent initial state; write ``out`` if given.
 
-    Returns ``(result, initial_state)``.
+    rtol, atol: tolerances of adaptive methods; method_options: the method's options
+    (e.g. alpha, beta for baumgarte; see :mod:`fccgen.methods`). Returns
+    ``(result, initial_state)``.
     """
     solver = load_numeric(path) if numeric else load(path, build_dir, progress=progress)
     init = solver.initial_state()
-    kwargs = dict(t_end=t_end, dt=dt, method=method, output_dt=output_dt,
-                  project=project, q0=init.q, v0=init.v)
-    if not numeric:
-        kwargs["progress"] = progress
-    result = solver.simulate(**kwargs)
+    result = solver.simulate(t_end=t_end, dt=dt, method=method, output_dt=output_dt,
+                             project=project, q0=init.q, v0=init.v, progress=progress,
+                             rtol=rtol, atol=atol, **method_options)
     if out is not None:
         result.save(Path(out))
     return result, init

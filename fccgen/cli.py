@@ -13,6 +13,8 @@ import time
 
 from . import __version__
 from .errors import FccgenError, ModelError
+from .methods import describe as describe_methods
+from .methods import names as method_names
 
 COMMANDS = ("simulate", "bench", "check", "generate")
 
@@ -57,11 +59,25 @@ def _parser() -> argparse.ArgumentParser:
     common(g)
     g.add_argument("--force", action="store_true", help="rebuild even if cached")
 
-    s = sub.add_parser("simulate", help="simulate from the model's initial state")
+    s = sub.add_parser("simulate", help="simulate from the model's initial state",
+                       epilog="methods, their options and defaults:\n" + describe_methods(),
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
     common(s)
     s.add_argument("--t-end", type=float, help="end time (default: model's simulate.t_end)")
-    s.add_argument("--dt", type=float, help="time step (default: model's simulate.dt)")
-    s.add_argument("--method", help="integration method (default: model's simulate.method)")
+    s.add_argument("--dt", type=float, help="time step; the first step of adaptive "
+                   "methods (default: model's simulate.dt; adaptive: automatic)")
+    s.add_argument("--method", help="integration method (default: model's "
+                   f"simulate.method): {', '.join(method_names())}")
+    s.add_argument("--rtol", type=float,
+                   help="relative tolerance of adaptive methods (default 1e-6)")
+    s.add_argument("--atol", type=float,
+                   help="absolute tolerance of adaptive methods (default 1e-9)")
+    s.add_argument("--baumgarte-alpha", type=float, metavar="ALPHA",
+                   help="Baumgarte damping, 1/time (default 5)")
+    s.add_argument("--baumgarte-beta", type=float, metavar="BETA",
+                   help="Baumgarte stiffness, 1/time (default 5)")
+    s.add_argument("--method-option", action="append", default=[], metavar="NAME=VALUE",
+                   help="any option of the method (repeatable), e.g. penalty=1e8")
     s.add_argument("--output-dt", type=float,
                    help="output interval, a multiple of dt (default: every step)")
     s.add_argument("--out", help="write results to FILE.csv or FILE.npz")
@@ -74,10 +90,61 @@ def _parser() -> argparse.ArgumentParser:
     common(b)
     b.add_argument("--repeats", type=int, default=200,
                    help="timed repetitions per measurement (median reported)")
+    b.add_argument("--accuracy", action="store_true",
+                   help="work-precision measurement instead: every method over a ladder "
+                        "of steps or tolerances, error against a reference, CPU time; "
+                        "writes a CSV table, an SVG plot (and a PNG one with "
+                        "matplotlib) and a text summary")
+    b.add_argument("--out-dir", default="accuracy",
+                   help="where --accuracy writes its files (default: ./accuracy)")
+    b.add_argument("--t-end", type=float,
+                   help="--accuracy: end time (default: model's simulate.t_end)")
+    b.add_argument("--output-dt", type=float,
+                   help="--accuracy: interval of the compared outputs (default: model's "
+                        "simulate.output_dt, else 10 dt)")
+    b.add_argument("--methods", help="--accuracy: comma-separated methods (default: all)")
+    b.add_argument("--numeric-rungs", type=int, default=1,
+                   help="--accuracy: coarsest rungs also run by the numeric version "
+                        "(default 1; 0: none)")
+    b.add_argument("--reference",
+                   help="--accuracy: published reference, a text table (time first); "
+                        "default: a converged run of the compiled rk4")
+    b.add_argument("--reference-point",
+                   help="--accuracy: the point the reference gives, e.g. B0 (its x, y "
+                        "[, z] follow time in the table)")
 
     c = sub.add_parser("check", help="validate and report coordinates, constraints, DOF")
     common(c)
     return p
+
+
+def _method_options(items: list[str]) -> dict[str, float]:
+    """NAME=VALUE strings of --method-option as a dict of numbers."""
+    options = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        try:
+            if not sep:
+                raise ValueError(item)
+            options[name.strip()] = float(value)
+        except ValueError:
+            raise ValueError(f"--method-option {item!r}: expected NAME=NUMBER") from None
+    return options
+
+
+def _run_summary(result) -> str:
+    """One paragraph of a run's statistics (result.info)."""
+    info = result.info
+    e = result["energy"]
+    rejected = info.get("rejected_steps")
+    return (f"{info.get('method')}: {info.get('steps')} steps to t = {result.t[-1]:.6g} "
+            f"in {info.get('wall_time', float('nan')):.3g} s "
+            f"({info.get('rhs_evaluations')} right-hand-side evaluations, "
+            f"{'unknown' if rejected is None else rejected} rejected steps, "
+            f"{info.get('newton_iterations', 0)} Newton iterations); "
+            f"max constraint error {info.get('max_constraint_error', float('nan')):.3g}; "
+            f"energy drift {info.get('energy_drift', float('nan')):.3g} "
+            f"(max |E - E0|, E0 = {e[0]:.6g})")
 
 
 def main(argv=None) -> int:
@@ -121,22 +188,23 @@ def _run(args, progress) -> int:
               f"    import {built.module_name}")
         return 0
     if args.command == "simulate":
+        options = _method_options(args.method_option)
+        options.update({k: v for k, v in (("alpha", args.baumgarte_alpha),
+                                          ("beta", args.baumgarte_beta)) if v is not None})
         result, init = api.simulate(
             args.model, t_end=args.t_end, dt=args.dt, method=args.method,
             output_dt=args.output_dt, project=not args.no_project, numeric=args.numeric,
-            out=args.out, build_dir=args.build_dir, progress=progress)
+            out=args.out, build_dir=args.build_dir, progress=progress,
+            rtol=args.rtol, atol=args.atol, **options)
         print(init.report())
-        info = result.info
-        e = result["energy"]
-        print(f"{info.get('method')}: {info.get('steps')} steps to t = {result.t[-1]:.6g} in "
-              f"{info.get('wall_time', float('nan')):.3g} s; max constraint error "
-              f"{info.get('max_constraint_error', float('nan')):.3g}; energy drift "
-              f"{abs(e[-1] - e[0]):.3g} (from {e[0]:.6g})")
+        print(_run_summary(result))
         if args.out:
             print(f"results: {args.out} ({len(result.t)} rows, {len(result.names)} columns)")
         else:
             print("no --out given: results not written")
         return 0
+    if args.command == "bench" and args.accuracy:
+        return _accuracy(args, progress)
     if args.command == "bench":
         from .bench import bench_model
         report = bench_model(args.model, args.build_dir, repeats=args.repeats,
@@ -148,6 +216,28 @@ def _run(args, progress) -> int:
         print(check_model(args.model).text())
         return 0
     raise AssertionError(args.command)
+
+
+def _accuracy(args, progress) -> int:
+    """``fccgen bench MODEL --accuracy``: one call of
+    :func:`fccgen.accuracy.bench_accuracy`."""
+    from .accuracy import bench_accuracy, reference_from_table
+    reference = None
+    if args.reference:
+        if not args.reference_point:
+            raise ValueError("--reference needs --reference-point (the point it gives)")
+        reference = reference_from_table(args.reference, args.reference_point)
+    methods = [m.strip() for m in args.methods.split(",")] if args.methods else None
+    report = bench_accuracy(args.model, args.build_dir, args.out_dir, t_end=args.t_end,
+                            output_dt=args.output_dt, methods=methods,
+                            numeric_rungs=args.numeric_rungs, reference=reference,
+                            progress=progress)
+    print(report.summary())
+    for note in report.notes:
+        print(f"note: {note}")
+    for kind, path in report.files.items():
+        print(f"{kind}: {path}")
+    return 0
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -13,14 +13,15 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ModelError
+from ..methods import names as _method_names
 from . import checks
 from .fields import IDENTIFIER, IDENTIFIER_RULE, Reader, child, listing
 from .items import ItemReader
 from .types import Body, Initial, Model, Point, Vector, Where
 from .yamlnodes import YMap, YNode, parse_yaml
 
-# Integration methods a model may name in ``simulate.method``.
-METHODS: tuple[str, ...] = ("rk4",)
+# Integration methods a model may name in ``simulate.method`` (fccgen.methods).
+METHODS: tuple[str, ...] = _method_names()
 
 MAX_NAME_LENGTH = 64          # the model name becomes a module name
 

@@ -7,15 +7,16 @@ slots (``Element.q_index()``); constraint rows follow the elements' order.
 """
 from __future__ import annotations
 
-import math
 import time
 
 import numpy as np
 
+from .. import methods as registry
 from ..errors import SimulationError
 from ..plan import Plan
 from ..results import InitialState, Result, result_from_arrays
 from .constrained import constrained_solve, scaled_residual
+from .dopri5 import simulate_dopri5
 from .elements import element_kernels
 
 
@@ -166,96 +167,147 @@ class NumericSolver:
             velocity_change=_amax(v - v_given),
             velocity_residual=_amax(self.constraint_jacobian(q) @ v))
 
+    def baumgarte_accelerations(self, q, v, alpha: float, beta: float) -> np.ndarray:
+        """q'' of the index-1 equations with Baumgarte stabilisation:
+        B q'' = -(dB/dt) q' - 2 alpha B q' - beta^2 g."""
+        a = self._assemble(q, v, ("mass_matrix", "h_vector", "applied_forces",
+                                  "constraint_jacobian", "constraint_bias", "constraints"))
+        B = a["constraint_jacobian"]
+        b = (-a["constraint_bias"] - 2.0 * alpha * (B @ np.asarray(v, float))
+             - beta * beta * a["constraints"])
+        return constrained_solve(a["mass_matrix"], B, a["applied_forces"] - a["h_vector"],
+                                 b, self.rank_tol)
+
     def simulate(self, t_end=None, dt=None, method=None, output_dt=None, project=True,
-                 q0=None, v0=None) -> Result:
+                 q0=None, v0=None, progress=None, rtol=None, atol=None,
+                 **method_options) -> Result:
         """Integrate from (q0, v0), used as given; when q0 is None the consistent
         initial state is used, and when only v0 is None plan.v_target is projected at
-        q0. Defaults of t_end, dt, method and output_dt come from the model file."""
-        defaults = self.plan.model.simulate
-        method = defaults.method if method is None else method
-        if method not in INTEGRATORS:
-            raise ValueError(f"unknown integration method {method!r}; available: "
-                             + ", ".join(INTEGRATORS))
+        q0. The arguments mean what they mean for
+        :meth:`fccgen.runtime.CompiledSolver.simulate`; defaults of t_end, dt, method
+        and output_dt come from the model file."""
+        d = self.plan.model.simulate
+        m = registry.get(d.method if method is None else method, tuple(INTEGRATORS))
+        opts = registry.options_for(m, rtol, atol, method_options)
+        sched = registry.schedule(m, d, t_end, dt, output_dt)
         if q0 is None:
             init = self.initial_state()
             q0, v0 = init.q, (init.v if v0 is None else v0)
         elif v0 is None:
             v0 = self.project_velocities(q0, self.plan.v_target)
-        t_end = defaults.t_end if t_end is None else t_end
-        dt = defaults.dt if dt is None else dt
-        if output_dt is None:
-            output_dt = dt if defaults.output_dt is None else defaults.output_dt
-        return INTEGRATORS[method](self, np.array(q0, float), np.array(v0, float),
-                                   float(t_end), float(dt), float(output_dt), bool(project))
+        project = bool(project) and m.projects
+        start = time.perf_counter()
+        arrays, stats = INTEGRATORS[m.name](self, np.array(q0, float), np.array(v0, float),
+                                            sched, opts, project, progress)
+        info = registry.run_info(m, stats, arrays["energy"], time.perf_counter() - start,
+                                 dt=sched.dt, output_dt=sched.output_dt, project=project,
+                                 options=opts)
+        return result_from_arrays(self.plan, arrays["t"], arrays["q"], arrays["v"],
+                                  arrays["body"], arrays["energy"],
+                                  arrays["constraint_error"], info)
 
 
-def _output_steps(t_end: float, dt: float, output_dt: float) -> tuple[int, int]:
-    """(number of steps, output every so many steps), checking the arguments."""
-    if not (t_end > 0.0 and dt > 0.0 and output_dt > 0.0):
-        raise ValueError(f"t_end, dt and output_dt must be positive "
-                         f"(got {t_end!r}, {dt!r}, {output_dt!r})")
-    ratio = output_dt / dt
-    every = round(ratio)
-    if every < 1 or abs(ratio - every) > 1e-9 * ratio:
-        raise ValueError(f"output_dt must be a whole multiple of dt "
-                         f"(got output_dt {output_dt!r}, dt {dt!r})")
-    return math.ceil(t_end / dt - 1e-9), every
+class _Recorder:
+    """Records t, q, v, body outputs, energy and max |g| of output states."""
+
+    def __init__(self, solver: NumericSolver):
+        self.solver = solver
+        self.rows: dict[str, list] = {k: [] for k in ("t", "q", "v", "body", "energy",
+                                                      "constraint_error")}
+
+    def __call__(self, t, q, v):
+        s, out = self.solver, self.rows
+        out["t"].append(t)
+        out["q"].append(np.array(q))
+        out["v"].append(np.array(v))
+        out["body"].append(s.body_outputs(q, v))
+        out["energy"].append(s.energy(q, v))
+        out["constraint_error"].append(_amax(s.constraints(q)))
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        a = {k: np.array(v, float) for k, v in self.rows.items()}
+        a["body"] = a["body"].reshape(len(a["t"]), len(self.solver.plan.bodies), 6)
+        return a
 
 
-def _rk4_step(solver: NumericSolver, q, v, h):
+def _rk4_step(accelerations, q, v, h):
     """One classical Runge-Kutta step of q' = v, v' = accelerations(q, v)."""
-    a1 = solver.accelerations(q, v)
+    a1 = accelerations(q, v)
     v2 = v + 0.5 * h * a1
-    a2 = solver.accelerations(q + 0.5 * h * v, v2)
+    a2 = accelerations(q + 0.5 * h * v, v2)
     v3 = v + 0.5 * h * a2
-    a3 = solver.accelerations(q + 0.5 * h * v2, v3)
+    a3 = accelerations(q + 0.5 * h * v2, v3)
     v4 = v + h * a3
-    a4 = solver.accelerations(q + h * v3, v4)
+    a4 = accelerations(q + h * v3, v4)
     return (q + h / 6.0 * (v + 2.0 * v2 + 2.0 * v3 + v4),
             v + h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4))
 
 
-def simulate_rk4(solver: NumericSolver, q, v, t_end, dt, output_dt, project) -> Result:
+def _project(solver: NumericSolver, q, v, stats: dict):
+    """Position then velocity projection; counts the Newton iterations in stats."""
+    q, iterations = solver.project_positions(q)
+    stats["newton_iterations"] += iterations
+    stats["max_newton_iterations"] = max(stats["max_newton_iterations"], iterations)
+    return q, solver.project_velocities(q, v)
+
+
+def _check_finite(q, v):
+    if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
+        raise SimulationError("the state is not finite (the solution diverged)")
+
+
+def simulate_rk4(solver: NumericSolver, q, v, sched, opts, project, progress=None,
+                 accelerations=None):
     """Fixed-step RK4, the last step shortened to land on t_end; after each step the
-    positions and then the speeds are projected onto the constraints (if ``project``)."""
-    n_steps, every = _output_steps(t_end, dt, output_dt)
-    start = time.perf_counter()
-    out: dict[str, list] = {k: [] for k in ("t", "q", "v", "body", "energy", "cerr")}
-
-    def record(t, q, v):
-        out["t"].append(t)
-        out["q"].append(q.copy())
-        out["v"].append(v.copy())
-        out["body"].append(solver.body_outputs(q, v))
-        out["energy"].append(solver.energy(q, v))
-        out["cerr"].append(_amax(solver.constraints(q)))
-
+    positions and then the speeds are projected onto the constraints (if ``project``).
+    progress(message) about every 0.5 s of wall time. Returns (arrays, stats)."""
+    accelerations = accelerations or solver.accelerations
+    n_steps, every, dt, t_end = sched.n_steps, sched.every, sched.dt, sched.t_end
+    record = _Recorder(solver)
     record(0.0, q, v)
-    max_newton = 0
+    deadline = time.monotonic() + 0.5
+    stats = dict(steps=n_steps, rhs_evaluations=4 * n_steps, rejected_steps=0,
+                 newton_iterations=0, max_newton_iterations=0)
     for k in range(1, n_steps + 1):
         t = k * dt if k < n_steps else t_end
         try:
-            q, v = _rk4_step(solver, q, v, dt if k < n_steps else t_end - (k - 1) * dt)
-            if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
-                raise SimulationError("the state is not finite")
+            q, v = _rk4_step(accelerations, q, v, dt if k < n_steps else t_end - (k - 1) * dt)
+            _check_finite(q, v)
             if project:
-                q, iterations = solver.project_positions(q)
-                v = solver.project_velocities(q, v)
-                max_newton = max(max_newton, iterations)
+                q, v = _project(solver, q, v, stats)
         except SimulationError as exc:
-            raise SimulationError(f"at t = {t:.6g} (step {k}): {exc}") from None
+            raise SimulationError(f"simulation stopped at t = {t:.10g} (step {k}): "
+                                  f"{exc}") from None
         if k % every == 0 or k == n_steps:
             record(t, q, v)
-    info = dict(method="rk4", steps=n_steps, rhs_evaluations=4 * n_steps,
-                max_newton_iterations=max_newton, wall_time=time.perf_counter() - start,
-                max_constraint_error=float(max(out["cerr"])))
-    shape = (len(out["t"]), len(solver.plan.bodies), 6)
-    return result_from_arrays(solver.plan, np.array(out["t"]), np.array(out["q"]),
-                              np.array(out["v"]), np.array(out["body"]).reshape(shape),
-                              np.array(out["energy"]), np.array(out["cerr"]), info)
+        if progress is not None and time.monotonic() >= deadline:
+            progress(f"t = {t:.6g} of {t_end:.6g}")
+            deadline = time.monotonic() + 0.5
+    arrays = record.arrays()
+    stats["max_constraint_error"] = float(arrays["constraint_error"].max())
+    return arrays, stats
 
 
-INTEGRATORS = {"rk4": simulate_rk4}
+def simulate_baumgarte(solver: NumericSolver, q, v, sched, opts, project, progress=None):
+    """RK4 on the Baumgarte-stabilised index-1 equations, without projection."""
+    alpha, beta = opts["alpha"], opts["beta"]
+    return simulate_rk4(solver, q, v, sched, opts, False, progress,
+                        lambda q, v: solver.baumgarte_accelerations(q, v, alpha, beta))
+
+
+def simulate_scipy(method: str):
+    """The integrator of SciPy's ``method`` on the numeric right-hand side."""
+    def run(solver, q, v, sched, opts, project, progress=None):
+        from ..runtime import scipy_ivp           # pure Python; SciPy loaded on use
+        report = None if progress is None else (lambda t: progress(f"t = {t:.6g}"))
+        return scipy_ivp.run(solver, method, sched, opts, q, v, report)
+    return run
+
+
+INTEGRATORS = {"rk4": simulate_rk4, "dopri5": simulate_dopri5,
+               "baumgarte": simulate_baumgarte,
+               **{f"scipy-{m}": simulate_scipy(m)
+                  for m in ("RK45", "DOP853", "Radau", "BDF", "LSODA")}}
 
 
 def _amax(x) -> float:

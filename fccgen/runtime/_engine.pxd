@@ -44,6 +44,8 @@ cdef class Engine:
     cdef int factor(self, const double *q) noexcept nogil
     cdef int accelerations_at(self, const double *q, const double *v, double *a,
                               bint reuse) noexcept nogil
+    cdef int baumgarte_at(self, const double *q, const double *v, double *a,
+                          double alpha, double beta) noexcept nogil
     cdef int project_positions_at(self, double *q, int *iterations) noexcept nogil
     cdef int project_velocities_at(self, const double *q, double *v,
                                    bint have_B) noexcept nogil

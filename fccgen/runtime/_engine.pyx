@@ -127,6 +127,31 @@ cdef class Engine:
             return self.fail(ERR_NONFINITE_INPUT if i else ERR_NONFINITE_RESULT, 0, i)
         return 0
 
+    cdef int baumgarte_at(self, const double *q, const double *v, double *a,
+                          double alpha, double beta) noexcept nogil:
+        """a = q'' of the index-1 equations with Baumgarte stabilisation:
+        M a + B^T lambda = f - h, B a = -(dB/dt) v - 2 alpha B v - beta^2 g(q)."""
+        cdef int i, j, n = self.n
+        cdef int flags = ASM_M | ASM_B | ASM_H | ASM_F | ASM_C | ASM_G
+        cdef double bv
+        cdef const double *row
+        self.asm.assemble(q, v, flags)
+        if self.factor(q) < 0:
+            return -1
+        for i in range(n):
+            self.rhs[i] = self.asm.f[i] - self.asm.h[i]
+        for i in range(self.m):
+            row = self.asm.B + i * n
+            bv = 0.0
+            for j in range(n):
+                bv += row[j] * v[j]
+            self.nb[i] = -self.asm.c[i] - 2.0 * alpha * bv - beta * beta * self.asm.g[i]
+        csolve_apply(&self.sol, self.rhs, NULL, self.nb, a)
+        if not finite(a, n):
+            i = self.nonfinite_input(q, v, flags)
+            return self.fail(ERR_NONFINITE_INPUT if i else ERR_NONFINITE_RESULT, 0, i)
+        return 0
+
     cdef int project_positions_at(self, double *q, int *iterations) noexcept nogil:
         """Newton on g(q) = 0, in place: dq = argmin dq^T M dq / 2 subject to
         B dq = -g, with g and B at every iterate and the metric M at the starting
@@ -207,6 +232,18 @@ cdef class Engine:
         cdef int rc
         with nogil:
             rc = self.accelerations_at(&qv[0], &vv[0], &av[0], False)
+        if rc < 0:
+            self.raise_error(AT_CALL)
+        return a
+
+    def baumgarte_accelerations(self, q, v, double alpha, double beta):
+        """q'' of the Baumgarte-stabilised index-1 equations at (q, v): a fresh array."""
+        cdef double[::1] qv = self.vector(q, "q", False), vv = self.vector(v, "v", False)
+        a = np.empty(self.n)
+        cdef double[::1] av = a
+        cdef int rc
+        with nogil:
+            rc = self.baumgarte_at(&qv[0], &vv[0], &av[0], alpha, beta)
         if rc < 0:
             self.raise_error(AT_CALL)
         return a

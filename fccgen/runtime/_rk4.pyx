@@ -1,5 +1,6 @@
 # cython: language_level=3
-"""Classical RK4 with projection: the whole per-step loop in C, without the GIL.
+"""Classical RK4 with projection, and RK4 on the Baumgarte-stabilised equations: the
+whole per-step loop in C, without the GIL.
 
 After each step (if asked): Newton position projection onto g(q) = 0, then the
 M-orthogonal velocity projection onto B v = 0; the factorisation of the velocity
@@ -29,6 +30,10 @@ cdef enum:
 
 cdef struct Run:
     bint project
+    bint baumgarte            # stages use Engine.baumgarte_at (alpha, beta)
+    double alpha
+    double beta
+    long newton_total         # Newton iterations of all projections
     long k                    # steps done
     long n_steps
     long every                # record every this many steps
@@ -67,6 +72,8 @@ cdef int _stage(Engine e, Run *r, int stage, const double *q, const double *v, d
                 bint reuse) noexcept nogil:
     e.err_stage = stage
     r.n_rhs += 1
+    if r.baumgarte:
+        return e.baumgarte_at(q, v, a, r.alpha, r.beta)
     return e.accelerations_at(q, v, a, reuse)
 
 
@@ -106,6 +113,7 @@ cdef int _after_step(Engine e, Run *r) noexcept nogil:
         if rc < 0:
             return -1
         r.failures += rc
+        r.newton_total += it
         if it > r.newton_max:
             r.newton_max = it
         cerr = e.asm.max_abs_g()             # g is left assembled at the final q
@@ -190,10 +198,31 @@ def simulate_rk4(Engine engine, q0, v0, double t_end, double dt, long n_steps,
 
     progress(t) is called when the run pauses, at most every progress_interval seconds
     of wall time. Returns (arrays, stats): fresh arrays t, q, v, body, energy,
-    constraint_error; stats steps, rhs_evaluations, max_newton_iterations,
-    projection_failures, max_constraint_error. Raises SimulationError (with the time
-    and what failed) on a singular mass matrix or a non-finite state.
+    constraint_error; stats steps, rhs_evaluations, newton_iterations (total),
+    max_newton_iterations, projection_failures, max_constraint_error. Raises
+    SimulationError (with the time and what failed) on a singular mass matrix or a
+    non-finite state.
     """
+    return _simulate(engine, q0, v0, t_end, dt, n_steps, output_every, project, False,
+                     0.0, 0.0, progress, progress_interval)
+
+
+def simulate_baumgarte(Engine engine, q0, v0, double t_end, double dt, long n_steps,
+                       long output_every, double alpha, double beta, progress=None,
+                       double progress_interval=0.5):
+    """RK4 on the index-1 equations with Baumgarte stabilisation,
+    B q'' = -(dB/dt) q' - 2 alpha B q' - beta^2 g, without projection; otherwise as
+    :func:`simulate_rk4` (same arguments, records and stats)."""
+    if not (alpha >= 0 and beta >= 0):
+        raise ValueError("Baumgarte alpha and beta must be non-negative")
+    return _simulate(engine, q0, v0, t_end, dt, n_steps, output_every, False, True,
+                     alpha, beta, progress, progress_interval)
+
+
+def _simulate(Engine engine, q0, v0, double t_end, double dt, long n_steps,
+              long output_every, bint project, bint baumgarte, double alpha, double beta,
+              progress, double progress_interval):
+    """The shared driver of simulate_rk4 and simulate_baumgarte."""
     if engine.running:
         raise RuntimeError("this engine is already running a simulation")
     if not (n_steps >= 1 and output_every >= 1 and dt > 0 and t_end > 0):
@@ -210,7 +239,8 @@ def simulate_rk4(Engine engine, q0, v0, double t_end, double dt, long n_steps,
                   constraint_error=np.zeros(n_out))
     cdef Run r
     r.project, r.n_steps, r.every, r.dt, r.t_end = project, n_steps, output_every, dt, t_end
-    r.k = r.n_out = r.n_rhs = r.failures = 0
+    r.baumgarte, r.alpha, r.beta = baumgarte, alpha, beta
+    r.k = r.n_out = r.n_rhs = r.failures = r.newton_total = 0
     r.newton_max = 0
     r.max_cerr = 0.0
     _start(engine, &r, qv, vv, arrays)
@@ -233,6 +263,7 @@ def simulate_rk4(Engine engine, q0, v0, double t_end, double dt, long n_steps,
             engine.factor_valid = False     # the callback may have used the engine
     finally:
         engine.running = False
-    stats = dict(steps=r.k, rhs_evaluations=r.n_rhs, max_newton_iterations=r.newton_max,
+    stats = dict(steps=r.k, rhs_evaluations=r.n_rhs, rejected_steps=0,
+                 newton_iterations=r.newton_total, max_newton_iterations=r.newton_max,
                  projection_failures=r.failures, max_constraint_error=r.max_cerr)
     return arrays, stats

@@ -6,19 +6,37 @@ simulation is one call into the engine, which keeps the per-step loop in C.
 """
 from __future__ import annotations
 
-import math
+import importlib
 import statistics
 import time
 
 import numpy as np
 
+from .. import methods as registry
 from ..errors import BuildError, SimulationError
 from ..results import InitialState, Result, result_from_arrays
+from . import scipy_ivp
 from ._assemble import FLAGS, Assembler
+from ._dopri5 import simulate_dopri5
 from ._engine import Engine
-from ._rk4 import simulate_rk4
+from ._rk4 import simulate_baumgarte, simulate_rk4
 
-METHODS = ("rk4",)
+
+def _available_methods() -> tuple[str, ...]:
+    """Registry methods whose compiled loop is importable."""
+    out = []
+    for name in registry.names():
+        module = registry.OPTIONAL_COMPILED.get(name)
+        if module is not None:
+            try:
+                importlib.import_module(f"{__package__}.{module}")
+            except ImportError:
+                continue
+        out.append(name)
+    return tuple(out)
+
+
+METHODS = _available_methods()
 
 
 def length_scale(plan) -> float:
@@ -51,7 +69,8 @@ def make_assembler(plan, module) -> Assembler:
 
 
 class CompiledSolver:
-    """Assembly, constrained solve, projections and RK4 of one model, in compiled code.
+    """Assembly, constrained solve, projections and the integration methods of
+    :mod:`fccgen.methods` for one model, the per-step loops in compiled code.
 
     plan: the model's :class:`fccgen.plan.Plan`; module: its generated kernel module.
     rank_tol: relative rank threshold of the constraint Jacobian (redundant rows below
@@ -142,61 +161,68 @@ class CompiledSolver:
 
     # -- simulation ---------------------------------------------------------------------
     def simulate(self, t_end=None, dt=None, method=None, output_dt=None, project=True,
-                 q0=None, v0=None, progress=None) -> Result:
-        """Integrate from (q0, v0), used as given, to t_end with steps dt, the last one
-        shortened to land on t_end. q0 None: the consistent :meth:`initial_state`;
-        only v0 None: the model's initial speeds projected at q0.
+                 q0=None, v0=None, progress=None, rtol=None, atol=None,
+                 **method_options) -> Result:
+        """Integrate from (q0, v0), used as given, to t_end. q0 None: the consistent
+        :meth:`initial_state`; only v0 None: the model's initial speeds projected at q0.
 
-        Results at t = 0, every output_dt (a multiple of dt) and t_end. project: after
-        each step, Newton position projection then velocity projection. progress: called
-        with a one-line message (``"t = ..."``) at most about every 0.5 s of wall time.
+        method: a name of :mod:`fccgen.methods` (default: the model's). Fixed-step
+        methods take steps dt, the last one shortened to land on t_end, and record at 0,
+        every output_dt (a multiple of dt) and t_end. Adaptive methods take dt as the
+        first step (None: automatic), rtol and atol, and record at multiples of
+        output_dt by dense output. project: after each (accepted) step, Newton position
+        projection then velocity projection, for the methods that project.
+        method_options: the method's options (e.g. alpha, beta for baumgarte).
+        progress: called with a one-line message (``"t = ..."``) at most about every
+        0.5 s of wall time. ``result.info`` holds fccgen.methods.INFO_KEYS and more.
         """
-        t_end, dt, method, every, n_steps = self._schedule(t_end, dt, method, output_dt)
-        if q0 is None:
-            init = self.initial_state()
-            q0, v0 = init.q, (init.v if v0 is None else v0)
-        elif v0 is None:
-            v0 = self.project_velocities(q0, self.plan.v_target)
+        d = self.plan.model.simulate
+        m = registry.get(d.method if method is None else method, METHODS)
+        opts = registry.options_for(m, rtol, atol, method_options)
+        sched = registry.schedule(m, d, t_end, dt, output_dt)
+        q0, v0 = self._start_state(q0, v0)
+        project = bool(project) and m.projects
         report = None
         if progress is not None:
             def report(t):
-                progress(f"t = {t:.6g} of {t_end:.6g} ({100.0 * t / t_end:.0f}%)")
+                progress(f"t = {t:.6g} of {sched.t_end:.6g} "
+                         f"({100.0 * t / sched.t_end:.0f}%)")
         start = time.perf_counter()
-        arrays, stats = simulate_rk4(self._engine, q0, v0, t_end, dt, n_steps, every,
-                                     bool(project), report)
-        info = dict(method=method, dt=dt, steps=stats["steps"],
-                    rhs_evaluations=stats["rhs_evaluations"],
-                    max_newton_iterations=stats["max_newton_iterations"],
-                    projection_failures=stats["projection_failures"],
-                    wall_time=time.perf_counter() - start,
-                    max_constraint_error=stats["max_constraint_error"],
-                    project=bool(project))
+        arrays, stats = self._run(m, sched, opts, project, q0, v0, report)
+        info = registry.run_info(m, stats, arrays["energy"], time.perf_counter() - start,
+                                 dt=sched.dt, output_dt=sched.output_dt, project=project,
+                                 options=opts)
         return result_from_arrays(self.plan, arrays["t"], arrays["q"], arrays["v"],
                                   arrays["body"], arrays["energy"],
                                   arrays["constraint_error"], info)
 
-    def _schedule(self, t_end, dt, method, output_dt):
-        """Defaults from the model's ``simulate`` section, checked; returns
-        (t_end, dt, method, output_every, n_steps)."""
-        d = self.plan.model.simulate
-        t_end = float(d.t_end if t_end is None else t_end)
-        dt = float(d.dt if dt is None else dt)
-        method = d.method if method is None else method
-        if method not in METHODS:
-            raise ValueError(f"unknown method {method!r}; available: {', '.join(METHODS)}")
-        for name, value in (("t_end", t_end), ("dt", dt)):
-            if not (math.isfinite(value) and value > 0):
-                raise ValueError(f"{name} must be a positive number (got {value!r})")
-        if output_dt is None:
-            output_dt = d.output_dt if d.output_dt is not None else dt
-        output_dt = float(output_dt)
-        ratio = output_dt / dt
-        every = round(ratio) if math.isfinite(ratio) else 0
-        if every < 1 or abs(ratio - every) > 1e-9 * ratio:
-            raise ValueError(f"output_dt must be a positive multiple of dt = {dt!r} "
-                             f"(got {output_dt!r})")
-        n_steps = max(1, math.ceil(t_end / dt - 1e-9))
-        return t_end, dt, method, every, n_steps
+    def _start_state(self, q0, v0):
+        if q0 is None:
+            init = self.initial_state()
+            return init.q, (init.v if v0 is None else v0)
+        if v0 is None:
+            v0 = self.project_velocities(q0, self.plan.v_target)
+        return q0, v0
+
+    def _run(self, m, sched, opts, project, q0, v0, report):
+        """(arrays, stats) of one run of method m."""
+        s, e = sched, self._engine
+        if m.name == "rk4":
+            return simulate_rk4(e, q0, v0, s.t_end, s.dt, s.n_steps, s.every, project,
+                                report)
+        if m.name == "baumgarte":
+            return simulate_baumgarte(e, q0, v0, s.t_end, s.dt, s.n_steps, s.every,
+                                      opts["alpha"], opts["beta"], report)
+        if m.name == "dopri5":
+            return simulate_dopri5(e, q0, v0, s.t_end, s.output_dt, opts["rtol"],
+                                   opts["atol"], s.dt or 0.0, project, report)
+        if m.name == "ali3p":
+            from ._ali3p import simulate_ali3p
+            return simulate_ali3p(e, q0, v0, s.t_end, s.dt, s.n_steps, s.every, opts,
+                                  report, length_scale=self.length_scale)
+        if m.name.startswith("scipy-"):
+            return scipy_ivp.run(self, m.name[len("scipy-"):], s, opts, q0, v0, report)
+        raise AssertionError(f"no compiled dispatch for method {m.name!r}")
 
     # -- timing (for fccgen bench) ---------------------------------------------------------
     def time_kernels(self, q, v, repeats=200) -> dict:
