@@ -66,8 +66,9 @@ ALI3P_PENALTY = Option("penalty", 1e9, "augmented Lagrangian penalty (1/time uni
                        "the references' 1e7 at their dt = 1e-2 scaled to dt = 1e-3 (same "
                        "(dt^2/4) penalty, so 2-4 Newton iterations per step); reasons in "
                        "fccgen/runtime/_ali3p.pyx")
-ALI3P_NEWTON_TOL = Option("newton_tol", 1e-10, "Newton stops when max |dq| <= newton_tol "
-                          "times the largest body length",
+ALI3P_NEWTON_TOL = Option("newton_tol", 1e-10, "Newton stops when max |dq| and "
+                          "max |g_k| / ||B_k|| are both <= newton_tol times the largest "
+                          "body length",
                           "fccgen's choice: near the 1e-11 relative position tolerance "
                           "of the projections of rk4 and dopri5")
 ALI3P_MAX_NEWTON = Option("max_newton", 30, "Newton iteration limit per step",

@@ -7,13 +7,14 @@ import math
 import numpy as np
 
 from ..errors import SimulationError
+from ..methods import METHODS
 from ._assemble import FLAGS
 from ._messages import INPUTS
 
 # penalty: per time unit squared, scaled per constraint row (see initial_state);
 # newton_tol: relative to the largest body length; max_newton: iterations per step.
 # The reasons for the values are in the docstring of _ali3p.pyx.
-DEFAULTS = dict(penalty=1e9, newton_tol=1e-10, max_newton=30)
+DEFAULTS = METHODS["ali3p"].defaults()      # one source: the method registry
 
 # failure codes of _ali3p.pyx
 FAIL_NEWTON, FAIL_TANGENT, FAIL_NONFINITE = 1, 2, 3
