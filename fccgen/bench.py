@@ -24,6 +24,8 @@ GLOBAL_KERNELS = {  # kernel -> (solver method, takes v)
     "constraint_bias": ("constraint_bias", True),
     "energy": ("energy", True),
     "body_outputs": ("body_outputs", True),
+    "force_jacobian_q": ("force_jacobian_q", True),
+    "force_jacobian_v": ("force_jacobian_v", True),
 }
 
 
@@ -138,7 +140,7 @@ def bench_model(path, build_dir="generated", *, repeats=200, progress=None,
                          build=_last_build_timings(built), cache_hit_seconds=hit)
     length = max([el.params[0] for el in plan.elements if el.cls.kind == "body"] or [1.0])
     if progress:
-        progress(f"timing {len(KERNEL_NAMES)} kernels, accelerations and RK4 steps")
+        progress(f"timing up to {len(KERNEL_NAMES)} kernels, accelerations and RK4 steps")
     c_kernels = cs.time_kernels(q, v, repeats)
     for kernel, (method, takes_v) in GLOBAL_KERNELS.items():
         if kernel not in c_kernels:

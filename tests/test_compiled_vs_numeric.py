@@ -46,6 +46,9 @@ def test_global_quantities_agree(name, compiled, numeric):
         quadratic = amax(v) ** 2 / L
         scales = {"h_vector": amax(M) * quadratic, "applied_forces": 0.0,
                   "constraint_bias": amax(B) * quadratic, "body_outputs": 0.0}
+        # force Jacobians: forces per length are the size of their entries
+        f_per_length = amax(ns.applied_forces(q, v)) / L
+        scales.update(force_jacobian_q=f_per_length, force_jacobian_v=0.0)
         for quantity, scale in scales.items():
             b = getattr(ns, quantity)(q, v)
             close(getattr(cs, quantity)(q, v), b, max(amax(b), scale))

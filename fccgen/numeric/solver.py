@@ -20,6 +20,9 @@ from .dopri5 import simulate_dopri5
 from .elements import element_kernels
 
 
+# kernels whose output is an n_q x n_q block of the element's coordinates
+SQUARE = ("mass_matrix", "force_jacobian_q", "force_jacobian_v")
+
 class NumericSolver:
     """Assembly, constrained solve, projections and integration in NumPy."""
 
@@ -52,14 +55,16 @@ class NumericSolver:
                "h_vector": np.zeros(self.n_q), "applied_forces": np.zeros(self.n_q),
                "constraints": np.zeros(self.n_g),
                "constraint_jacobian": np.zeros((self.n_g, self.n_q)),
-               "constraint_bias": np.zeros(self.n_g)}
+               "constraint_bias": np.zeros(self.n_g),
+               "force_jacobian_q": np.zeros((self.n_q, self.n_q)),
+               "force_jacobian_v": np.zeros((self.n_q, self.n_q))}
         out = {n: out[n] for n in names}
         for el, idx, rows, k in self._kernels(q, v):
             for name in names:
                 value = k.evaluate(name)
                 if value is None:
                     continue
-                if name == "mass_matrix":
+                if name in SQUARE:
                     np.add.at(out[name], (idx[:, None], idx[None, :]),
                               value.reshape(len(idx), len(idx)))
                 elif name == "constraint_jacobian":
@@ -89,6 +94,14 @@ class NumericSolver:
 
     def constraint_bias(self, q, v) -> np.ndarray:
         return self._assemble(q, v, ("constraint_bias",))["constraint_bias"]
+
+    def force_jacobian_q(self, q, v) -> np.ndarray:
+        """df/dq of the applied forces (the tangent's K is its negative)."""
+        return self._assemble(q, v, ("force_jacobian_q",))["force_jacobian_q"]
+
+    def force_jacobian_v(self, q, v) -> np.ndarray:
+        """df/dq' of the applied forces (the tangent's C is its negative)."""
+        return self._assemble(q, v, ("force_jacobian_v",))["force_jacobian_v"]
 
     def energy(self, q, v) -> float:
         """Kinetic plus potential energy of all elements."""

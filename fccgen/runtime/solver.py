@@ -107,6 +107,14 @@ class CompiledSolver:
     def constraints(self, q) -> np.ndarray:
         return self._get("constraints", q)
 
+    def force_jacobian_q(self, q, v) -> np.ndarray:
+        """df/dq of the applied forces (the tangent's K is its negative)."""
+        return self._get("force_jacobian_q", q, v)
+
+    def force_jacobian_v(self, q, v) -> np.ndarray:
+        """df/dq' of the applied forces (the tangent's C is its negative)."""
+        return self._get("force_jacobian_v", q, v)
+
     def constraint_jacobian(self, q) -> np.ndarray:
         return self._get("constraint_jacobian", q)
 
