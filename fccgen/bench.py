@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .plan.kernels import KERNEL_NAMES
+from .threads import single_threaded_blas
 
 GLOBAL_KERNELS = {  # kernel -> (solver method, takes v)
     "mass_matrix": ("mass_matrix", False),
@@ -120,7 +121,13 @@ def _last_build_timings(built) -> dict:
         return {}
 
 
-def bench_model(path, build_dir="generated", *, repeats=200, progress=None,
+def bench_model(path, *args, **kwargs) -> BenchReport:
+    """Time one model's compiled and numeric versions (see the module docstring)."""
+    with single_threaded_blas():
+        return _bench_model(path, *args, **kwargs)
+
+
+def _bench_model(path, build_dir="generated", *, repeats=200, progress=None,
                 rk4_steps=2000, seed=0) -> BenchReport:
     from .api import generate, load, load_numeric
 

@@ -15,6 +15,7 @@ import numpy as np
 from .. import methods as registry
 from ..errors import BuildError, SimulationError
 from ..results import InitialState, Result, result_from_arrays
+from ..threads import single_threaded_blas
 from . import scipy_ivp
 from ._assemble import FLAGS, Assembler
 from ._dopri5 import simulate_dopri5
@@ -196,7 +197,8 @@ class CompiledSolver:
                 progress(f"t = {t:.6g} of {sched.t_end:.6g} "
                          f"({100.0 * t / sched.t_end:.0f}%)")
         start = time.perf_counter()
-        arrays, stats = self._run(m, sched, opts, project, q0, v0, report)
+        with single_threaded_blas():
+            arrays, stats = self._run(m, sched, opts, project, q0, v0, report)
         info = registry.run_info(m, stats, arrays["energy"], time.perf_counter() - start,
                                  dt=sched.dt, output_dt=sched.output_dt, project=project,
                                  options=opts)
