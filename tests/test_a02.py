@@ -4,15 +4,11 @@
 from __future__ import annotations
 
 import importlib.util
-import json
-import os
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 
-from conftest import EXAMPLES, REFERENCE, ROOT
+from conftest import EXAMPLES, REFERENCE
 from fccgen.accuracy import reference_from_table
 
 MODEL = EXAMPLES / "a02_n_four_bar.yaml"
@@ -65,30 +61,12 @@ def test_the_initial_state_is_the_benchmarks(numeric):
     assert init.position_residual_given == 0.0 and init.velocity_change < 1e-14
 
 
-def _run_single_threaded(build_dir, tmp_path):
-    """The benchmark run in a child process with single-threaded BLAS: the runtime's
-    dense solves at n_q = 123 are many times slower when BLAS threads compete with
-    other processes for the cores (measured 2.6 ms vs 55 ms of CPU per RK4 step)."""
-    out = tmp_path / "a02.npz"
-    code = ("import json, sys, fccgen\n"
-            "solver = fccgen.load(sys.argv[1], sys.argv[2])\n"
-            f"r = solver.simulate(t_end=20.0, output_dt=0.05, **{METHOD!r})\n"
-            "r.save(sys.argv[3])\n"
-            "print(json.dumps({k: v for k, v in r.info.items()\n"
-            "                  if isinstance(v, (int, float, str, bool))}))\n")
-    env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1",
-               MKL_NUM_THREADS="1",
-               PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
-    proc = subprocess.run([sys.executable, "-c", code, str(MODEL), str(build_dir),
-                           str(out)], capture_output=True, text=True, env=env, timeout=600)
-    assert proc.returncode == 0, f"{METHOD} failed on A02:\n{proc.stderr[-3000:]}"
-    from fccgen.results import Result
-    return Result.load(out), json.loads(proc.stdout.strip().splitlines()[-1])
-
-
 @pytest.fixture(scope="module")
-def a02_run(build_dir, tmp_path_factory):
-    return _run_single_threaded(build_dir, tmp_path_factory.mktemp("a02"))
+def a02_run(compiled):
+    """The benchmark run (the runtime holds BLAS to one thread during it: its dense
+    solves at n_q = 123 were many times slower with threads competing for the cores)."""
+    result = compiled("a02_n_four_bar").simulate(t_end=20.0, output_dt=0.05, **METHOD)
+    return result, result.info
 
 
 def test_a02_meets_the_high_precision_level_over_20_s(a02_run):
