@@ -64,7 +64,9 @@ ALI3P_PENALTY = Option("penalty", 1e9, "augmented Lagrangian penalty (1/time uni
                        "scaled per constraint row by the largest mass-matrix entry / "
                        "||B_k||^2",
                        "the references' 1e7 at their dt = 1e-2 scaled to dt = 1e-3 (same "
-                       "(dt^2/4) penalty, so 2-4 Newton iterations per step); reasons in "
+                       "(dt^2/4) penalty, so 2-4 Newton iterations per step); passing "
+                       "positions where the constraint Jacobian loses rank may need more "
+                       "(A02 N-four-bar at dt = 1e-3: 1e12); reasons in "
                        "fccgen/runtime/_ali3p.pyx")
 ALI3P_NEWTON_TOL = Option("newton_tol", 1e-10, "Newton stops when max |dq| and "
                           "max |g_k| / ||B_k|| are both <= newton_tol times the largest "

@@ -69,7 +69,8 @@ def failure_message(code: int, info: int, detail: int, t: float, h: float,
     """One sentence: what failed in which step."""
     if code == FAIL_NEWTON:
         what = (f"the ALI3-P Newton iteration did not converge in {info} iterations "
-                f"(last correction {last_dq:.3g}, tolerance {tol:.3g}); try a smaller dt")
+                f"(last correction {last_dq:.3g}, tolerance {tol:.3g}); try a smaller dt "
+                "or, near a singular position, a larger penalty")
     elif code == FAIL_TANGENT:
         what = (f"the ALI3-P tangent matrix M + (dt/2) C + (dt^2/4)(B^T alpha B + K) is "
                 f"singular (LU pivot {info}): a coordinate without mass or too few "
