@@ -109,3 +109,19 @@ def result_from_arrays(plan, t, q, v, body_out, energy, constraint_error, info=N
     cols["energy"] = np.array(energy)
     cols["constraint_error"] = np.array(constraint_error)
     return Result(np.array(t), cols, dict(info or {}))
+
+
+def timed_run(plan, method, sched, options, project, run) -> Result:
+    """Call ``run()`` -> (arrays, stats) with single-threaded BLAS, time it, and name
+    the result's columns; ``result.info`` from :func:`fccgen.methods.run_info`."""
+    import time
+
+    from .methods import run_info
+    from .threads import single_threaded_blas
+    start = time.perf_counter()
+    with single_threaded_blas():
+        arrays, stats = run()
+    info = run_info(method, stats, arrays["energy"], time.perf_counter() - start,
+                    dt=sched.dt, output_dt=sched.output_dt, project=project, options=options)
+    return result_from_arrays(plan, arrays["t"], arrays["q"], arrays["v"], arrays["body"],
+                              arrays["energy"], arrays["constraint_error"], info)

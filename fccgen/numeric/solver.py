@@ -14,8 +14,7 @@ import numpy as np
 from .. import methods as registry
 from ..errors import SimulationError
 from ..plan import Plan
-from ..threads import single_threaded_blas
-from ..results import InitialState, Result, result_from_arrays
+from ..results import InitialState, Result, timed_run
 from .constrained import constrained_solve, scaled_residual
 from .dopri5 import simulate_dopri5
 from .elements import element_kernels
@@ -210,16 +209,8 @@ class NumericSolver:
         elif v0 is None:
             v0 = self.project_velocities(q0, self.plan.v_target)
         project = bool(project) and m.projects
-        start = time.perf_counter()
-        with single_threaded_blas():
-            arrays, stats = INTEGRATORS[m.name](self, np.array(q0, float), np.array(v0, float),
-                                                sched, opts, project, progress)
-        info = registry.run_info(m, stats, arrays["energy"], time.perf_counter() - start,
-                                 dt=sched.dt, output_dt=sched.output_dt, project=project,
-                                 options=opts)
-        return result_from_arrays(self.plan, arrays["t"], arrays["q"], arrays["v"],
-                                  arrays["body"], arrays["energy"],
-                                  arrays["constraint_error"], info)
+        return timed_run(self.plan, m, sched, opts, project, lambda: INTEGRATORS[m.name](
+            self, np.array(q0, float), np.array(v0, float), sched, opts, project, progress))
 
 
 class _Recorder:

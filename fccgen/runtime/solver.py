@@ -8,14 +8,12 @@ from __future__ import annotations
 
 import importlib
 import statistics
-import time
 
 import numpy as np
 
 from .. import methods as registry
 from ..errors import BuildError, SimulationError
-from ..results import InitialState, Result, result_from_arrays
-from ..threads import single_threaded_blas
+from ..results import InitialState, Result, timed_run
 from . import scipy_ivp
 from ._assemble import FLAGS, Assembler
 from ._dopri5 import simulate_dopri5
@@ -196,15 +194,8 @@ class CompiledSolver:
             def report(t):
                 progress(f"t = {t:.6g} of {sched.t_end:.6g} "
                          f"({100.0 * t / sched.t_end:.0f}%)")
-        start = time.perf_counter()
-        with single_threaded_blas():
-            arrays, stats = self._run(m, sched, opts, project, q0, v0, report)
-        info = registry.run_info(m, stats, arrays["energy"], time.perf_counter() - start,
-                                 dt=sched.dt, output_dt=sched.output_dt, project=project,
-                                 options=opts)
-        return result_from_arrays(self.plan, arrays["t"], arrays["q"], arrays["v"],
-                                  arrays["body"], arrays["energy"],
-                                  arrays["constraint_error"], info)
+        return timed_run(self.plan, m, sched, opts, project,
+                         lambda: self._run(m, sched, opts, project, q0, v0, report))
 
     def _start_state(self, q0, v0):
         if q0 is None:
