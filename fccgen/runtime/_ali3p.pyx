@@ -61,23 +61,18 @@ the iterates accepted at the 1e-10 L tolerance, not from the penalty itself.
 from cpython.exc cimport PyErr_CheckSignals
 from libc.math cimport fabs, isfinite
 from libc.string cimport memcpy
-from posix.time cimport CLOCK_MONOTONIC, clock_gettime, timespec
 from scipy.linalg.cython_lapack cimport dgetrf, dgetrs, dpotrf, dpotrs
 
 import numpy as np
 
 from fccgen.errors import SimulationError
 
-from ._assemble cimport (ASM_B, ASM_BODY, ASM_C, ASM_E, ASM_F, ASM_G, ASM_H, ASM_KQ,
+from ._assemble cimport (ASM_B, ASM_C, ASM_F, ASM_G, ASM_H, ASM_KQ,
                          ASM_KV, ASM_M)
 from ._engine cimport Engine, finite
+from ._runloop cimport RUN_DONE, RUN_ERROR, RUN_PAUSE, now, write_record
 
 from .ali3p_setup import DEFAULTS, failure_message, initial_state, run_options
-
-cdef enum:
-    RUN_DONE = 0
-    RUN_PAUSE = 1
-    RUN_ERROR = -1
 
 cdef enum:                   # failure codes, explained by ali3p_setup.failure_message
     FAIL_NEWTON = 1          # Newton did not converge within max_newton
@@ -132,12 +127,6 @@ cdef struct Run:
     double *body_out
     double *e_out
     double *c_out
-
-
-cdef inline double _now() noexcept nogil:
-    cdef timespec ts
-    clock_gettime(CLOCK_MONOTONIC, &ts)
-    return ts.tv_sec + 1e-9 * ts.tv_nsec
 
 
 cdef int _failed(Run *r, int code, int info, int detail) noexcept nogil:
@@ -318,18 +307,12 @@ cdef int _project(Engine e, Run *r, double h) noexcept nogil:
 
 cdef void _record(Engine e, Run *r, double t) noexcept nogil:
     """Write record r.n_out: t, q, v, body outputs, energy, max |g|."""
-    cdef Py_ssize_t j = r.n_out, n = r.n, nb6 = 6 * e.asm.n_bodies
     r.n_asm += 1
-    e.asm.assemble(r.q, r.v, ASM_G | ASM_E | ASM_BODY)
-    r.t_out[j] = t
-    memcpy(r.q_out + j * n, r.q, n * sizeof(double))
-    memcpy(r.v_out + j * n, r.v, n * sizeof(double))
-    if nb6:
-        memcpy(r.body_out + j * nb6, e.asm.body, nb6 * sizeof(double))
-    r.e_out[j] = e.asm.energy[0] + e.asm.energy[1]
-    r.c_out[j] = e.asm.max_abs_g()
-    if not r.c_out[j] <= r.max_cerr:
-        r.max_cerr = r.c_out[j]
+    r.t_out[r.n_out] = t
+    cdef double cerr = write_record(e, r.n_out, r.q, r.v, r.q_out, r.v_out, r.body_out,
+                                    r.e_out, r.c_out)
+    if not cerr <= r.max_cerr:
+        r.max_cerr = cerr
     r.n_out += 1
 
 
@@ -354,7 +337,7 @@ cdef int _run(Engine e, Run *r, double deadline) noexcept nogil:
         t = r.k * r.dt if r.k < r.n_steps else r.t_end
         if r.k % r.every == 0 or r.k == r.n_steps:
             _record(e, r, t)
-        if r.k < r.n_steps and _now() >= deadline:
+        if r.k < r.n_steps and now() >= deadline:
             return RUN_PAUSE
     return RUN_DONE
 
@@ -442,7 +425,7 @@ def simulate_ali3p(Engine engine, q0, v0, double t_end, double dt, long n_steps,
     try:
         _record(engine, &r, 0.0)
         while True:
-            deadline = _now() + progress_interval
+            deadline = now() + progress_interval
             with nogil:
                 status = _run(engine, &r, deadline)
             if status == RUN_DONE:

@@ -19,23 +19,20 @@ signals and an optional progress callback.
 from cpython.exc cimport PyErr_CheckSignals
 from libc.math cimport fabs, fmax, fmin, pow, sqrt
 from libc.string cimport memcpy
-from posix.time cimport CLOCK_MONOTONIC, clock_gettime, timespec
 
 import numpy as np
 
 from fccgen.errors import SimulationError
 
-from ._assemble cimport ASM_BODY, ASM_E, ASM_G
+from ._assemble cimport ASM_G
 from ._engine cimport (AT_POSITIONS, AT_STAGE, AT_STEP, AT_VELOCITIES, ERR_NONE,
                        ERR_NONFINITE_INPUT, Engine, finite)
+from ._runloop cimport RUN_DONE, RUN_ERROR, RUN_PAUSE, now, write_record
 
 from ._messages import error_message
 
 cdef enum:
-    RUN_DONE = 0
-    RUN_PAUSE = 1
-    RUN_ERROR = -1
-    RUN_UNDERFLOW = -2
+    RUN_UNDERFLOW = -2         # DOPRI5's step size underflowed
 
 # Butcher tableau of DOPRI5 (Hairer, Norsett & Wanner, Table II.5.2).
 cdef double C2 = 0.2, C3 = 0.3, C4 = 0.8, C5 = 8.0 / 9.0
@@ -80,12 +77,6 @@ cdef struct Run:
     double *body_out
     double *e_out
     double *c_out
-
-
-cdef inline double _now() noexcept nogil:
-    cdef timespec ts
-    clock_gettime(CLOCK_MONOTONIC, &ts)
-    return ts.tv_sec + 1e-9 * ts.tv_nsec
 
 
 cdef int _f(Engine e, Run *r, int stage, const double *y, double *k,
@@ -175,8 +166,8 @@ cdef int _project(Engine e, Run *r, double *y) noexcept nogil:
 
 cdef int _record(Engine e, Run *r) noexcept nogil:
     """Write the requested output r.n_out from the dense output of the last step."""
-    cdef Py_ssize_t j = r.n_out, n = r.n2 // 2, nb6 = 6 * e.asm.n_bodies
-    cdef double th, th1
+    cdef Py_ssize_t j = r.n_out, n = r.n2 // 2
+    cdef double th, th1, cerr
     cdef int i
     if j > 0:
         th = (r.t_req[j] - (r.t - r.h)) / r.h
@@ -190,15 +181,10 @@ cdef int _record(Engine e, Run *r) noexcept nogil:
             e.factor_valid = False        # the factorisation is not the one at r.y
     else:
         memcpy(r.yt, r.y, r.n2 * sizeof(double))
-    e.asm.assemble(r.yt, r.yt + n, ASM_G | ASM_E | ASM_BODY)
-    memcpy(r.q_out + j * n, r.yt, n * sizeof(double))
-    memcpy(r.v_out + j * n, r.yt + n, n * sizeof(double))
-    if nb6:
-        memcpy(r.body_out + j * nb6, e.asm.body, nb6 * sizeof(double))
-    r.e_out[j] = e.asm.energy[0] + e.asm.energy[1]
-    r.c_out[j] = e.asm.max_abs_g()
-    if not r.c_out[j] <= r.max_cerr:
-        r.max_cerr = r.c_out[j]
+    cerr = write_record(e, j, r.yt, r.yt + n, r.q_out, r.v_out, r.body_out, r.e_out,
+                        r.c_out)
+    if not cerr <= r.max_cerr:
+        r.max_cerr = cerr
     r.n_out += 1
     return 0
 
@@ -257,7 +243,7 @@ cdef int _run(Engine e, Run *r, double deadline) noexcept nogil:
             r.h = h * fac
             r.rejected += 1
             r.last_rejected = True
-        if r.t < r.t_end and _now() >= deadline:
+        if r.t < r.t_end and now() >= deadline:
             return RUN_PAUSE
     return RUN_DONE
 
@@ -360,7 +346,7 @@ def simulate_dopri5(Engine engine, q0, v0, double t_end, double output_dt, doubl
         if status < 0:
             raise SimulationError(_message(engine))
         while True:
-            deadline = _now() + progress_interval
+            deadline = now() + progress_interval
             with nogil:
                 status = _run(engine, &r, deadline)
             if status == RUN_DONE:

@@ -10,22 +10,17 @@ reused. The run leaves C only to pause about every 0.5 s of wall time, for signa
 """
 from cpython.exc cimport PyErr_CheckSignals
 from libc.string cimport memcpy
-from posix.time cimport CLOCK_MONOTONIC, clock_gettime, timespec
 
 import numpy as np
 
 from fccgen.errors import SimulationError
 
-from ._assemble cimport ASM_BODY, ASM_E, ASM_G
+from ._assemble cimport ASM_G
 from ._engine cimport (AT_POSITIONS, AT_STAGE, AT_STEP, AT_VELOCITIES, ERR_NONE,
                        ERR_NONFINITE_INPUT, Engine, finite)
+from ._runloop cimport RUN_DONE, RUN_ERROR, RUN_PAUSE, now, write_record
 
 from ._messages import error_message
-
-cdef enum:
-    RUN_DONE = 0
-    RUN_PAUSE = 1
-    RUN_ERROR = -1
 
 
 cdef struct Run:
@@ -60,12 +55,6 @@ cdef struct Run:
     double *body_out
     double *e_out
     double *c_out
-
-
-cdef inline double _now() noexcept nogil:
-    cdef timespec ts
-    clock_gettime(CLOCK_MONOTONIC, &ts)
-    return ts.tv_sec + 1e-9 * ts.tv_nsec
 
 
 cdef int _stage(Engine e, Run *r, int stage, const double *q, const double *v, double *a,
@@ -130,17 +119,11 @@ cdef int _after_step(Engine e, Run *r) noexcept nogil:
 
 cdef void _record(Engine e, Run *r, double t) noexcept nogil:
     """Write record r.n_out: t, q, v, body outputs, energy, max |g|."""
-    cdef Py_ssize_t j = r.n_out, n = e.n, nb6 = 6 * e.asm.n_bodies
-    e.asm.assemble(r.q, r.v, ASM_G | ASM_E | ASM_BODY)
-    r.t_out[j] = t
-    memcpy(r.q_out + j * n, r.q, n * sizeof(double))
-    memcpy(r.v_out + j * n, r.v, n * sizeof(double))
-    if nb6:
-        memcpy(r.body_out + j * nb6, e.asm.body, nb6 * sizeof(double))
-    r.e_out[j] = e.asm.energy[0] + e.asm.energy[1]
-    r.c_out[j] = e.asm.max_abs_g()
-    if not r.c_out[j] <= r.max_cerr:
-        r.max_cerr = r.c_out[j]
+    r.t_out[r.n_out] = t
+    cdef double cerr = write_record(e, r.n_out, r.q, r.v, r.q_out, r.v_out, r.body_out,
+                                    r.e_out, r.c_out)
+    if not cerr <= r.max_cerr:
+        r.max_cerr = cerr
     r.n_out += 1
 
 
@@ -163,7 +146,7 @@ cdef int _run(Engine e, Run *r, double deadline) noexcept nogil:
             return RUN_ERROR
         if r.k % r.every == 0 or r.k == r.n_steps:
             _record(e, r, t)
-        if r.k < r.n_steps and _now() >= deadline:
+        if r.k < r.n_steps and now() >= deadline:
             return RUN_PAUSE
     return RUN_DONE
 
@@ -250,7 +233,7 @@ def _simulate(Engine engine, q0, v0, double t_end, double dt, long n_steps,
     try:
         _record(engine, &r, 0.0)
         while True:
-            deadline = _now() + progress_interval
+            deadline = now() + progress_interval
             with nogil:
                 status = _run(engine, &r, deadline)
             if status == RUN_DONE:
