@@ -36,3 +36,9 @@ class BuildError(FccgenError, RuntimeError):
 class SimulationError(FccgenError, RuntimeError):
     """A simulation cannot go on (singular mass matrix on the constraint manifold,
     failed assembly, non-finite state)."""
+
+
+class RunWarning(UserWarning):
+    """A run finished but something in it needs the user's attention (a change of the
+    degrees of freedom, a start near a singular position, a model that cannot move).
+    The same texts are in ``result.info["warnings"]``."""

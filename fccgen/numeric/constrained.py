@@ -12,9 +12,12 @@ with LAPACK (dgeqp3, dorgqr, dtrsv, dpotrf).
 """
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+
 import numpy as np
 import scipy.linalg
 
+from .. import rank as rank_rule
 from ..errors import SimulationError
 
 # A Cholesky pivot d_k^2 below this fraction of the largest diagonal entry of the
@@ -29,12 +32,71 @@ def row_norms(B: np.ndarray) -> np.ndarray:
     return np.where(norms > 0.0, norms, 1.0)
 
 
-def constrained_solve(M, B, Q, b, rank_tol: float = 1e-10) -> np.ndarray:
+def row_scales(B: np.ndarray, groups=None) -> np.ndarray:
+    """The divisors of B's rows in the solve (fccgen.rank.row_scales; runtime/_solve.pyx
+    does the same); groups: the element of each row, None: each row alone."""
+    return rank_rule.row_scales(B, groups)
+
+
+@dataclass
+class RankKeeper:
+    """The decided rank of B and what the factorisations saw (fccgen.rank; the same
+    rule and statistics as the compiled solve, runtime/_solve.pyx). rank < 0: count
+    the QR pivots above rank_tol."""
+    rank: int = -1
+    grow_trigger: float = rank_rule.RANK_TOL
+    t: float = 0.0                         # time of the state being solved (for the log)
+    check_growth: bool = False             # the state is on the constraints (projected)
+    groups: np.ndarray | None = None       # per constraint row: its element
+    stats: dict = field(default_factory=dict)
+
+    def decide(self, rank: int) -> None:
+        self.rank = rank
+        self.grow_trigger = rank_rule.RANK_TOL
+        self.stats = dict(factorisations=0, drops=0, svd_checks=0, smallest_kept=1.0,
+                          largest_dropped=0.0, increases=[])
+
+    def choose(self, diag: np.ndarray, Bs: np.ndarray, rank_tol: float) -> int:
+        """The rank of this factorisation from the QR pivots |R_kk| (diag)."""
+        kmax = diag.size
+        if kmax == 0 or diag[0] <= 0.0:
+            return 0
+        ratio = diag / diag[0]
+        cap = kmax if self.rank < 0 else min(self.rank, kmax)
+        r = 0
+        while r < cap and ratio[r] > rank_tol:
+            r += 1
+        if self.rank < 0:
+            return r
+        st = self.stats
+        st["factorisations"] += 1
+        st["drops"] += r < cap
+        if r > 0:
+            st["smallest_kept"] = min(st["smallest_kept"], float(ratio[r - 1]))
+        if cap >= kmax:
+            return r
+        st["largest_dropped"] = max(st["largest_dropped"], float(ratio[cap]))
+        if ratio[cap] > self.grow_trigger and self.check_growth:
+            st["svd_checks"] += 1
+            sigma = np.linalg.svd(Bs, compute_uv=False)
+            grown = int(np.sum(sigma > rank_rule.GROW_TOL * sigma[0]))
+            if grown > self.rank:
+                st["increases"].append((self.t, self.rank, grown))
+                self.rank = grown
+                while r < min(grown, kmax) and ratio[r] > rank_tol:
+                    r += 1
+            else:
+                self.grow_trigger = 10.0 * float(ratio[cap])
+        return r
+
+
+def constrained_solve(M, B, Q, b, rank_tol: float = 1e-10,
+                      keeper: RankKeeper | None = None) -> np.ndarray:
     """x with B x = b (least squares on the range of B) minimising x^T M x / 2 - Q^T x.
 
     1. rows of B and b scaled by 1/||row of B|| (zero rows left alone);
-    2. QR with column pivoting of B_s^T = Q R P^T; rank r = number of |R_kk| above
-       rank_tol |R_00|;
+    2. QR with column pivoting of B_s^T = Q R P^T; rank r: the keeper's decided rank
+       (fccgen.rank), or without one the number of |R_kk| above rank_tol |R_00|;
     3. Q1 = first r columns of Q (range of B^T), Q2 = the rest (null space of B);
     4. x_p = Q1 y with R11^T y = (P^T b_s)[:r];
     5. (Q2^T M Q2) z = Q2^T (Q - M x_p) by Cholesky, x = x_p + Q2 z.
@@ -47,11 +109,11 @@ def constrained_solve(M, B, Q, b, rank_tol: float = 1e-10) -> np.ndarray:
     b = np.asarray(b, float).reshape(-1)
     n = M.shape[0]
     if B.shape[0]:
-        norms = row_norms(B)
+        norms = row_scales(B, keeper.groups if keeper is not None else None)
         Bs, bs = B / norms[:, None], b / norms
         Qf, R, piv = scipy.linalg.qr(Bs.T, pivoting=True)
         diag = np.abs(np.diag(R))
-        r = int(np.sum(diag > rank_tol * diag[0])) if diag[0] > 0.0 else 0
+        r = (keeper or RankKeeper()).choose(diag, Bs, rank_tol)
         Q1, Q2 = Qf[:, :r], Qf[:, r:]
         y = scipy.linalg.solve_triangular(R[:r, :r], bs[piv][:r], trans="T", lower=False,
                                           check_finite=False)

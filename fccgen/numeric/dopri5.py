@@ -78,6 +78,8 @@ def simulate_dopri5(solver, q, v, sched, opts, project, progress=None):
             h = min(h, t_end - t)
             if 0.1 * h <= abs(t) * UROUND or h <= 0.0:
                 raise SimulationError(f"DOPRI5 step size underflow (h = {h:.3g})")
+            if hasattr(solver, "_rank"):       # step start, for the rank log
+                solver._rank.t = t
             k, y1 = _stages(f, y, k1, h)
             d = h * sum(e * kj for e, kj in zip(E, k) if e != 0.0)
             err = np.sqrt(np.mean((d / (atol + rtol * np.maximum(abs(y), abs(y1)))) ** 2))

@@ -12,10 +12,11 @@ import time
 import numpy as np
 
 from .. import methods as registry
+from .. import rank as rank_rule
 from ..errors import SimulationError
 from ..plan import Plan
 from ..results import InitialState, Result, timed_run
-from .constrained import constrained_solve, scaled_residual
+from .constrained import RankKeeper, constrained_solve, scaled_residual
 from .dopri5 import simulate_dopri5
 from .elements import element_kernels
 
@@ -39,6 +40,9 @@ class NumericSolver:
         self._index = [el.q_index() for el in plan.elements]
         offsets = np.cumsum([0] + [el.cls.n_g for el in plan.elements])
         self._rows = [np.arange(a, b) for a, b in zip(offsets[:-1], offsets[1:])]
+        self.row_groups = np.repeat(np.arange(len(plan.elements)),
+                                    [el.cls.n_g for el in plan.elements])
+        self._rank = RankKeeper(groups=self.row_groups)
 
     # -- element evaluation ------------------------------------------------------------
     def _kernels(self, q, v):
@@ -129,14 +133,18 @@ class NumericSolver:
                                   "constraint_jacobian", "constraint_bias"))
         return constrained_solve(a["mass_matrix"], a["constraint_jacobian"],
                                  a["applied_forces"] - a["h_vector"],
-                                 -a["constraint_bias"], self.rank_tol)
+                                 -a["constraint_bias"], self.rank_tol, self._rank)
 
     def project_velocities(self, q, v) -> np.ndarray:
         """The speeds nearest to v in the kinetic-energy metric with B v = 0."""
         a = self._assemble(q, None, ("mass_matrix", "constraint_jacobian"))
         M = a["mass_matrix"]
-        return constrained_solve(M, a["constraint_jacobian"], M @ np.asarray(v, float),
-                                 np.zeros(self.n_g), self.rank_tol)
+        self._rank.check_growth = True          # q is on the constraints (projected)
+        try:
+            return constrained_solve(M, a["constraint_jacobian"], M @ np.asarray(v, float),
+                                     np.zeros(self.n_g), self.rank_tol, self._rank)
+        finally:
+            self._rank.check_growth = False
 
     def project_positions(self, q) -> tuple[np.ndarray, int]:
         """Newton iterations dq = argmin dq^T M dq / 2 subject to B dq = -g until
@@ -159,7 +167,7 @@ class NumericSolver:
                 return q, it
             if it == self.max_newton:
                 break
-            q = q + constrained_solve(M, B, zero, -g, self.rank_tol)
+            q = q + constrained_solve(M, B, zero, -g, self.rank_tol, self._rank)
             g, B = self.constraints(q), self.constraint_jacobian(q)
         raise SimulationError(
             f"position projection did not converge in {self.max_newton} Newton iterations: "
@@ -170,6 +178,7 @@ class NumericSolver:
         """plan.q0 assembled onto the constraints and plan.v_target made consistent."""
         q_given = np.array(self.plan.q0, float)
         q, iterations = self.project_positions(q_given)
+        self.decide_rank(q)
         v_given = np.array(self.plan.v_target, float)
         v = self.project_velocities(q, v_given)
         return InitialState(
@@ -189,7 +198,7 @@ class NumericSolver:
         b = (-a["constraint_bias"] - 2.0 * alpha * (B @ np.asarray(v, float))
              - beta * beta * a["constraints"])
         return constrained_solve(a["mass_matrix"], B, a["applied_forces"] - a["h_vector"],
-                                 b, self.rank_tol)
+                                 b, self.rank_tol, self._rank)
 
     def simulate(self, t_end=None, dt=None, method=None, output_dt=None, project=True,
                  q0=None, v0=None, progress=None, rtol=None, atol=None,
@@ -209,8 +218,17 @@ class NumericSolver:
         elif v0 is None:
             v0 = self.project_velocities(q0, self.plan.v_target)
         project = bool(project) and m.projects
-        return timed_run(self.plan, m, sched, opts, project, lambda: INTEGRATORS[m.name](
+        decision = self.decide_rank(q0)
+        result = timed_run(self.plan, m, sched, opts, project, lambda: INTEGRATORS[m.name](
             self, np.array(q0, float), np.array(v0, float), sched, opts, project, progress))
+        return rank_rule.report_run(result, decision, self._rank.stats)
+
+    def decide_rank(self, q) -> rank_rule.RankDecision:
+        """Decide the rank of B at q (fccgen.rank) and keep it until the next decision,
+        as the compiled solver does."""
+        decision = rank_rule.decide(self.constraint_jacobian(q), self.n_q, self.row_groups)
+        self._rank.decide(decision.rank)
+        return decision
 
 
 class _Recorder:
@@ -276,6 +294,7 @@ def simulate_rk4(solver: NumericSolver, q, v, sched, opts, project, progress=Non
                  newton_iterations=0, max_newton_iterations=0)
     for k in range(1, n_steps + 1):
         t = k * dt if k < n_steps else t_end
+        solver._rank.t = (k - 1) * dt          # step start, as the compiled loop logs it
         try:
             q, v = _rk4_step(accelerations, q, v, dt if k < n_steps else t_end - (k - 1) * dt)
             _check_finite(q, v)

@@ -9,6 +9,7 @@ cdef enum:
     ERR_LAPACK = 2            # LAPACK argument error (a bug)
     ERR_NONFINITE_INPUT = 3   # a state or assembled quantity is not finite (err_detail)
     ERR_NONFINITE_RESULT = 4  # the solve produced a non-finite result
+    ERR_DIVERGED = 5          # the state grew past the run's bound (err_detail: q or v)
 
 cdef enum:
     AT_CALL = 0               # a direct call
@@ -16,6 +17,10 @@ cdef enum:
     AT_POSITIONS = 2          # position projection
     AT_VELOCITIES = 3         # velocity projection
     AT_STEP = 4               # the state after a step
+
+
+cdef enum:
+    RANK_LOG_SIZE = 64
 
 
 cdef bint finite(const double *x, Py_ssize_t n) noexcept nogil
@@ -26,18 +31,23 @@ cdef class Engine:
     cdef CSolve sol
     cdef readonly double position_tol
     cdef readonly int max_newton
+    cdef double diverge_residual         # a projection starting above this: diverged
     cdef int n, m
     cdef double *work                    # one block for rhs, nb, dq, vtmp
     cdef double *rhs
     cdef double *nb
     cdef double *dq
     cdef double *vtmp
+    cdef int *row_group                  # per constraint row: its element's first row
     cdef double *stages                  # 10 n numbers for an integrator's stages
     cdef bint factor_valid               # sol holds the factorisation of M, B at the state
     cdef bint running                    # an integrator is using the engine
+    # rank decisions: each accepted increase of the decided rank (time, old, new)
+    cdef int n_rank_log
+    cdef double rank_log[RANK_LOG_SIZE][3]
     # error record
     cdef int err, err_info, err_where, err_stage, err_detail
-    cdef double err_t, err_h
+    cdef double err_t, err_h, err_value, err_bound
 
     cdef int fail(self, int code, int info, int detail) noexcept nogil
     cdef int nonfinite_input(self, const double *q, const double *v, int flags) noexcept nogil

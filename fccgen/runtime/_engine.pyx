@@ -9,7 +9,7 @@ Failures (a singular reduced mass matrix, a non-finite quantity) set an error re
 in C; the Python side turns it into a SimulationError saying what failed (and, in a
 run, when), so nothing continues on NaN.
 """
-from libc.math cimport isfinite
+from libc.math cimport INFINITY, isfinite
 from libc.stdlib cimport calloc, free
 from libc.string cimport memcpy
 
@@ -20,7 +20,8 @@ import numpy as np
 from fccgen.errors import SimulationError
 
 from ._assemble cimport ASM_B, ASM_C, ASM_F, ASM_G, ASM_H, ASM_M, Assembler
-from ._solve cimport CSolve, csolve_apply, csolve_factor, csolve_free, csolve_init
+from ._solve cimport (CSolve, csolve_apply, csolve_factor, csolve_free, csolve_init,
+                     csolve_reset_stats, csolve_svd_rank)
 
 from ._messages import error_message
 
@@ -51,7 +52,16 @@ cdef class Engine:
         self.m = asm.n_g
         self.position_tol = position_tol
         self.max_newton = max_newton
+        self.diverge_residual = INFINITY
         csolve_init(&self.sol, self.n, self.m, rank_tol)
+        self.row_group = <int *>calloc(self.m + 1, sizeof(int))
+        if self.row_group == NULL:
+            raise MemoryError("cannot allocate the engine's work arrays")
+        cdef int e, k
+        for e in range(asm.n_el):
+            for k in range(asm.gptr[e], asm.gptr[e + 1]):
+                self.row_group[k] = asm.gptr[e]
+        self.sol.group = self.row_group
         self.work = <double *>calloc(4 * self.n + self.m + 1, sizeof(double))
         if self.work == NULL:
             raise MemoryError("cannot allocate the engine's work arrays")
@@ -65,6 +75,7 @@ cdef class Engine:
 
     def __dealloc__(self):
         csolve_free(&self.sol)
+        free(self.row_group)
         free(self.work)
         free(self.stages)
 
@@ -76,6 +87,34 @@ cdef class Engine:
     def rank(self):
         """Numerical rank of B at the last factorisation."""
         return self.sol.r
+
+    @property
+    def decided_rank(self):
+        """The rank kept by the factorisations (-1: none decided, pivot threshold)."""
+        return self.sol.rank_fixed
+
+    def decide_rank(self, q, rank):
+        """Keep ``rank`` as the rank of B from now on (see "Rank" in _solve.pyx; -1:
+        back to the pivot threshold) and start the rank statistics anew."""
+        if not -1 <= rank <= min(self.n, self.m):
+            raise ValueError(f"rank must be in [-1, {min(self.n, self.m)}], got {rank}")
+        self.sol.rank_fixed = rank
+        csolve_reset_stats(&self.sol)
+        self.n_rank_log = 0
+        self.factor_valid = False
+
+    def rank_statistics(self):
+        """What the factorisations since :meth:`decide_rank` saw: a dict with
+        factorisations, drops (factorisations at a singular position, where a pivot
+        within the decided rank fell to rank_tol or below), svd_checks, smallest_kept
+        and largest_dropped pivot ratios, and increases [(t, old rank, new rank)]."""
+        n = min(self.n_rank_log, RANK_LOG_SIZE)
+        return dict(factorisations=self.sol.n_factor, drops=self.sol.n_drop,
+                    svd_checks=self.sol.n_svd, smallest_kept=self.sol.kept_min,
+                    largest_dropped=self.sol.dropped_max,
+                    increases=[(self.rank_log[k][0], int(self.rank_log[k][1]),
+                                int(self.rank_log[k][2])) for k in range(n)],
+                    increases_total=self.n_rank_log)
 
     # -- building blocks (nogil) ---------------------------------------------------
     cdef int fail(self, int code, int info, int detail) noexcept nogil:
@@ -99,8 +138,16 @@ cdef class Engine:
 
     cdef int factor(self, const double *q) noexcept nogil:
         """Factor the assembled M and B; on failure, blame a non-finite input first."""
-        cdef int info = csolve_factor(&self.sol, self.asm.M, self.asm.B), bad
+        cdef int old = self.sol.rank_fixed, bad, k
+        cdef int info = csolve_factor(&self.sol, self.asm.M, self.asm.B)
         self.factor_valid = False
+        if self.sol.grew:
+            k = self.n_rank_log
+            if k < RANK_LOG_SIZE:
+                self.rank_log[k][0] = self.err_t      # the integrators keep it current
+                self.rank_log[k][1] = old
+                self.rank_log[k][2] = self.sol.rank_fixed
+            self.n_rank_log += 1
         if info == 0:
             return 0
         bad = self.nonfinite_input(q, NULL, ASM_M | ASM_B)
@@ -168,6 +215,11 @@ cdef class Engine:
                                  self.nonfinite_input(q, NULL, ASM_G | ASM_B) or 8)
             if res <= self.position_tol:
                 break
+            if it == 0 and res > self.diverge_residual:
+                iterations[0] = it
+                self.err_value = res
+                self.err_bound = self.diverge_residual
+                return self.fail(ERR_DIVERGED, 0, 3)
             if it >= self.max_newton:
                 iterations[0] = it
                 return 1
@@ -193,7 +245,10 @@ cdef class Engine:
         factorisation of (M, B) at q in sol; have_B: B is already assembled at q."""
         cdef int i
         self.asm.assemble(q, NULL, ASM_M if have_B else ASM_M | ASM_B)
-        if self.factor(q) < 0:
+        self.sol.check_growth = 1             # q has just been projected (or is given)
+        i = self.factor(q)
+        self.sol.check_growth = 0
+        if i < 0:
             return -1
         csolve_apply(&self.sol, NULL, v, NULL, self.vtmp)
         if not finite(self.vtmp, self.n):
@@ -221,7 +276,8 @@ cdef class Engine:
     cdef dict error_record(self):
         return dict(code=self.err, info=self.err_info, detail=self.err_detail,
                     where=self.err_where, stage=self.err_stage, t=self.err_t,
-                    h=self.err_h, rank=self.sol.r, n_q=self.n, n_g=self.m,
+                    h=self.err_h, value=self.err_value, bound=self.err_bound,
+                    rank=self.sol.r, n_q=self.n, n_g=self.m,
                     nullity=self.sol.nr)
 
     def accelerations(self, q, v):

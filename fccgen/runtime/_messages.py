@@ -7,6 +7,7 @@ INPUTS = ("", "coordinates q", "speeds v", "mass matrix M", "inertia terms h",
           "constraints g")
 
 ERR_SINGULAR, ERR_LAPACK, ERR_NONFINITE_INPUT, ERR_NONFINITE_RESULT = 1, 2, 3, 4
+ERR_DIVERGED = 5
 AT_CALL, AT_STAGE, AT_POSITIONS, AT_VELOCITIES, AT_STEP = 0, 1, 2, 3, 4
 
 
@@ -23,12 +24,23 @@ def error_message(rec: dict, in_run: bool) -> str:
         what = f"LAPACK reported error {rec['info']} in the constrained solve"
     elif code == ERR_NONFINITE_INPUT:
         what = f"non-finite {INPUTS[rec['detail']]}"
+    elif code == ERR_DIVERGED:
+        quantity = {1: "max |q|", 2: "max |v|",
+                    3: "the constraint residual after the step"}[rec["detail"]]
+        what = (f"the run diverged: {quantity} reached {rec['value']:.3g}, past the "
+                f"bound {rec['bound']:.3g} set at its start from the initial state (see "
+                "docs/reliability.md); the step is too large for the model's stiffness "
+                "or speeds: use a smaller "
+                "--dt, --method dopri5 (error control), or --method ali3p (implicit, for "
+                "stiff springs)")
     elif code == ERR_NONFINITE_RESULT:
         what = "the constrained solve gave non-finite values from finite inputs"
     else:
         what = f"unknown engine error {code}"
     where = rec["where"]
-    if where == AT_STAGE:
+    if code == ERR_DIVERGED:
+        place = ""
+    elif where == AT_STAGE:
         place = (f" in RK4 stage {rec['stage']} of the step from t = {rec['t']:.10g} "
                  f"(step size {rec['h']:.3g})")
     elif where == AT_POSITIONS:

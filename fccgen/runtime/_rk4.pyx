@@ -16,8 +16,10 @@ import numpy as np
 from fccgen.errors import SimulationError
 
 from ._assemble cimport ASM_G
-from ._engine cimport (AT_POSITIONS, AT_STAGE, AT_STEP, AT_VELOCITIES, ERR_NONE,
-                       ERR_NONFINITE_INPUT, Engine, finite)
+from libc.math cimport fabs
+
+from ._engine cimport (AT_POSITIONS, AT_STAGE, AT_STEP, AT_VELOCITIES, ERR_DIVERGED,
+                       ERR_NONE, ERR_NONFINITE_INPUT, Engine, finite)
 from ._runloop cimport RUN_DONE, RUN_ERROR, RUN_PAUSE, now, write_record
 
 from ._messages import error_message
@@ -39,6 +41,8 @@ cdef struct Run:
     long failures             # position projections that did not converge
     int newton_max            # most Newton iterations in one projection
     double max_cerr           # largest max |g| of a recorded or stepped state
+    double q_bound            # max |q| and max |v| past these: the run diverged
+    double v_bound
     double *q                 # state, stage states, stage accelerations (engine.stages)
     double *v
     double *qs
@@ -96,6 +100,9 @@ cdef int _after_step(Engine e, Run *r) noexcept nogil:
     if not (finite(r.q, e.n) and finite(r.v, e.n)):
         e.err_where = AT_STEP
         return e.fail(ERR_NONFINITE_INPUT, 0, 1 if not finite(r.q, e.n) else 2)
+    if _diverged(e, r.q, r.q_bound) or _diverged(e, r.v, r.v_bound):
+        e.err_where = AT_STEP
+        return e.fail(ERR_DIVERGED, 0, 1 if e.err_bound == r.q_bound else 2)
     if r.project:
         e.err_where = AT_POSITIONS
         rc = e.project_positions_at(r.q, &it)
@@ -115,6 +122,32 @@ cdef int _after_step(Engine e, Run *r) noexcept nogil:
     if not cerr <= r.max_cerr:
         r.max_cerr = cerr
     return 0
+
+
+cdef bint _diverged(Engine e, const double *x, double bound) noexcept nogil:
+    """max |x_i| > bound; the value and bound go to the engine's error record."""
+    cdef int i
+    cdef double big = 0.0
+    for i in range(e.n):
+        if fabs(x[i]) > big:
+            big = fabs(x[i])
+    if big > bound:
+        e.err_value = big
+        e.err_bound = bound
+        return True
+    return False
+
+
+def divergence_bounds(q0, v0, double t_end, double dt):
+    """(q_bound, v_bound) of a fixed-step run: 1e6 times the size the state can reach
+    by moving at its initial speed, q_ref + |v0| t_end, and 1e6 times the speed that
+    crosses the model's size in one step, |v0| + q_ref / dt (q_ref = max |q0|, or 1).
+    An unstable explicit step grows the state by a constant factor per step, so it
+    passes these within tens of steps, while no accurate run comes near them."""
+    q_ref = float(np.max(np.abs(q0))) if len(q0) else 1.0
+    q_ref = q_ref if q_ref > 0.0 else 1.0
+    v_ref = float(np.max(np.abs(v0))) if len(v0) else 0.0
+    return 1e6 * (q_ref + v_ref * t_end), 1e6 * (v_ref + q_ref / dt)
 
 
 cdef void _record(Engine e, Run *r, double t) noexcept nogil:
@@ -226,10 +259,14 @@ def _simulate(Engine engine, q0, v0, double t_end, double dt, long n_steps,
     r.k = r.n_out = r.n_rhs = r.failures = r.newton_total = 0
     r.newton_max = 0
     r.max_cerr = 0.0
+    r.q_bound, r.v_bound = divergence_bounds(np.asarray(qv), np.asarray(vv), t_end, dt)
     _start(engine, &r, qv, vv, arrays)
     cdef int status
     cdef double deadline
     engine.running = True
+    # A step that leaves the constraints by 1% of the model's size (an accurate one
+    # leaves them by its local error, orders below) has diverged.
+    engine.diverge_residual = 1e-2 * max(float(np.max(np.abs(qv))), 1e-300)
     try:
         _record(engine, &r, 0.0)
         while True:
@@ -246,6 +283,7 @@ def _simulate(Engine engine, q0, v0, double t_end, double dt, long n_steps,
             engine.factor_valid = False     # the callback may have used the engine
     finally:
         engine.running = False
+        engine.diverge_residual = np.inf
     stats = dict(steps=r.k, rhs_evaluations=r.n_rhs, rejected_steps=0,
                  newton_iterations=r.newton_total, max_newton_iterations=r.newton_max,
                  projection_failures=r.failures, max_constraint_error=r.max_cerr)

@@ -12,6 +12,7 @@ import statistics
 import numpy as np
 
 from .. import methods as registry
+from .. import rank as rank_rule
 from ..errors import BuildError, SimulationError
 from ..results import InitialState, Result, timed_run
 from . import scipy_ivp
@@ -88,6 +89,8 @@ class CompiledSolver:
                              else float(position_tol))
         self.max_newton = int(max_newton)
         self._asm = make_assembler(plan, module)
+        self.row_groups = np.repeat(np.arange(len(plan.elements)),
+                                    [el.cls.n_g for el in plan.elements])
         self._engine = Engine(self._asm, self.rank_tol, self.position_tol, self.max_newton)
 
     # -- global quantities ------------------------------------------------------------
@@ -159,6 +162,7 @@ class CompiledSolver:
         except SimulationError as exc:
             raise SimulationError(f"{plan.model.source}: the initial positions cannot be "
                                   f"assembled onto the constraints: {exc}") from None
+        self.decide_rank(q)
         v = self.project_velocities(q, plan.v_target)
         return InitialState(q=q, v=v, position_residual_given=given,
                             position_residual=_amax(self.constraints(q)),
@@ -194,8 +198,19 @@ class CompiledSolver:
             def report(t):
                 progress(f"t = {t:.6g} of {sched.t_end:.6g} "
                          f"({100.0 * t / sched.t_end:.0f}%)")
-        return timed_run(self.plan, m, sched, opts, project,
-                         lambda: self._run(m, sched, opts, project, q0, v0, report))
+        decision = self.decide_rank(q0)
+        result = timed_run(self.plan, m, sched, opts, project,
+                           lambda: self._run(m, sched, opts, project, q0, v0, report))
+        return rank_rule.report_run(result, decision, self._engine.rank_statistics())
+
+    def decide_rank(self, q) -> rank_rule.RankDecision:
+        """Decide the rank of B at q by the SVD gap test (fccgen.rank) and keep it in
+        the engine's factorisations (runs and direct calls) until the next decision.
+        Every run decides at its start; before the first decision the factorisations
+        count QR pivots above rank_tol."""
+        decision = rank_rule.decide(self.constraint_jacobian(q), self.n_q, self.row_groups)
+        self._engine.decide_rank(q, decision.rank)
+        return decision
 
     def _start_state(self, q0, v0):
         if q0 is None:
