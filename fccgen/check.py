@@ -58,16 +58,17 @@ def constraint_row_labels(plan) -> list[str]:
     return [f"{el.label} ({row})" for el in plan.elements for row in el.cls.constraint_rows]
 
 
-def rank_and_redundant(B: np.ndarray, labels: list[str], tol: float = RANK_TOL):
-    """Rank of B (rows scaled to unit norm) and the rows that depend on earlier ones,
-    by QR with column pivoting of B^T."""
+def rank_and_redundant(B: np.ndarray, labels: list[str], tol: float = RANK_TOL,
+                       groups=None):
+    """Rank of B by the solvers' SVD gap test (fccgen.rank; rows scaled per element,
+    ``groups``) and the rows that depend on earlier ones, by QR with column pivoting
+    of the scaled B^T."""
+    from . import rank as rank_rule
     if B.shape[0] == 0:
         return 0, []
-    norms = np.linalg.norm(B, axis=1)
-    scaled = B / np.where(norms > 0, norms, 1.0)[:, None]
-    _, R, piv = scipy.linalg.qr(scaled.T, mode="economic", pivoting=True)
-    diag = np.abs(np.diag(R))
-    rank = int(np.sum(diag > tol * diag[0])) if diag.size and diag[0] > 0 else 0
+    rank = max(rank_rule.decide(B, B.shape[1], groups).rank, 0)
+    scaled = B / rank_rule.row_scales(B, groups)[:, None]
+    _, _, piv = scipy.linalg.qr(scaled.T, mode="economic", pivoting=True)
     redundant = sorted(int(k) for k in piv[rank:])
     return rank, [labels[k] for k in redundant]
 
@@ -80,7 +81,7 @@ def check_model(path) -> CheckReport:
     init = solver.initial_state()
     labels = constraint_row_labels(plan)
     B = solver.constraint_jacobian(init.q)
-    rank, redundant = rank_and_redundant(B, labels)
+    rank, redundant = rank_and_redundant(B, labels, groups=solver.row_groups)
     model = plan.model
     return CheckReport(
         name=model.name, source=str(model.source),

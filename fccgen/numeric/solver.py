@@ -298,6 +298,7 @@ def simulate_rk4(solver: NumericSolver, q, v, sched, opts, project, progress=Non
         try:
             q, v = _rk4_step(accelerations, q, v, dt if k < n_steps else t_end - (k - 1) * dt)
             _check_finite(q, v)
+            solver._rank.t = t                 # the projected state is at the step's end
             if project:
                 q, v = _project(solver, q, v, stats)
         except SimulationError as exc:
