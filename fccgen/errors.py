@@ -36,3 +36,40 @@ class BuildError(FccgenError, RuntimeError):
 class SimulationError(FccgenError, RuntimeError):
     """A simulation cannot go on (singular mass matrix on the constraint manifold,
     failed assembly, non-finite state)."""
+
+
+class HostError(FccgenError, RuntimeError):
+    """The machine cannot do what was asked, whatever the model: a folder that cannot
+    be written, a full disk, no C compiler. The message says what to do about it;
+    ``errno`` is the operating system's error number when there is one."""
+
+    def __init__(self, message: str, errno: int | None = None):
+        super().__init__(message)
+        self.errno = errno
+
+    @classmethod
+    def from_os_error(cls, exc: OSError, doing: str, path, option: str | None = None):
+        """One paragraph for an OSError met while ``doing`` something to ``path``:
+        what went wrong, then what to do (``option``: the command-line option that
+        chooses another place, e.g. ``--build-dir``)."""
+        import errno as codes
+
+        elsewhere = f" or choose another place with {option}" if option else ""
+        reason = exc.strerror or str(exc)
+        if exc.errno in (codes.EACCES, codes.EPERM, codes.EROFS):
+            advice = f"make it writable{elsewhere}"
+        elif exc.errno in (codes.ENOSPC, codes.EDQUOT):
+            reason = "no space left on the device (or the disk quota is used up)"
+            advice = f"free some space{elsewhere}"
+        elif exc.errno in (codes.ENOTDIR, codes.EEXIST, codes.EISDIR):
+            advice = f"a file or folder of that name is in the way: move it{elsewhere}"
+        else:
+            advice = f"check the path{elsewhere}"
+        where = exc.filename if exc.filename is not None else path
+        return cls(f"cannot {doing} {where}: {reason}. To fix it, {advice}.",
+                   errno=exc.errno)
+
+
+class CacheRepairWarning(UserWarning):
+    """A cached module was damaged, incomplete or built for another structure, and is
+    being rebuilt; the message names the folder and what was wrong."""
