@@ -73,3 +73,7 @@ class HostError(FccgenError, RuntimeError):
 class CacheRepairWarning(UserWarning):
     """A cached module was damaged, incomplete or built for another structure, and is
     being rebuilt; the message names the folder and what was wrong."""
+
+
+class PartialResultWarning(UserWarning):
+    """A result file loaded is the partial result of a run that did not finish."""
