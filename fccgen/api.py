@@ -5,7 +5,6 @@ Nothing here imports SymPy: generation (which does) is imported lazily by
 """
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Callable
 
 from .model import load_model

@@ -13,6 +13,7 @@ damaged, incomplete or foreign entry is rebuilt with a :class:`CacheRepairWarnin
 """
 from __future__ import annotations
 
+import dataclasses
 import importlib.util
 import itertools
 import os
@@ -222,7 +223,8 @@ def load_module(built: BuiltModule | str | os.PathLike):
         manifest = read_manifest(directory)
         problem = manifest_problem(manifest, built.cache_key, built.module_name)
         if problem is None and manifest["extension"] != built.path.name:
-            problem = f"it now holds another build ({manifest['extension']})"
+            # rebuilt meanwhile (--force elsewhere): the same key, so the same code
+            built = dataclasses.replace(built, path=directory / manifest["extension"])
     else:
         directory = Path(built)
         manifest = read_manifest(directory)

@@ -26,7 +26,7 @@ import uuid
 from pathlib import Path
 
 from ..errors import BuildError, HostError
-from .cache import MANIFEST, file_hashes, write_manifest
+from .cache import file_hashes, write_manifest
 from .store import failed_dir, new_temp_dir, put_in_place
 
 # Above this many operations (after CSE) in kernels.c, compile at -O1: optimising huge
@@ -207,6 +207,3 @@ def install(tmp: Path, entry: Path, module_name: str, manifest: dict) -> Path:
         raise
     shutil.rmtree(failed_dir(entry), ignore_errors=True)
     return entry / manifest["extension"]
-
-
-__all__ = ["MANIFEST", "compile_sources", "install", "require_compiler"]
