@@ -194,9 +194,14 @@ def _error(progress, text: str, code: int) -> int:
     return code
 
 
-def _partial_note(exc) -> str:
+def _partial_note(exc, args) -> str:
     path = getattr(exc, "partial_path", None)
-    return f"; partial result written to {path}" if path is not None else ""
+    if path is not None:
+        return f"; partial result written to {path}"
+    if getattr(args, "keep_partial", False) and getattr(args, "out", None):
+        return ("; --keep-partial: the integrator handed back no recorded rows, so no "
+                "partial result was written")
+    return "; no results written" if getattr(args, "out", None) else ""
 
 
 def _guarded(args, progress) -> int:
@@ -205,13 +210,11 @@ def _guarded(args, progress) -> int:
     try:
         return _run(args, progress)
     except KeyboardInterrupt as exc:
-        note = _partial_note(exc) or ("; no results written" if getattr(args, "out", None)
-                                      else "")
-        return _error(progress, f"interrupted{note}", EXIT_INTERRUPTED)
+        return _error(progress, f"interrupted{_partial_note(exc, args)}", EXIT_INTERRUPTED)
     except ModelError as exc:
         return _error(progress, f"error: {exc}", 2)
     except (FccgenError, ValueError) as exc:
-        return _error(progress, f"error: {exc}{_partial_note(exc)}", 1)
+        return _error(progress, f"error: {exc}{_partial_note(exc, args)}", 1)
     except OSError as exc:      # anything the library did not word itself
         where = f" {exc.filename}" if exc.filename else ""
         return _error(progress, f"error: cannot use{where}: {exc.strerror or exc}", 1)

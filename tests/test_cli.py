@@ -154,13 +154,29 @@ def test_partial_result_only_when_asked(stop, keep, cli_build_dir, tmp_path, cap
     partial = tmp_path / "run.partial.csv"
     if not keep:
         assert list(tmp_path.iterdir()) == []
-        assert err.endswith("no results written\n" if stop == "ctrl-c" else "(test)\n")
+        assert err.endswith("(test); no results written\n" if stop == "error" else
+                            "fccgen: interrupted; no results written\n")
         return
     assert err.endswith(f"partial result written to {partial}\n")
     with pytest.warns(PartialResultWarning, match="t = 0.2"):
         r = Result.load(partial)
     assert r.partial and np.allclose(r.t, [0.0, 0.1, 0.2], atol=1e-12)
     assert ("Ctrl-C" if stop == "ctrl-c" else "singular") in r.info["stopped_by"]
+
+
+def test_keep_partial_says_when_there_is_nothing_to_keep(cli_build_dir, tmp_path, capsys,
+                                                        monkeypatch):
+    from fccgen.runtime.solver import CompiledSolver
+
+    def interrupted(self, *args):
+        raise KeyboardInterrupt       # no rows attached
+    monkeypatch.setattr(CompiledSolver, "_run", interrupted)
+    code, _, err = run(["simulate", PENDULUM, "--build-dir", cli_build_dir, "-q",
+                        "--t-end", "0.1", "--out", tmp_path / "r.npz", "--keep-partial"],
+                       capsys)
+    assert code == 130 and list(tmp_path.iterdir()) == []
+    assert err == ("fccgen: interrupted; --keep-partial: the integrator handed back no "
+                   "recorded rows, so no partial result was written\n")
 
 
 def test_ctrl_c_during_a_build_is_one_line_and_leaves_nothing(tmp_path, capsys,
