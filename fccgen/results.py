@@ -12,6 +12,7 @@ whose last line is cut.
 from __future__ import annotations
 
 import errno
+import glob
 import json
 import os
 import uuid
@@ -71,7 +72,7 @@ def _temp_name(path: Path) -> Path:
 
 def _clean_stale_temps(path: Path) -> None:
     """Remove temporary files of earlier saves to ``path`` whose process is gone."""
-    for tmp in path.parent.glob(f".{path.name}.*.tmp"):
+    for tmp in path.parent.glob(f".{glob.escape(path.name)}.*.tmp"):
         pid = tmp.name[len(path.name) + 2:].partition(".")[0]
         if pid.isdigit() and int(pid) != os.getpid():
             try:
