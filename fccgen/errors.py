@@ -48,10 +48,13 @@ class HostError(FccgenError, RuntimeError):
         self.errno = errno
 
     @classmethod
-    def from_os_error(cls, exc: OSError, doing: str, path, option: str | None = None):
+    def from_os_error(cls, exc: OSError, doing: str, path, option: str | None = None,
+                      *, name_file: bool = True):
         """One paragraph for an OSError met while ``doing`` something to ``path``:
         what went wrong, then what to do (``option``: the command-line option that
-        chooses another place, e.g. ``--build-dir``)."""
+        chooses another place, e.g. ``--build-dir``). ``name_file``: name the file
+        the error is about, if it says, rather than ``path`` (False when that file
+        is an internal temporary one)."""
         import errno as codes
 
         elsewhere = f" or choose another place with {option}" if option else ""
@@ -65,7 +68,7 @@ class HostError(FccgenError, RuntimeError):
             advice = f"a file or folder of that name is in the way: move it{elsewhere}"
         else:
             advice = f"check the path{elsewhere}"
-        where = exc.filename if exc.filename is not None else path
+        where = exc.filename if (name_file and exc.filename is not None) else path
         return cls(f"cannot {doing} {where}: {reason}. To fix it, {advice}.",
                    errno=exc.errno)
 

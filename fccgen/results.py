@@ -61,8 +61,8 @@ def check_output(path, option: str = "--out") -> Path:
         os.close(os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
         probe.unlink()
     except OSError as exc:
-        raise HostError.from_os_error(exc, "write the results in", path.parent,
-                                      option) from None
+        raise HostError.from_os_error(exc, "write the results in", path.parent, option,
+                                      name_file=False) from None
     return path
 
 
@@ -143,8 +143,8 @@ class Result:
                 tmp.unlink(missing_ok=True)
                 raise
         except OSError as exc:
-            raise HostError.from_os_error(exc, "write the results to", path,
-                                          "--out") from None
+            raise HostError.from_os_error(exc, "write the results to", path, "--out",
+                                          name_file=False) from None
         return path
 
     def _write(self, f, suffix: str) -> None:

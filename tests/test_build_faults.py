@@ -293,4 +293,5 @@ def test_full_disk_while_writing_sources(tmp_path, monkeypatch):
         build_module(fccgen.api.plan_model(PENDULUM), tmp_path / "gen")
     assert info.value.errno == errno.ENOSPC
     model = tmp_path / "gen" / "a01_pendulum"
+    assert f"in {model}: " in str(info.value) and TEMP_PREFIX not in str(info.value)
     assert not [p for p in model.iterdir() if p.name.startswith(TEMP_PREFIX)]

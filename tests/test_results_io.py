@@ -114,8 +114,10 @@ def test_check_output_permission_denied(tmp_path, monkeypatch):
             return real_open(path, *args, **kwargs)
         monkeypatch.setattr(fccgen.results.os, "open", refuse)
     try:
-        with pytest.raises(HostError, match="Permission denied.*make it writable"):
+        with pytest.raises(HostError, match="Permission denied.*make it writable") as info:
             check_output(folder / "r.csv")
+        # the folder is named, not the probe file (an internal name)
+        assert f"in {folder}: " in str(info.value) and ".tmp" not in str(info.value)
     finally:
         folder.chmod(0o755)
 

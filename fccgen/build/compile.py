@@ -131,7 +131,8 @@ def _write_sources(tmp: Path, sources: dict[str, str]) -> None:
             (tmp / name).write_text(text, encoding="utf-8")
         except OSError as exc:
             raise HostError.from_os_error(exc, "write the generated sources in",
-                                          tmp.parent, "--build-dir") from None
+                                          tmp.parent, "--build-dir",
+                                          name_file=False) from None
 
 
 def compile_sources(sources: dict[str, str], entry: Path, module_name: str) -> Path:
@@ -201,7 +202,7 @@ def install(tmp: Path, entry: Path, module_name: str, manifest: dict) -> Path:
     except OSError as exc:
         shutil.rmtree(tmp, ignore_errors=True)
         raise HostError.from_os_error(exc, "install the built module in", entry.parent,
-                                      "--build-dir") from None
+                                      "--build-dir", name_file=False) from None
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise

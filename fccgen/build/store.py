@@ -77,7 +77,7 @@ def build_lock(entry: Path):
         fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o666)
     except OSError as exc:
         raise HostError.from_os_error(exc, "write in the build folder", lock.parent,
-                                      "--build-dir") from None
+                                      "--build-dir", name_file=False) from None
     try:
         if fcntl is not None:
             fcntl.flock(fd, fcntl.LOCK_EX)
@@ -94,7 +94,7 @@ def new_temp_dir(parent: Path) -> Path:
         path.mkdir()
     except OSError as exc:
         raise HostError.from_os_error(exc, "write in the build folder", parent,
-                                      "--build-dir") from None
+                                      "--build-dir", name_file=False) from None
     return path
 
 
