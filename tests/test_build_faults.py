@@ -186,10 +186,13 @@ def test_abandoned_temporary_folders_are_removed(pendulum_copy):
     for folder in (killed, alive, old, recent_elsewhere):
         folder.mkdir()
         (folder / "kernels.c").write_text("/* partial */")
+    legacy = out / ".a01_pendulum.build-abc123"      # earlier versions: no owner recorded
+    legacy.mkdir()
     two_days_ago = time.time() - 2 * 86400
-    os.utime(old, (two_days_ago, two_days_ago))
+    for folder in (old, legacy):
+        os.utime(folder, (two_days_ago, two_days_ago))
     assert build_module(fccgen.api.plan_model(PENDULUM), out).cache_hit
-    assert not killed.exists() and not old.exists()
+    assert not killed.exists() and not old.exists() and not legacy.exists()
     assert alive.exists() and recent_elsewhere.exists()     # their owners may be running
     assert clean_stale(model) == []
 

@@ -31,7 +31,7 @@ from .cache import (HEADER, MANIFEST, cache_key, check_entry, files_problem,
                     tool_versions)
 from .compile import (FLAG_POLICY, compile_args, compile_sources, extension_filename,
                       install, link_args, require_compiler)
-from .store import build_lock, clean_stale, entry_dir
+from .store import build_lock, clean_legacy, clean_stale, entry_dir
 
 Progress = Callable[[str], None]
 STAGES = ("derive", "print", "render", "compile")
@@ -157,6 +157,7 @@ def _build(model_name: str, classes: list, out_dir: Path, derive_all, extra: str
     key = cache_key(model_name, classes, FLAG_POLICY, extra)
     entry = entry_dir(out_dir, model_name, key)
     clean_stale(entry.parent)
+    clean_legacy(out_dir, model_name)
     hit, problem = _cached(model_name, key, entry, force, say, watch)
     if hit is not None:
         return hit

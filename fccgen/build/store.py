@@ -140,6 +140,18 @@ def clean_stale(parent: Path) -> list[Path]:
     return removed
 
 
+def clean_legacy(out_dir: Path, model_name: str, now: float | None = None) -> None:
+    """Remove temporary build folders of earlier fccgen versions
+    (``<out_dir>/.<name>.build-<random>``, no owner recorded) once a day old."""
+    now = time.time() if now is None else now
+    try:
+        for path in Path(out_dir).glob(f".{model_name}.build-*"):
+            if now - path.stat().st_mtime > STALE_SECONDS:
+                shutil.rmtree(path, ignore_errors=True)
+    except OSError:
+        pass
+
+
 def put_in_place(tmp: Path, entry: Path) -> None:
     """Rename a finished build folder ``tmp`` to ``entry``, replacing what is there
     (moved aside first, then removed). Call with the key's lock held."""
