@@ -5,7 +5,6 @@ Nothing here imports SymPy: generation (which does) is imported lazily by
 """
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Callable
 
 from .model import load_model
@@ -31,15 +30,17 @@ def generate(path, build_dir=DEFAULT_BUILD_DIR, *, force=False, progress: Progre
     return plan, built
 
 
-def load(path, build_dir=DEFAULT_BUILD_DIR, *, progress: Progress = None, **solver_options):
-    """A compiled solver of the model (generated and compiled first if needed).
+def load(path, build_dir=DEFAULT_BUILD_DIR, *, force=False, progress: Progress = None,
+         **solver_options):
+    """A compiled solver of the model (generated and compiled first if needed; always
+    rebuilt with ``force``).
 
     ``solver_options`` go to :class:`fccgen.runtime.CompiledSolver` (rank_tol,
     position_tol, max_newton).
     """
     from .build import load_module
     from .runtime import CompiledSolver
-    plan, built = generate(path, build_dir, progress=progress)
+    plan, built = generate(path, build_dir, force=force, progress=progress)
     return CompiledSolver(plan, load_module(built), **solver_options)
 
 
@@ -50,19 +51,32 @@ def load_numeric(path, **solver_options):
 
 
 def simulate(path, *, t_end=None, dt=None, method=None, output_dt=None, project=True,
-             numeric=False, out=None, build_dir=DEFAULT_BUILD_DIR,
-             progress: Progress = None, rtol=None, atol=None, **method_options):
+             numeric=False, out=None, build_dir=DEFAULT_BUILD_DIR, force=False,
+             keep_partial=False, progress: Progress = None, rtol=None, atol=None,
+             **method_options):
     """Simulate a model from its consistent initial state; write ``out`` if given.
 
     rtol, atol: tolerances of adaptive methods; method_options: the method's options
-    (e.g. alpha, beta for baumgarte; see :mod:`fccgen.methods`). Returns
-    ``(result, initial_state)``.
+    (e.g. alpha, beta for baumgarte; see :mod:`fccgen.methods`). ``out`` is checked
+    before anything runs (suffix, writable folder). When the run stops early (Ctrl-C,
+    SimulationError) nothing is written, unless ``keep_partial``: then the rows
+    recorded so far, if the integrator hands them back, go to ``<stem>.partial<suffix>``
+    and the exception's ``partial_path`` says where. Returns ``(result, initial_state)``.
     """
-    solver = load_numeric(path) if numeric else load(path, build_dir, progress=progress)
+    from .results import check_output, partial_path
+    out = None if out is None else check_output(out)
+    solver = (load_numeric(path) if numeric else
+              load(path, build_dir, force=force, progress=progress))
     init = solver.initial_state()
-    result = solver.simulate(t_end=t_end, dt=dt, method=method, output_dt=output_dt,
-                             project=project, q0=init.q, v0=init.v, progress=progress,
-                             rtol=rtol, atol=atol, **method_options)
+    try:
+        result = solver.simulate(t_end=t_end, dt=dt, method=method, output_dt=output_dt,
+                                 project=project, q0=init.q, v0=init.v, progress=progress,
+                                 rtol=rtol, atol=atol, **method_options)
+    except BaseException as exc:
+        partial = getattr(exc, "partial_result", None)
+        if keep_partial and out is not None and partial is not None:
+            exc.partial_path = partial.save(partial_path(out), partial=True)
+        raise
     if out is not None:
-        result.save(Path(out))
+        result.save(out)
     return result, init

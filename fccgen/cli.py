@@ -10,13 +10,15 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+import warnings
 
 from . import __version__
-from .errors import FccgenError, ModelError
+from .errors import CacheRepairWarning, FccgenError, ModelError, PartialResultWarning
 from .methods import describe as describe_methods
 from .methods import names as method_names
 
 COMMANDS = ("simulate", "bench", "check", "generate")
+EXIT_INTERRUPTED = 130      # 128 + SIGINT, as shells report it
 
 
 class _Progress:
@@ -27,6 +29,7 @@ class _Progress:
         self.quiet = quiet
         self.tty = sys.stderr.isatty()
         self.last = 0.0
+        self.open_line = False      # a transient line ends in '\r', not '\n'
 
     def __call__(self, message: str) -> None:
         if self.quiet:
@@ -39,6 +42,13 @@ class _Progress:
         end = "\r" if (transient and self.tty) else "\n"
         sys.stderr.write(f"fccgen: {message}{' ' * 8 if end == chr(13) else ''}{end}")
         sys.stderr.flush()
+        self.open_line = end == "\r"
+
+    def close_line(self) -> None:
+        """End a transient progress line before a final message."""
+        if self.open_line:
+            sys.stderr.write("\n")
+            self.open_line = False
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -55,14 +65,19 @@ def _parser() -> argparse.ArgumentParser:
                         help="where compiled modules go (default: ./generated)")
         sp.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
 
+    def force(sp):
+        sp.add_argument("--force", action="store_true",
+                        help="rebuild the compiled module even if it is cached")
+
     g = sub.add_parser("generate", help="generate and compile (the default command)")
     common(g)
-    g.add_argument("--force", action="store_true", help="rebuild even if cached")
+    force(g)
 
     s = sub.add_parser("simulate", help="simulate from the model's initial state",
                        epilog="methods, their options and defaults:\n" + describe_methods(),
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     common(s)
+    force(s)
     s.add_argument("--t-end", type=float, help="end time (default: model's simulate.t_end)")
     s.add_argument("--dt", type=float, help="time step; the first step of adaptive "
                    "methods (default: model's simulate.dt; adaptive: automatic)")
@@ -80,7 +95,11 @@ def _parser() -> argparse.ArgumentParser:
                    help="any option of the method (repeatable), e.g. penalty=1e8")
     s.add_argument("--output-dt", type=float,
                    help="output interval, a multiple of dt (default: every step)")
-    s.add_argument("--out", help="write results to FILE.csv or FILE.npz")
+    s.add_argument("--out", help="write results to FILE.csv or FILE.npz (checked "
+                   "before the run; written atomically)")
+    s.add_argument("--keep-partial", action="store_true",
+                   help="if the run stops early (Ctrl-C, a failure), write the rows "
+                        "recorded so far to FILE.partial.csv|.npz, marked as partial")
     s.add_argument("--no-project", action="store_true",
                    help="do not project positions and velocities onto the constraints")
     s.add_argument("--numeric", action="store_true",
@@ -88,6 +107,7 @@ def _parser() -> argparse.ArgumentParser:
 
     b = sub.add_parser("bench", help="time compiled vs numeric versions")
     common(b)
+    force(b)
     b.add_argument("--repeats", type=int, default=200,
                    help="timed repetitions per measurement (median reported)")
     b.add_argument("--accuracy", action="store_true",
@@ -156,14 +176,48 @@ def main(argv=None) -> int:
         _parser().print_help()
         return 2
     progress = _Progress(args.quiet)
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", CacheRepairWarning)
+        warnings.simplefilter("always", PartialResultWarning)
+        warnings.showwarning = _show_warning
+        return _guarded(args, progress)
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """fccgen's warnings as one line on stderr (no source location)."""
+    print(f"fccgen: warning: {message}", file=sys.stderr)
+
+
+def _error(progress, text: str, code: int) -> int:
+    progress.close_line()
+    print(f"fccgen: {text}", file=sys.stderr)
+    return code
+
+
+def _partial_note(exc, args) -> str:
+    path = getattr(exc, "partial_path", None)
+    if path is not None:
+        return f"; partial result written to {path}"
+    if getattr(args, "keep_partial", False) and getattr(args, "out", None):
+        return ("; --keep-partial: the integrator handed back no recorded rows, so no "
+                "partial result was written")
+    return "; no results written" if getattr(args, "out", None) else ""
+
+
+def _guarded(args, progress) -> int:
+    """Run a command; every expected failure ends as one 'fccgen: error:' paragraph
+    and Ctrl-C as one line with exit status 130, never a traceback."""
     try:
         return _run(args, progress)
+    except KeyboardInterrupt as exc:
+        return _error(progress, f"interrupted{_partial_note(exc, args)}", EXIT_INTERRUPTED)
     except ModelError as exc:
-        print(f"fccgen: error: {exc}", file=sys.stderr)
-        return 2
+        return _error(progress, f"error: {exc}", 2)
     except (FccgenError, ValueError) as exc:
-        print(f"fccgen: error: {exc}", file=sys.stderr)
-        return 1
+        return _error(progress, f"error: {exc}{_partial_note(exc, args)}", 1)
+    except OSError as exc:      # anything the library did not word itself
+        where = f" {exc.filename}" if exc.filename else ""
+        return _error(progress, f"error: cannot use{where}: {exc.strerror or exc}", 1)
 
 
 def _run(args, progress) -> int:
@@ -194,7 +248,8 @@ def _run(args, progress) -> int:
         result, init = api.simulate(
             args.model, t_end=args.t_end, dt=args.dt, method=args.method,
             output_dt=args.output_dt, project=not args.no_project, numeric=args.numeric,
-            out=args.out, build_dir=args.build_dir, progress=progress,
+            out=args.out, build_dir=args.build_dir, force=args.force,
+            keep_partial=args.keep_partial, progress=progress,
             rtol=args.rtol, atol=args.atol, **options)
         print(init.report())
         print(_run_summary(result))
@@ -203,6 +258,8 @@ def _run(args, progress) -> int:
         else:
             print("no --out given: results not written")
         return 0
+    if args.command == "bench" and args.force:
+        api.generate(args.model, args.build_dir, force=True, progress=progress)
     if args.command == "bench" and args.accuracy:
         return _accuracy(args, progress)
     if args.command == "bench":
@@ -222,6 +279,8 @@ def _accuracy(args, progress) -> int:
     """``fccgen bench MODEL --accuracy``: one call of
     :func:`fccgen.accuracy.bench_accuracy`."""
     from .accuracy import bench_accuracy, reference_from_table
+    from .results import check_output
+    check_output(f"{args.out_dir}/summary.csv", "--out-dir")    # writable, before the run
     reference = None
     if args.reference:
         if not args.reference_point:

@@ -38,6 +38,50 @@ class SimulationError(FccgenError, RuntimeError):
     failed assembly, non-finite state)."""
 
 
+class HostError(FccgenError, RuntimeError):
+    """The machine cannot do what was asked, whatever the model: a folder that cannot
+    be written, a full disk, no C compiler. The message says what to do about it;
+    ``errno`` is the operating system's error number when there is one."""
+
+    def __init__(self, message: str, errno: int | None = None):
+        super().__init__(message)
+        self.errno = errno
+
+    @classmethod
+    def from_os_error(cls, exc: OSError, doing: str, path, option: str | None = None,
+                      *, name_file: bool = True):
+        """One paragraph for an OSError met while ``doing`` something to ``path``:
+        what went wrong, then what to do (``option``: the command-line option that
+        chooses another place, e.g. ``--build-dir``). ``name_file``: name the file
+        the error is about, if it says, rather than ``path`` (False when that file
+        is an internal temporary one)."""
+        import errno as codes
+
+        elsewhere = f" or choose another place with {option}" if option else ""
+        reason = exc.strerror or str(exc)
+        if exc.errno in (codes.EACCES, codes.EPERM, codes.EROFS):
+            advice = f"make it writable{elsewhere}"
+        elif exc.errno in (codes.ENOSPC, codes.EDQUOT):
+            reason = "no space left on the device (or the disk quota is used up)"
+            advice = f"free some space{elsewhere}"
+        elif exc.errno in (codes.ENOTDIR, codes.EEXIST, codes.EISDIR):
+            advice = f"a file or folder of that name is in the way: move it{elsewhere}"
+        else:
+            advice = f"check the path{elsewhere}"
+        where = exc.filename if (name_file and exc.filename is not None) else path
+        return cls(f"cannot {doing} {where}: {reason}. To fix it, {advice}.",
+                   errno=exc.errno)
+
+
+class CacheRepairWarning(UserWarning):
+    """A cached module was damaged, incomplete or built for another structure, and is
+    being rebuilt; the message names the folder and what was wrong."""
+
+
+class PartialResultWarning(UserWarning):
+    """A result file loaded is the partial result of a run that did not finish."""
+
+
 class RunWarning(UserWarning):
     """A run finished but something in it needs the user's attention (a change of the
     degrees of freedom, a start near a singular position, a model that cannot move).

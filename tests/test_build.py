@@ -76,7 +76,8 @@ def test_miss_then_hit(first_build):
     assert built.timings["compile"] > 0 and built.timings["derive"] > 0
     assert any(m.startswith("deriving") for m in messages)
     assert any(m.startswith("compiling") for m in messages)
-    assert built.directory == out_dir / "pendulum" and built.path.is_file()
+    assert built.directory == out_dir / "pendulum" / built.cache_key[:16]
+    assert built.path.is_file()
     before = snapshot(built.directory)
 
     again = build_module(make_plan(pendulum_model()), out_dir)
@@ -136,17 +137,23 @@ def test_cache_key_covers_its_inputs(monkeypatch):
 def test_changed_structure_is_a_miss_and_never_a_stale_import(first_build, copy_of_first):
     _, built, _ = first_build
     old = load_module(built)
+    before = snapshot(copy_of_first / "pendulum" / built.cache_key[:16])
     rebuilt = build_module(make_plan(pendulum_model(moving_axis=True)), copy_of_first)
     assert not rebuilt.cache_hit and rebuilt.cache_key != built.cache_key
     new = load_module(rebuilt)
     assert len(old.CLASS_NAMES) == 1 and len(new.CLASS_NAMES) == 2
     assert new.STRUCTURE_HASH == rebuilt.structure_hash != old.STRUCTURE_HASH
-    # One module per folder: the superseded one is gone, the plain name is the new one.
+    # One folder per structure: the new build sits beside the old one, which is
+    # untouched, so neither can remove the other's module.
+    assert rebuilt.directory.parent == copy_of_first / "pendulum"
+    assert snapshot(copy_of_first / "pendulum" / built.cache_key[:16]) == before
     modules = [p for p in rebuilt.directory.iterdir() if p.suffix == ".so"]
     assert sorted(p.name for p in modules) == sorted([rebuilt.path.name,
                                                       f"pendulum{ext_suffix()}"])
     assert all(os.path.samefile(p, rebuilt.path) for p in modules)
     assert read_manifest(rebuilt.directory)["cache_key"] == rebuilt.cache_key
+    old_copy = build_module(make_plan(pendulum_model()), copy_of_first)
+    assert old_copy.cache_hit and load_module(old_copy).STRUCTURE_HASH == old.STRUCTURE_HASH
 
 
 def test_load_module_from_its_folder(first_build):
@@ -160,8 +167,11 @@ def test_load_module_from_its_folder(first_build):
 # -- failed builds ---------------------------------------------------------------------
 
 def test_compiler_error_raises_and_keeps_the_previous_build(copy_of_first, monkeypatch):
+    plan = make_plan(pendulum_model(moving_axis=True))
+    key16 = cache_key("pendulum", plan.classes, FLAG_POLICY)[:16]
     target = copy_of_first / "pendulum"
-    before = snapshot(target)
+    old_entry = next(p for p in target.iterdir() if p.is_dir())
+    before = snapshot(old_entry)
     render = fccgen.render.render_sources
 
     def broken(*args, **kwargs):
@@ -172,16 +182,17 @@ def test_compiler_error_raises_and_keeps_the_previous_build(copy_of_first, monke
 
     monkeypatch.setattr(fccgen.render, "render_sources", broken)
     with pytest.raises(BuildError) as info:
-        build_module(make_plan(pendulum_model(moving_axis=True)), copy_of_first)
+        build_module(plan, copy_of_first)
     message = str(info.value)
-    failed = copy_of_first / "pendulum.failed-build"
+    failed = target / f"{key16}.failed-build"
     # The compiler's own error line (its quotes depend on the locale).
     assert re.search(r"kernels\.c:\d+:\d+: error: .undeclared_in_test. undeclared", message)
-    assert str(failed) in message and "is unchanged" in message
-    assert snapshot(target) == before
+    assert str(failed) in message
+    assert snapshot(old_entry) == before
     assert (failed / "kernels.c").is_file() and (failed / BUILD_LOG).is_file()
-    assert sorted(p.name for p in copy_of_first.iterdir()) == ["pendulum",
-                                                               "pendulum.failed-build"]
+    # no module of the failed structure, no temporary folder left
+    assert sorted(p.name for p in target.iterdir() if not p.name.endswith(".lock")) == \
+        sorted([old_entry.name, failed.name])
 
 
 # -- generated files -------------------------------------------------------------------

@@ -1,28 +1,37 @@
 """Stage 6 of the pipeline: a model's compiled, importable module, cached by content.
 
 ``build_module(plan)`` derives, prints, renders and compiles the kernels of the plan's
-element classes into ``<out_dir>/<name>/``, unless that folder already holds a build
-with the same cache key: then nothing is derived or compiled, and SymPy is not even
-imported (see :mod:`fccgen.build.cache` for what the key covers). Numbers such as
-masses and lengths are runtime parameters, so changing them keeps the cache valid.
+element classes into ``<out_dir>/<name>/<key16>/``, unless that folder already holds a
+sound build with the same cache key: then nothing is derived or compiled, and SymPy is
+not even imported (see :mod:`fccgen.build.cache` for what the key covers). Numbers such
+as masses and lengths are runtime parameters, so changing them keeps the cache valid.
+
+A cache entry is trusted only if its manifest has every entry, names this model and
+key, and the sha256 of its module files matches the one recorded at build time; a
+damaged, incomplete or foreign entry is rebuilt with a :class:`CacheRepairWarning`.
+:mod:`fccgen.build.store` describes the layout and the locking between processes.
 """
 from __future__ import annotations
 
+import dataclasses
 import importlib.util
 import itertools
 import os
 import sys
 import time
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
 from .. import __version__
-from ..errors import BuildError
-from .cache import (HEADER, MANIFEST, cache_key, cached_manifest, read_manifest,
-                    runtime_header, structure_hash, tool_versions)
+from ..errors import BuildError, CacheRepairWarning, HostError
+from .cache import (HEADER, MANIFEST, cache_key, check_entry, files_problem,
+                    manifest_problem, read_manifest, runtime_header, structure_hash,
+                    tool_versions)
 from .compile import (FLAG_POLICY, compile_args, compile_sources, extension_filename,
-                      install, link_args)
+                      install, link_args, require_compiler)
+from .store import build_lock, clean_legacy, clean_stale, entry_dir
 
 Progress = Callable[[str], None]
 STAGES = ("derive", "print", "render", "compile")
@@ -128,25 +137,58 @@ def _generate(model_name: str, derived: list, say: Progress, watch: _Stopwatch):
     return sources, n_ops, flags
 
 
+def _cached(model_name: str, key: str, entry: Path, force: bool, say: Progress,
+            watch: _Stopwatch) -> tuple[BuiltModule | None, str | None]:
+    """(the cached build, None), or (None, what is wrong with the entry, if anything)."""
+    if force:
+        return None, None
+    manifest, problem = check_entry(entry, key, model_name)
+    if manifest is None:
+        return None, problem
+    say(f"{model_name}: unchanged structure, using the cached build in {entry}")
+    watch.timings.update(dict.fromkeys(STAGES, 0.0))
+    return _built(entry, manifest, True, watch.total()), None
+
+
 def _build(model_name: str, classes: list, out_dir: Path, derive_all, extra: str,
            force: bool, say: Progress) -> BuiltModule:
     """Serve the build from the cache, or derive, print, render, compile, install."""
     watch = _Stopwatch()
     key = cache_key(model_name, classes, FLAG_POLICY, extra)
-    directory = out_dir / model_name
-    manifest = None if force else cached_manifest(directory, key)
-    if manifest is not None:
-        say(f"{model_name}: unchanged structure, using the cached build in {directory}")
-        watch.timings.update(dict.fromkeys(STAGES, 0.0))
-        return _built(directory, manifest, True, watch.total())
+    entry = entry_dir(out_dir, model_name, key)
+    clean_stale(entry.parent)
+    clean_legacy(out_dir, model_name)
+    hit, problem = _cached(model_name, key, entry, force, say, watch)
+    if hit is not None:
+        return hit
+    try:
+        with build_lock(entry):     # one build of a key at a time; others wait, then hit
+            hit, problem = _cached(model_name, key, entry, force, say, watch)
+            if hit is not None:
+                return hit
+            if problem is not None:
+                warnings.warn(CacheRepairWarning(
+                    f"the cached module in {entry} is damaged or incomplete ({problem}); "
+                    "rebuilding it"), stacklevel=3)
+            return _compile_and_install(model_name, classes, key, entry, derive_all,
+                                        say, watch)
+    except HostError as exc:
+        if problem is None:
+            raise
+        raise HostError(f"the cached module in {entry} is damaged ({problem}) and "
+                        f"cannot be rebuilt: {exc}", errno=exc.errno) from None
 
+
+def _compile_and_install(model_name: str, classes: list, key: str, entry: Path,
+                         derive_all, say: Progress, watch: _Stopwatch) -> BuiltModule:
+    require_compiler()              # before the derivation: it can take long
     derived = derive_all()
     if [d.cls for d in derived] != list(classes):
         raise BuildError(f"{model_name}: derived classes do not match the plan's classes")
     watch.lap("derive")
     sources, n_ops, flags = _generate(model_name, derived, say, watch)
     say(f"compiling {model_name} ({sum(n_ops.values())} operations, {' '.join(flags)})")
-    tmp = compile_sources(sources, out_dir, model_name)
+    tmp = compile_sources(sources, entry, model_name)
     watch.lap("compile")
     manifest = {
         "fccgen_version": __version__, "versions": tool_versions(),
@@ -154,28 +196,49 @@ def _build(model_name: str, classes: list, out_dir: Path, derive_all, extra: str
         "structure_hash": structure_hash(classes),
         "class_keys": [c.key for c in classes], "class_names": [c.name for c in classes],
         "n_ops": n_ops, "flags": flags, "timings": watch.total(),
-        "extension": extension_filename(model_name, key), "sources": sorted(sources),
+        "extension": extension_filename(model_name), "sources": sorted(sources),
     }
-    install(tmp, out_dir, model_name, sorted(sources), manifest)
-    say(f"built {directory / manifest['extension']}")
-    return _built(directory, manifest, False, watch.timings)
+    install(tmp, entry, model_name, manifest)
+    say(f"built {entry / manifest['extension']}")
+    return _built(entry, manifest, False, watch.timings)
 
 
 _loads = itertools.count()
 
 
+def _refuse(directory: Path, problem: str):
+    raise BuildError(f"the module in {directory} cannot be imported: {problem}. Build it "
+                     "again (fccgen MODEL --force, or build_module(plan, force=True)).")
+
+
 def load_module(built: BuiltModule | str | os.PathLike):
     """Import a built module (a BuiltModule, or the folder of one) from its file.
 
-    Each call imports under a new, unique module name, and every build has its own
-    file name, so a module rebuilt in the same process is never a stale import.
+    The module files are checked against the sha256 in the manifest first: a damaged
+    module is never loaded (it can crash the process). Each call imports under a new,
+    unique module name, and every build has its own file name, so a module rebuilt in
+    the same process is never a stale import.
     """
-    if not isinstance(built, BuiltModule):
+    if isinstance(built, BuiltModule):
+        directory = built.directory
+        manifest = read_manifest(directory)
+        problem = manifest_problem(manifest, built.cache_key, built.module_name)
+        if problem is None and manifest["extension"] != built.path.name:
+            # rebuilt meanwhile (--force elsewhere): the same key, so the same code
+            built = dataclasses.replace(built, path=directory / manifest["extension"])
+    else:
         directory = Path(built)
         manifest = read_manifest(directory)
         if manifest is None:
             raise BuildError(f"{directory} holds no built module (no readable {MANIFEST})")
-        built = _built(directory, manifest, True, {})
+        problem = manifest_problem(manifest, manifest.get("cache_key"),
+                                   manifest.get("model_name"))
+        if problem is None:
+            built = _built(directory, manifest, True, {})
+    if problem is None:
+        problem = files_problem(directory, manifest)
+    if problem is not None:
+        _refuse(directory, problem)
     # The last part of the name must be the module's own: it names its init function.
     unique = f"_fccgen_models.load{next(_loads)}_{built.cache_key[:16]}.{built.module_name}"
     spec = importlib.util.spec_from_file_location(unique, built.path)

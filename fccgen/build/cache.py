@@ -84,15 +84,67 @@ def read_manifest(directory: Path) -> dict | None:
     return data if isinstance(data, dict) else None
 
 
-def cached_manifest(directory: Path, key: str) -> dict | None:
-    """The manifest in ``directory`` if it was built for ``key`` and its module exists."""
+# Manifest entries a build must have, with their types; anything else is a damaged,
+# incomplete or foreign entry and is rebuilt.
+REQUIRED = {"model_name": str, "cache_key": str, "structure_hash": str, "extension": str,
+            "files": dict, "n_ops": dict, "flags": list, "timings": dict}
+
+
+def file_sha256(path: Path) -> str:
+    """sha256 of a file's bytes, read in blocks."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def file_hashes(directory: Path, names) -> dict[str, str]:
+    """File name -> sha256 of the files ``names`` in ``directory``."""
+    return {name: file_sha256(Path(directory) / name) for name in names}
+
+
+def manifest_problem(manifest: dict | None, key: str, model_name: str) -> str | None:
+    """What is wrong with the manifest of an entry built for (model_name, key), if
+    anything: missing keys, a foreign model or structure, no module files listed."""
+    if manifest is None:
+        return f"its {MANIFEST} is missing or unreadable"
+    missing = sorted(k for k, kind in REQUIRED.items()
+                     if not isinstance(manifest.get(k), kind))
+    if missing:
+        return f"its {MANIFEST} lacks {', '.join(missing)}"
+    if manifest["model_name"] != model_name or manifest["cache_key"] != key:
+        return (f"it holds the module of another model or structure "
+                f"({manifest['model_name']!r}, key {manifest['cache_key'][:16]})")
+    if manifest["extension"] not in manifest["files"]:
+        return f"its {MANIFEST} records no hash of {manifest['extension']}"
+    return None
+
+
+def files_problem(directory: Path, manifest: dict) -> str | None:
+    """Which module file differs from the hash recorded at build time, if any (a
+    truncated or overwritten module must never be imported: it can crash the process)."""
+    for name, expected in sorted(manifest["files"].items()):
+        try:
+            if file_sha256(Path(directory) / name) != expected:
+                return f"{name} differs from the file built (sha256 mismatch)"
+        except OSError as exc:
+            return f"{name} cannot be read ({exc.strerror or exc})"
+    return None
+
+
+def check_entry(directory: Path, key: str, model_name: str) -> tuple[dict | None, str | None]:
+    """(manifest, None) for a sound build of (model_name, key) in ``directory``;
+    (None, None) when there is no build there; (None, problem) for a damaged,
+    incomplete or foreign one."""
+    directory = Path(directory)
+    if not directory.exists():
+        return None, None
     manifest = read_manifest(directory)
-    if manifest is None or manifest.get("cache_key") != key:
-        return None
-    extension = manifest.get("extension")
-    if not isinstance(extension, str) or not (Path(directory) / extension).is_file():
-        return None
-    return manifest
+    problem = manifest_problem(manifest, key, model_name)
+    if problem is None:
+        problem = files_problem(directory, manifest)
+    return (manifest, None) if problem is None else (None, problem)
 
 
 def write_manifest(directory: Path, manifest: dict) -> None:

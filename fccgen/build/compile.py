@@ -1,25 +1,33 @@
-"""Compiling generated sources into an extension module, and putting it in place.
+"""Compiling generated sources into an extension module, and preparing it for the cache.
 
-The build runs in a fresh temporary folder next to the target (same filesystem), as a
-subprocess of this interpreter on the generated build script, with ``cwd=`` that
-folder. Only a successful build is moved into ``<out_dir>/<name>/``: sources first,
-then the module under a name tagged with its cache key (linked to its plain name
-``<name><EXT_SUFFIX>`` for a plain import), then the manifest. A failed build leaves
-the target untouched and keeps its sources and log in ``<out_dir>/<name>.failed-build/``.
+The build runs in a fresh temporary folder of the model's build folder (same
+filesystem), as a subprocess of this interpreter on the generated build script, with
+``cwd=`` that folder. Only a successful build becomes a cache entry (see
+:mod:`fccgen.build.store`): the module is named ``<name>-<id><EXT_SUFFIX>``, unique per
+build so that a rebuilt module never has the path of one the process may already have
+loaded, and linked to its plain name ``<name><EXT_SUFFIX>`` for a plain import; the
+manifest records the sha256 of both. A failed build keeps its sources and log in
+``<key16>.failed-build/`` next to the entry.
+
+Problems of the machine rather than of the model end in a HostError that says what to
+do: no C compiler, a build folder that cannot be written, a full disk (then the tail of
+the compiler's output is in the message, since its log may not have been written).
 """
 from __future__ import annotations
 
+import errno
 import os
+import shlex
 import shutil
 import subprocess
 import sys
 import sysconfig
-import tempfile
 import uuid
 from pathlib import Path
 
-from ..errors import BuildError
-from .cache import write_manifest
+from ..errors import BuildError, HostError
+from .cache import file_hashes, write_manifest
+from .store import failed_dir, new_temp_dir, put_in_place
 
 # Above this many operations (after CSE) in kernels.c, compile at -O1: optimising huge
 # generated files costs far more compile time and memory than it gains at run time.
@@ -32,6 +40,9 @@ BUILD_SCRIPT = "build_module.py"
 BUILD_LOG = "build.log"
 # Lines of compiler output quoted in a BuildError; the full output is in the log.
 MAX_MESSAGE_LINES = 400
+# Lines of compiler output quoted when its log could not be written.
+TAIL_LINES = 40
+NO_SPACE = "No space left on device"
 
 
 def compile_args(n_ops: int) -> list[str]:
@@ -48,14 +59,29 @@ def ext_suffix() -> str:
     return sysconfig.get_config_var("EXT_SUFFIX") or ".so"
 
 
-def extension_filename(module_name: str, key: str) -> str:
-    """File name of a built module: tagged with its cache key, so that a rebuilt module
+def extension_filename(module_name: str) -> str:
+    """File name of a newly built module: unique per build, so that a rebuilt module
     never has the path of one the process may already have loaded."""
-    return f"{module_name}-{key[:16]}{ext_suffix()}"
+    return f"{module_name}-{uuid.uuid4().hex[:16]}{ext_suffix()}"
 
 
-def failed_dir(out_dir: Path, module_name: str) -> Path:
-    return Path(out_dir) / f"{module_name}.failed-build"
+def compiler_command() -> list[str]:
+    """The C compiler setuptools will run: ``$CC``, else the interpreter's."""
+    return shlex.split(os.environ.get("CC") or sysconfig.get_config_var("CC") or "cc")
+
+
+def require_compiler() -> str:
+    """Path of the C compiler, or a HostError saying how to get one."""
+    command = compiler_command()
+    found = shutil.which(command[0]) if command else None
+    if found is None:
+        via = "$CC" if os.environ.get("CC") else "the Python build configuration"
+        raise HostError(
+            f"no C compiler: {command[0] if command else '(empty)'!r}, named by {via}, "
+            "is not found on PATH. fccgen compiles every new model structure. To fix "
+            "it, install one (e.g. 'apt-get install gcc' or 'xcode-select --install') "
+            "or set CC to a compiler's path.", errno=errno.ENOENT)
+    return found
 
 
 def _excerpt(output: str) -> str:
@@ -68,43 +94,77 @@ def _excerpt(output: str) -> str:
     return "\n".join([*errors, f"[... {len(lines)} lines in all ...]", *tail])
 
 
-def _fail(tmp: Path, out_dir: Path, module_name: str, why: str, output: str):
-    """Keep the failed build under a clearly named folder and raise BuildError."""
-    kept = failed_dir(out_dir, module_name)
+def _tail(output: str) -> str:
+    return "\n".join(output.splitlines()[-TAIL_LINES:])
+
+
+def _fail(tmp: Path, entry: Path, module_name: str, why: str, output: str,
+          log_written: bool):
+    """Keep the failed build in ``<key16>.failed-build/``; raise HostError for a full
+    disk, BuildError otherwise."""
+    kept = failed_dir(entry)
     shutil.rmtree(kept, ignore_errors=True)
-    os.replace(tmp, kept)
-    target = Path(out_dir) / module_name
-    previous = f"; the previous build in {target} is unchanged" if target.exists() else ""
+    try:
+        os.replace(tmp, kept)
+    except OSError:
+        kept = tmp                      # leave it where it is; a later build removes it
+    if NO_SPACE in output:
+        raise HostError(
+            f"building the module of model {module_name!r} failed: no space left on "
+            f"the device of {entry.parent}. To fix it, free some space or choose "
+            "another place with --build-dir. "
+            + (f"The compiler's log is {kept / BUILD_LOG}; its end:" if log_written else
+               "The compiler's log could not be written; its end:")
+            + f"\n{_tail(output)}", errno=errno.ENOSPC)
+    previous = f"; the previous build in {entry} is unchanged" if entry.exists() else ""
+    log = (f"the full log are kept in {kept}" if log_written else
+           f"are kept in {kept} (the log could not be written)")
     raise BuildError(
         f"building the module of model {module_name!r} failed: {why}.\n"
-        f"Sources and the full log are kept in {kept}{previous}.\n"
+        f"Sources and {log}{previous}.\n"
         f"--- compiler output ---\n{_excerpt(output)}")
 
 
-def compile_sources(sources: dict[str, str], out_dir: Path, module_name: str) -> Path:
-    """Write the sources into a fresh folder inside ``out_dir`` and compile them.
+def _write_sources(tmp: Path, sources: dict[str, str]) -> None:
+    for name, text in sources.items():
+        try:
+            (tmp / name).write_text(text, encoding="utf-8")
+        except OSError as exc:
+            raise HostError.from_os_error(exc, "write the generated sources in",
+                                          tmp.parent, "--build-dir",
+                                          name_file=False) from None
+
+
+def compile_sources(sources: dict[str, str], entry: Path, module_name: str) -> Path:
+    """Write the sources into a fresh folder next to ``entry`` and compile them.
 
     Returns the folder, holding ``<module_name><EXT_SUFFIX>`` and the compiler's
-    output in ``build.log``. Raises BuildError, with that output, when the build fails.
+    output in ``build.log``. Raises BuildError, with that output, when the build
+    fails, HostError when the disk is full or the folder cannot be written.
     """
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{module_name}.build-", dir=out_dir))
+    tmp = new_temp_dir(entry.parent)
     try:
-        for name, text in sources.items():
-            (tmp / name).write_text(text, encoding="utf-8")
+        _write_sources(tmp, sources)
         try:
             run = subprocess.run([sys.executable, BUILD_SCRIPT], cwd=tmp,
                                  capture_output=True, text=True, errors="replace")
         except OSError as exc:
-            _fail(tmp, out_dir, module_name, f"cannot run {sys.executable}: {exc}", "")
+            _fail(tmp, entry, module_name, f"cannot run {sys.executable}: {exc}", "",
+                  False)
         output = run.stdout + run.stderr
-        (tmp / BUILD_LOG).write_text(output, encoding="utf-8")
-        if run.returncode != 0:
-            _fail(tmp, out_dir, module_name, f"exit status {run.returncode}", output)
+        try:
+            (tmp / BUILD_LOG).write_text(output, encoding="utf-8")
+            log_written = True
+        except OSError as exc:
+            if exc.errno in (errno.ENOSPC, errno.EDQUOT) and NO_SPACE not in output:
+                output += f"\n{NO_SPACE} (writing {BUILD_LOG})"
+            log_written = False
+        if run.returncode != 0 or not log_written:
+            _fail(tmp, entry, module_name, f"exit status {run.returncode}", output,
+                  log_written)
         if not (tmp / f"{module_name}{ext_suffix()}").is_file():
-            _fail(tmp, out_dir, module_name, "the build produced no extension module",
-                  output)
+            _fail(tmp, entry, module_name, "the build produced no extension module",
+                  output, True)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)     # nothing left if _fail did not keep it
         raise
@@ -114,35 +174,37 @@ def compile_sources(sources: dict[str, str], out_dir: Path, module_name: str) ->
 def _link_plain_name(extension: Path, plain: Path) -> None:
     """Make the module importable by a plain ``import <name>`` from its folder too
     (a hard link, or a copy where links are not possible)."""
-    tmp = plain.with_name(f".{plain.name}.{uuid.uuid4().hex}")
     try:
-        os.link(extension, tmp)
+        os.link(extension, plain)
     except OSError:
-        shutil.copy2(extension, tmp)
-    os.replace(tmp, plain)
+        shutil.copy2(extension, plain)
 
 
-def install(tmp: Path, out_dir: Path, module_name: str, sources: list[str],
-            manifest: dict) -> Path:
-    """Move a successful build from ``tmp`` into ``<out_dir>/<module_name>/``.
+def install(tmp: Path, entry: Path, module_name: str, manifest: dict) -> Path:
+    """Make the successful build in ``tmp`` the cache entry ``entry``.
 
-    Every step is an atomic rename; the manifest, which makes the build visible to the
-    cache, comes last, and superseded modules are removed after it. Returns the path
-    of the installed module.
+    The module gets its unique name and its plain link, the manifest (with the sha256
+    of both) is written last inside ``tmp``, and the whole folder is renamed into
+    place. Call with the key's lock held. Returns the path of the installed module.
     """
-    target = Path(out_dir) / module_name
-    target.mkdir(parents=True, exist_ok=True)
     try:
-        for name in [*sources, BUILD_LOG]:
-            os.replace(tmp / name, target / name)
-        extension = target / manifest["extension"]
-        os.replace(tmp / f"{module_name}{ext_suffix()}", extension)
-        _link_plain_name(extension, target / f"{module_name}{ext_suffix()}")
-        write_manifest(target, manifest)
-    finally:
+        built = tmp / f"{module_name}{ext_suffix()}"
+        extension = tmp / manifest["extension"]
+        os.replace(built, extension)
+        _link_plain_name(extension, built)
+        manifest["files"] = file_hashes(tmp, [extension.name, built.name])
+        keep = {*manifest["sources"], BUILD_LOG, extension.name, built.name}
+        for path in tmp.iterdir():          # object files, Cython's C: not needed
+            if path.name not in keep:
+                shutil.rmtree(path) if path.is_dir() else path.unlink()
+        write_manifest(tmp, manifest)
+        put_in_place(tmp, entry)
+    except OSError as exc:
         shutil.rmtree(tmp, ignore_errors=True)
-    for old in target.glob(f"{module_name}-*{ext_suffix()}"):
-        if old != extension:
-            old.unlink(missing_ok=True)
-    shutil.rmtree(failed_dir(out_dir, module_name), ignore_errors=True)
-    return extension
+        raise HostError.from_os_error(exc, "install the built module in", entry.parent,
+                                      "--build-dir", name_file=False) from None
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    shutil.rmtree(failed_dir(entry), ignore_errors=True)
+    return entry / manifest["extension"]
