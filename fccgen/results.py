@@ -266,6 +266,13 @@ def timed_run(plan, method, sched, options, project, run) -> Result:
                               arrays["energy"], arrays["constraint_error"], info)
 
 
+def keep_rows(exc: BaseException, arrays: dict, n_rows: int, stats: dict) -> None:
+    """What an integrator that stops early hands back: copies of the first ``n_rows``
+    records of ``arrays`` and its ``stats`` (steps, rhs_evaluations,
+    max_constraint_error, ...) as ``exc.partial``, read by :func:`_attach_partial`."""
+    exc.partial = ({name: a[:n_rows].copy() for name, a in arrays.items()}, dict(stats))
+
+
 def _attach_partial(plan, method, sched, options, project, start, exc) -> None:
     """Name the rows an interrupted integrator handed back, if any.
 

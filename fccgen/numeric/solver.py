@@ -15,7 +15,7 @@ from .. import methods as registry
 from .. import rank as rank_rule
 from ..errors import SimulationError
 from ..plan import Plan
-from ..results import InitialState, Result, timed_run
+from ..results import InitialState, Result, keep_rows, timed_run
 from .constrained import RankKeeper, constrained_solve, scaled_residual
 from .dopri5 import simulate_dopri5
 from .elements import element_kernels
@@ -302,8 +302,13 @@ def simulate_rk4(solver: NumericSolver, q, v, sched, opts, project, progress=Non
             if project:
                 q, v = _project(solver, q, v, stats)
         except SimulationError as exc:
-            raise SimulationError(f"simulation stopped at t = {t:.10g} (step {k}): "
-                                  f"{exc}") from None
+            stopped = SimulationError(f"simulation stopped at t = {t:.10g} (step {k}): "
+                                      f"{exc}")
+            rows = record.arrays()
+            keep_rows(stopped, rows, len(rows["t"]),
+                      dict(stats, steps=k - 1, max_constraint_error=float(
+                          rows["constraint_error"].max())))
+            raise stopped from None
         if k % every == 0 or k == n_steps:
             record(t, q, v)
         if progress is not None and time.monotonic() >= deadline:

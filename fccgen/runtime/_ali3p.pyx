@@ -67,6 +67,8 @@ import numpy as np
 
 from fccgen.errors import SimulationError
 
+from fccgen.results import keep_rows
+
 from ._assemble cimport (ASM_B, ASM_C, ASM_F, ASM_G, ASM_H, ASM_KQ,
                          ASM_KV, ASM_M)
 from ._engine cimport Engine, finite
@@ -435,6 +437,10 @@ def simulate_ali3p(Engine engine, q0, v0, double t_end, double dt, long n_steps,
             PyErr_CheckSignals()
             if progress is not None:
                 progress(r.k * dt)
+    except (SimulationError, KeyboardInterrupt) as exc:
+        keep_rows(exc, arrays, r.n_out,
+                  dict(steps=r.k, rhs_evaluations=r.n_asm, newton_iterations=r.newton_total, max_constraint_error=r.max_cerr))
+        raise
     finally:
         engine.running = False
         engine.factor_valid = False

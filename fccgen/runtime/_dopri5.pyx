@@ -30,6 +30,7 @@ from ._engine cimport (AT_POSITIONS, AT_STAGE, AT_STEP, AT_VELOCITIES, ERR_NONE,
 from ._runloop cimport RUN_DONE, RUN_ERROR, RUN_PAUSE, now, write_record
 
 from ._messages import error_message
+from fccgen.results import keep_rows
 
 cdef enum:
     RUN_UNDERFLOW = -2         # DOPRI5's step size underflowed
@@ -362,6 +363,10 @@ def simulate_dopri5(Engine engine, q0, v0, double t_end, double output_dt, doubl
             PyErr_CheckSignals()
             if progress is not None:
                 progress(r.t)                 # K1 of the next step is already computed
+    except (SimulationError, KeyboardInterrupt) as exc:
+        keep_rows(exc, arrays, r.n_out,
+                  dict(steps=r.accepted, rejected_steps=r.rejected, rhs_evaluations=r.n_rhs, newton_iterations=r.newton_total, max_constraint_error=r.max_cerr))
+        raise
     finally:
         engine.running = False
     stats = dict(steps=r.accepted, rejected_steps=r.rejected, rhs_evaluations=r.n_rhs,

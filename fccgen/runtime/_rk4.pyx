@@ -23,6 +23,7 @@ from ._engine cimport (AT_POSITIONS, AT_STAGE, AT_STEP, AT_VELOCITIES, ERR_DIVER
 from ._runloop cimport RUN_DONE, RUN_ERROR, RUN_PAUSE, now, write_record
 
 from ._messages import error_message
+from fccgen.results import keep_rows
 
 
 cdef struct Run:
@@ -281,6 +282,10 @@ def _simulate(Engine engine, q0, v0, double t_end, double dt, long n_steps,
             if progress is not None:
                 progress(r.k * dt)
             engine.factor_valid = False     # the callback may have used the engine
+    except (SimulationError, KeyboardInterrupt) as exc:
+        keep_rows(exc, arrays, r.n_out,
+                  dict(steps=r.k, rhs_evaluations=r.n_rhs, newton_iterations=r.newton_total, max_constraint_error=r.max_cerr))
+        raise
     finally:
         engine.running = False
         engine.diverge_residual = np.inf
