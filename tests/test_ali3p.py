@@ -222,3 +222,15 @@ def test_a02_n_four_bar_meets_the_high_precision_level(compiled):
     # constraints held to the Newton tolerance: |g_k| <= 1e-10 ||B_k|| with ||B_k|| <=
     # 2 sqrt(2) for the 1 m bars (measured max |g| 9.9e-11)
     assert info["max_constraint_error"] <= 3e-10
+
+
+@pytest.mark.parametrize("stiffness", ["1.0e10", "1.0e12"])
+def test_springs_stiffer_than_the_penalty_are_refused_at_the_start(text_model, stiffness):
+    """k / m = 1e10 and 1e12 per s^2 outweigh the default penalty (1e9): Newton used to
+    stall at t = 0 with a message about singular positions; ali3p now refuses at the
+    start and names the methods that can run the model."""
+    solver = text_model(STIFF.replace("stiffness: 1.0e8", f"stiffness: {stiffness}")
+                        .replace("name: stiff_spring", f"name: stiff_{stiffness[-2:]}"))
+    with pytest.raises(SimulationError, match=r"ali3p cannot converge.*stiff spring.*"
+                                              r"--method dopri5.*rk4 with dt well below"):
+        solver.simulate(method="ali3p")
