@@ -53,10 +53,11 @@ def load_numeric(path, **solver_options):
 def simulate(path, *, t_end=None, dt=None, method=None, output_dt=None, project=True,
              numeric=False, out=None, build_dir=DEFAULT_BUILD_DIR, force=False,
              keep_partial=False, progress: Progress = None, rtol=None, atol=None,
-             **method_options):
+             solver_options: dict | None = None, **method_options):
     """Simulate a model from its consistent initial state; write ``out`` if given.
 
-    rtol, atol: tolerances of adaptive methods; method_options: the method's options
+    rtol, atol: tolerances of adaptive methods; solver_options: rank_tol,
+    position_tol, max_newton (see :func:`load`); method_options: the method's options
     (e.g. alpha, beta for baumgarte; see :mod:`fccgen.methods`). ``out`` is checked
     before anything runs (suffix, writable folder). When the run stops early (Ctrl-C,
     SimulationError) nothing is written, unless ``keep_partial``: then the rows
@@ -65,8 +66,9 @@ def simulate(path, *, t_end=None, dt=None, method=None, output_dt=None, project=
     """
     from .results import check_output, partial_path
     out = None if out is None else check_output(out)
-    solver = (load_numeric(path) if numeric else
-              load(path, build_dir, force=force, progress=progress))
+    solver_options = solver_options or {}
+    solver = (load_numeric(path, **solver_options) if numeric else
+              load(path, build_dir, force=force, progress=progress, **solver_options))
     init = solver.initial_state()
     try:
         result = solver.simulate(t_end=t_end, dt=dt, method=method, output_dt=output_dt,

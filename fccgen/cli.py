@@ -13,7 +13,8 @@ import time
 import warnings
 
 from . import __version__
-from .errors import CacheRepairWarning, FccgenError, ModelError, PartialResultWarning
+from .errors import (CacheRepairWarning, FccgenError, ModelError, PartialResultWarning,
+                     RunWarning)
 from .methods import describe as describe_methods
 from .methods import names as method_names
 
@@ -100,6 +101,17 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--keep-partial", action="store_true",
                    help="if the run stops early (Ctrl-C, a failure), write the rows "
                         "recorded so far to FILE.partial.csv|.npz, marked as partial")
+    s.add_argument("--rank-tol", type=float, metavar="TOL",
+                   help="QR pivot ratio at or below which a constraint row counts as "
+                        "lost at a singular position (default: model's simulate.rank_tol, "
+                        "else 1e-10; see docs/reliability.md)")
+    s.add_argument("--position-tol", type=float, metavar="TOL",
+                   help="Newton position projection tolerance on max |g_k| / ||B_k|| "
+                        "(default: model's simulate.position_tol, else 1e-11 x the "
+                        "largest body length)")
+    s.add_argument("--max-newton", type=int, metavar="N",
+                   help="Newton iteration limit of the position projection (default: "
+                        "model's simulate.max_newton, else 20)")
     s.add_argument("--no-project", action="store_true",
                    help="do not project positions and velocities onto the constraints")
     s.add_argument("--numeric", action="store_true",
@@ -152,6 +164,24 @@ def _method_options(items: list[str]) -> dict[str, float]:
     return options
 
 
+def _solver_options(args) -> dict:
+    """The solver tolerances given on the command line, checked."""
+    out = {}
+    for name in ("rank_tol", "position_tol"):
+        value = getattr(args, name)
+        if value is not None:
+            if not (0.0 < value < 1.0):
+                raise ValueError(f"--{name.replace('_', '-')} must be a number in (0, 1) "
+                                 f"(got {value!r})")
+            out[name] = value
+    if args.max_newton is not None:
+        if not 1 <= args.max_newton <= 1000:
+            raise ValueError(f"--max-newton must be a whole number in [1, 1000] "
+                             f"(got {args.max_newton!r})")
+        out["max_newton"] = args.max_newton
+    return out
+
+
 def _run_summary(result) -> str:
     """One paragraph of a run's statistics (result.info)."""
     info = result.info
@@ -164,7 +194,20 @@ def _run_summary(result) -> str:
             f"{info.get('newton_iterations', 0)} Newton iterations); "
             f"max constraint error {info.get('max_constraint_error', float('nan')):.3g}; "
             f"energy drift {info.get('energy_drift', float('nan')):.3g} "
-            f"(max |E - E0|, E0 = {e[0]:.6g})")
+            f"(max |E - E0|, E0 = {e[0]:.6g})" + _dof_summary(info))
+
+
+def _dof_summary(info) -> str:
+    """The run's degrees of freedom by rank and what the rank decisions saw."""
+    if "dof" not in info:
+        return ""
+    text = f"; degrees of freedom {info['dof']} by rank"
+    if info.get("final_dof", info["dof"]) != info["dof"]:
+        text += f", {info['final_dof']} at the end"
+    drops = info.get("singular_position_factorisations", 0)
+    if drops:
+        text += f" ({drops} factorisations near a singular position)"
+    return text
 
 
 def main(argv=None) -> int:
@@ -179,6 +222,7 @@ def main(argv=None) -> int:
     with warnings.catch_warnings():
         warnings.simplefilter("always", CacheRepairWarning)
         warnings.simplefilter("always", PartialResultWarning)
+        warnings.simplefilter("always", RunWarning)
         warnings.showwarning = _show_warning
         return _guarded(args, progress)
 
@@ -250,7 +294,7 @@ def _run(args, progress) -> int:
             output_dt=args.output_dt, project=not args.no_project, numeric=args.numeric,
             out=args.out, build_dir=args.build_dir, force=args.force,
             keep_partial=args.keep_partial, progress=progress,
-            rtol=args.rtol, atol=args.atol, **options)
+            rtol=args.rtol, atol=args.atol, solver_options=_solver_options(args), **options)
         print(init.report())
         print(_run_summary(result))
         if args.out:

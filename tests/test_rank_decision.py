@@ -152,3 +152,19 @@ def test_a_model_that_cannot_move_is_said_so(tmp_path, build_dir):
     with pytest.warns(RunWarning, match="0 degrees of freedom"):
         result = solver.simulate(t_end=0.01)
     assert result.info["dof"] == 0
+
+
+def test_cli_shows_the_dof_change_and_takes_the_solver_tolerances(tmp_path, build_dir,
+                                                                    capsys):
+    from fccgen.cli import main
+    path = tmp_path / "flat_four_bar.yaml"
+    path.write_text(FLAT_FOUR_BAR)
+    common = ["simulate", str(path), "--build-dir", str(build_dir), "-q", "--t-end", "0.1"]
+    assert main([*common, "--rank-tol", "1e-9", "--position-tol", "1e-12",
+                 "--max-newton", "5"]) == 0
+    out, err = capsys.readouterr()
+    assert "degrees of freedom 2 by rank, 1 at the end" in out
+    assert "fccgen: warning: the degrees of freedom changed from 2 to 1" in err
+    for flag, value in (("--rank-tol", "2"), ("--position-tol", "0"), ("--max-newton", "0")):
+        assert main([*common, flag, value]) == 1
+        assert f"{flag} must be" in capsys.readouterr().err
