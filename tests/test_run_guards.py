@@ -44,3 +44,33 @@ def test_keep_partial_writes_a_marked_file_only_when_asked(tmp_path, build_dir):
     with pytest.warns(PartialResultWarning, match="partial result"):
         partial = Result.load(tmp_path / "run.partial.csv")
     assert partial.partial and partial.t[-1] < 5.0 and len(partial.t) >= 2
+
+
+MASSLESS_TIP = """
+name: massless_tip
+gravity: [0, -9.81, 0]
+points:
+  O: {at: [0, 0, 0], fixed: true}
+  P: [1, 0, 0]
+  Q: [2, 0, 0]
+vectors:
+  z: {along: [0, 0, 1], fixed: true}
+bodies:
+  rod: {points: [O, P], vector: z, mass: 1.0, center: [0.5, 0, 0],
+        inertia: [1.0e-4, 0.08, 0.08]}
+  tip: {points: [P, Q], vector: z, mass: 1.0, center: [0, 0, 0], inertia: [0, 0, 0]}
+"""
+
+
+@pytest.mark.parametrize("numeric", [False, True])
+def test_singular_mass_matrix_names_the_file_and_the_massless_motion(
+        tmp_path, build_dir, numeric):
+    """The tip body's mass sits at its hinge P and it has no inertia: its swing about P
+    (Q moving across the rod, Q.y) carries no kinetic energy."""
+    import fccgen
+    path = tmp_path / "massless_tip.yaml"
+    path.write_text(MASSLESS_TIP)
+    solver = fccgen.load_numeric(path) if numeric else fccgen.load(path, build_dir)
+    with pytest.raises(SimulationError, match=r"massless_tip\.yaml: .*singular.*moves "
+                                              r"Q\.y \(used by bodies\.tip\)"):
+        solver.initial_state()

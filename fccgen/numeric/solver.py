@@ -13,6 +13,7 @@ import numpy as np
 
 from .. import methods as registry
 from .. import rank as rank_rule
+from ..diagnose import explained
 from ..errors import SimulationError
 from ..plan import Plan
 from ..results import InitialState, Result, keep_rows, timed_run
@@ -180,7 +181,10 @@ class NumericSolver:
         q, iterations = self.project_positions(q_given)
         self.decide_rank(q)
         v_given = np.array(self.plan.v_target, float)
-        v = self.project_velocities(q, v_given)
+        try:
+            v = self.project_velocities(q, v_given)
+        except SimulationError as exc:
+            raise explained(exc, self, q) from None
         return InitialState(
             q=q, v=v,
             position_residual_given=_amax(self.constraints(q_given)),
@@ -219,8 +223,13 @@ class NumericSolver:
             v0 = self.project_velocities(q0, self.plan.v_target)
         project = bool(project) and m.projects
         decision = self.decide_rank(q0)
-        result = timed_run(self.plan, m, sched, opts, project, lambda: INTEGRATORS[m.name](
-            self, np.array(q0, float), np.array(v0, float), sched, opts, project, progress))
+        try:
+            result = timed_run(self.plan, m, sched, opts, project,
+                               lambda: INTEGRATORS[m.name](
+                                   self, np.array(q0, float), np.array(v0, float), sched,
+                                   opts, project, progress))
+        except SimulationError as exc:
+            raise explained(exc, self, q0) from None
         return rank_rule.report_run(result, decision, self._rank.stats)
 
     def decide_rank(self, q) -> rank_rule.RankDecision:

@@ -13,6 +13,7 @@ import numpy as np
 
 from .. import methods as registry
 from .. import rank as rank_rule
+from ..diagnose import explained
 from ..errors import BuildError, SimulationError
 from ..results import InitialState, Result, timed_run
 from . import scipy_ivp
@@ -163,7 +164,10 @@ class CompiledSolver:
             raise SimulationError(f"{plan.model.source}: the initial positions cannot be "
                                   f"assembled onto the constraints: {exc}") from None
         self.decide_rank(q)
-        v = self.project_velocities(q, plan.v_target)
+        try:
+            v = self.project_velocities(q, plan.v_target)
+        except SimulationError as exc:
+            raise explained(exc, self, q) from None
         return InitialState(q=q, v=v, position_residual_given=given,
                             position_residual=_amax(self.constraints(q)),
                             newton_iterations=iterations,
@@ -199,8 +203,11 @@ class CompiledSolver:
                 progress(f"t = {t:.6g} of {sched.t_end:.6g} "
                          f"({100.0 * t / sched.t_end:.0f}%)")
         decision = self.decide_rank(q0)
-        result = timed_run(self.plan, m, sched, opts, project,
-                           lambda: self._run(m, sched, opts, project, q0, v0, report))
+        try:
+            result = timed_run(self.plan, m, sched, opts, project,
+                               lambda: self._run(m, sched, opts, project, q0, v0, report))
+        except SimulationError as exc:
+            raise explained(exc, self, q0) from None
         return rank_rule.report_run(result, decision, self._engine.rank_statistics())
 
     def decide_rank(self, q) -> rank_rule.RankDecision:
