@@ -40,6 +40,8 @@ AMBIGUOUS_LOW = 1e-10    # ... and in [1e-10, 1e-6] the decision is called uncer
 GROW_TOL = 1e-6          # a rank increase during a run needs sigma_{r+1} / sigma_1 above
 ROW_FLOOR = 1e-4         # rows are scaled to unit length, but not below this fraction
                          # of the largest row of their element (see row_scales)
+KE_CUT_WARN = 1e-2       # a velocity projection removing this fraction of the kinetic
+                         # energy is reported (accurate steps: ~1e-12 and less)
 RANK_TOL = 1e-10         # QR pivot ratio at or below which a row is dropped (singular
                          # position) for one factorisation
 
@@ -129,7 +131,8 @@ def run_findings(decision: RankDecision, stats: dict) -> tuple[dict, list[str]]:
                 largest_dropped_pivot=float(stats.get("largest_dropped", 0.0)),
                 rank_svd_checks=int(stats.get("svd_checks", 0)),
                 dof_changes=[dict(t=float(t), dof_before=decision.n_q - a,
-                                  dof_after=decision.n_q - b) for t, a, b in increases])
+                                  dof_after=decision.n_q - b) for t, a, b in increases],
+                projection_energy_cut=float(stats.get("kinetic_energy_cut", 0.0)))
     warnings = []
     if decision.dof == 0 and final_rank == decision.rank:
         warnings.append(
@@ -144,6 +147,14 @@ def run_findings(decision: RankDecision, stats: dict) -> tuple[dict, list[str]]:
             f"degrees of freedom at the start are uncertain; the run counts "
             f"{decision.dof} and raises the rank if the mechanism leaves that position; "
             "move the initial positions away from it for a clear decision")
+    cut = float(stats.get("kinetic_energy_cut", 0.0))
+    if cut > KE_CUT_WARN:
+        warnings.append(
+            f"a velocity projection removed {100 * cut:.3g}% of the kinetic energy at "
+            f"t = {float(stats.get('kinetic_energy_cut_t', 0.0)):.6g} (accurate steps "
+            "remove far less than 1e-6 %): the constraints forbid a motion the "
+            "integrator made. Check the degrees of freedom (fccgen check), redundant or "
+            "contradictory constraints, and the step size")
     for t, a, b in increases:
         warnings.append(
             f"the degrees of freedom changed from {decision.n_q - a} to {decision.n_q - b} "

@@ -168,3 +168,24 @@ def test_cli_shows_the_dof_change_and_takes_the_solver_tolerances(tmp_path, buil
     for flag, value in (("--rank-tol", "2"), ("--position-tol", "0"), ("--max-newton", "0")):
         assert main([*common, flag, value]) == 1
         assert f"{flag} must be" in capsys.readouterr().err
+
+
+def test_a_projection_that_kills_the_motion_is_flagged(bricard_solvers, monkeypatch):
+    """The independent check of the rank: force the old miscount (rank 24 of 24
+    coordinates on Bricard: 0 DOF). The first step moves the linkage, the velocity
+    projection removes all of that kinetic energy, and the run says so, although its
+    energy and constraint figures look perfect (the symptom of the old freeze)."""
+    solver = bricard_solvers["line"]
+    real = rank_rule.decide
+
+    def miscount(B, n_q=None, groups=None):
+        d = real(B, n_q, groups)
+        return rank_rule.RankDecision(d.rank + 1, d.n_q, d.sigma)
+
+    monkeypatch.setattr(rank_rule, "decide", miscount)
+    with pytest.warns(RunWarning) as record:
+        result = solver.simulate(t_end=0.01)
+    texts = [str(w.message) for w in record]
+    assert any("removed 100% of the kinetic energy at t = 0.001" in t for t in texts), texts
+    assert result.info["projection_energy_cut"] > 0.99
+    assert result.info["energy_drift"] < 1e-5   # 6.4e-6 J of E0 = -29 J: looked right

@@ -43,6 +43,9 @@ cdef class Engine:
     cdef bint factor_valid               # sol holds the factorisation of M, B at the state
     cdef bint running                    # an integrator is using the engine
     # rank decisions: each accepted increase of the decided rank (time, old, new)
+    cdef double ke_peak                  # largest kinetic energy met by a velocity projection
+    cdef double ke_cut_max               # largest fraction of it one projection removed
+    cdef double ke_cut_t                 # ... and when
     cdef int n_rank_log
     cdef double rank_log[RANK_LOG_SIZE][3]
     # error record
@@ -59,6 +62,7 @@ cdef class Engine:
     cdef int project_positions_at(self, double *q, int *iterations) noexcept nogil
     cdef int project_velocities_at(self, const double *q, double *v,
                                    bint have_B) noexcept nogil
+    cdef void watch_kinetic_energy(self, const double *v, const double *w) noexcept nogil
     cdef double[::1] vector(self, object x, str name, bint copy=*)
     cdef dict error_record(self)
     cdef raise_error(self, int where)

@@ -101,20 +101,26 @@ cdef class Engine:
         self.sol.rank_fixed = rank
         csolve_reset_stats(&self.sol)
         self.n_rank_log = 0
+        self.ke_peak = 0.0
+        self.ke_cut_max = 0.0
+        self.ke_cut_t = 0.0
         self.factor_valid = False
 
     def rank_statistics(self):
         """What the factorisations since :meth:`decide_rank` saw: a dict with
         factorisations, drops (factorisations at a singular position, where a pivot
         within the decided rank fell to rank_tol or below), svd_checks, smallest_kept
-        and largest_dropped pivot ratios, and increases [(t, old rank, new rank)]."""
+        and largest_dropped pivot ratios, increases [(t, old rank, new rank)], and the
+        largest fraction of the kinetic energy one velocity projection removed
+        (kinetic_energy_cut, at kinetic_energy_cut_t)."""
         n = min(self.n_rank_log, RANK_LOG_SIZE)
         return dict(factorisations=self.sol.n_factor, drops=self.sol.n_drop,
                     svd_checks=self.sol.n_svd, smallest_kept=self.sol.kept_min,
                     largest_dropped=self.sol.dropped_max,
                     increases=[(self.rank_log[k][0], int(self.rank_log[k][1]),
                                 int(self.rank_log[k][2])) for k in range(n)],
-                    increases_total=self.n_rank_log)
+                    increases_total=self.n_rank_log,
+                    kinetic_energy_cut=self.ke_cut_max, kinetic_energy_cut_t=self.ke_cut_t)
 
     # -- building blocks (nogil) ---------------------------------------------------
     cdef int fail(self, int code, int info, int detail) noexcept nogil:
@@ -254,9 +260,34 @@ cdef class Engine:
         if not finite(self.vtmp, self.n):
             i = self.nonfinite_input(q, v, ASM_M | ASM_B)
             return self.fail(ERR_NONFINITE_INPUT if i else ERR_NONFINITE_RESULT, 0, i)
+        self.watch_kinetic_energy(v, self.vtmp)
         memcpy(v, self.vtmp, self.n * sizeof(double))
         self.factor_valid = True
         return 0
+
+    cdef void watch_kinetic_energy(self, const double *v, const double *w) noexcept nogil:
+        """Track the fraction of the kinetic energy v^T M v / 2 that the projection
+        v -> w removes, (v - w)^T M (v - w) / 2 (M-orthogonal: the energy lost).
+        Accurate steps lose O(local error^2); a finite fraction means the constraints
+        forbid a motion the integrator made (a wrong rank, a locked mechanism).
+        Fractions are counted once the energy is above 1e-6 of its peak."""
+        cdef int i, j, n = self.n
+        cdef double before = 0.0, cut = 0.0, mv, md
+        cdef const double *row
+        for i in range(n):
+            row = self.asm.M + i * n
+            mv = 0.0
+            md = 0.0
+            for j in range(n):
+                mv += row[j] * v[j]
+                md += row[j] * (v[j] - w[j])
+            before += v[i] * mv
+            cut += (v[i] - w[i]) * md
+        if before > self.ke_peak:
+            self.ke_peak = before
+        if before > 1e-6 * self.ke_peak and before > 0.0 and cut / before > self.ke_cut_max:
+            self.ke_cut_max = cut / before
+            self.ke_cut_t = self.err_t
 
     # -- Python access -------------------------------------------------------------
     cdef double[::1] vector(self, object x, str name, bint copy=True):
