@@ -13,7 +13,7 @@ from typing import Callable
 import sympy
 
 from ..plan.classes import KIND_ENDS
-from .kinematics import (BodyFrame, PointKin, body_frame, cross, dot, end_point,
+from .kinematics import (E3, BodyFrame, PointKin, body_frame, cross, dot, end_point,
                          lin_combine, lin_row, skew)
 from .symbols import ClassSymbols, Lin
 
@@ -200,8 +200,71 @@ def with_force_jacobians(builder: Callable[[ClassSymbols], Outputs]
     return build
 
 
+# -- mechanism level: attached triples, point on a plane, dot product ---------------
+
+def _attached(s: ClassSymbols, target: str, offset_ri: bool) -> Outputs:
+    """g = r_k - P (a point) or w - (P - r_i) (a vector), P the body point
+    r_i + b1 r_ij + b2 u + c (r_ij x u), c = b3/(alpha l): B = [E on the target,
+    -Dhat_P (minus E on r_i for a vector)], bias -2c r_ij' x u'."""
+    f = body_frame(s)
+    pt = f.point(s.scalar("b1"), s.scalar("b2"), s.scalar("b3"))
+    k = s.triple(target)
+    dhat = dict(pt.dhat)
+    pos = pt.pos
+    if not offset_ri:                      # a direction: P - r_i, no r_i term
+        pos = pt.pos - f.ri.pos
+        if f.ri.moving:
+            dhat[f.ri.name] = dhat[f.ri.name] - E3
+    jac = lin_combine((-1, dhat), (1, {k.name: E3} if k.moving else {}))
+    return {"constraints": _flat(k.pos - pos),
+            "constraint_jacobian": _flat(s.local(jac, 3)),
+            "constraint_bias": _flat(-pt.bias)}
+
+
+def attached_point(s: ClassSymbols) -> Outputs:
+    """r_k - [r_i + b1 r_ij + b2 u + b3 (r_ij x u)/(alpha l)] = 0 (three rows)."""
+    return _attached(s, "k", True)
+
+
+def attached_vector(s: ClassSymbols) -> Outputs:
+    """w - (nu1 e1 + nu2 e2 + nu3 e3) = w - [b1 r_ij + b2 u + b3 (r_ij x u)/(alpha l)]
+    = 0 with b = point_coefficients(nu) (three rows; |w| = 1 follows)."""
+    return _attached(s, "w", False)
+
+
+def point_on_plane(s: ClassSymbols) -> Outputs:
+    """g = n.(r_K - r_A); B = (r_K - r_A)^T on n, n^T (Dhat_K - Dhat_A) on the ends;
+    bias 2 n'.(r_K' - r_A') + n.(bias_K - bias_A)."""
+    n = s.triple("n")
+    k, a = _points(s)
+    d, dd = k.pos - a.pos, k.vel - a.vel
+    row = lin_combine((n.pos.T, k.dhat), (-n.pos.T, a.dhat),
+                      (1, {n.name: d.T} if n.moving else {}))
+    return {"constraints": [dot(n.pos, d)],
+            "constraint_jacobian": _jacobian_rows(s, [row]),
+            "constraint_bias": [2 * dot(n.vel, dd) + dot(n.pos, k.bias - a.bias)]}
+
+
+def dot_product(s: ClassSymbols) -> Outputs:
+    """g = a.b - c (c = cos of the angle between unit vectors a, b); B = [b^T, a^T];
+    bias 2 a'.b'."""
+    a, b = s.triple("a"), s.triple("b")
+    row = lin_combine((1, {a.name: b.pos.T} if a.moving else {}),
+                      (1, {b.name: a.pos.T} if b.moving else {}))
+    return {"constraints": [dot(a.pos, b.pos) - s.scalar("c")],
+            "constraint_jacobian": _jacobian_rows(s, [row]),
+            "constraint_bias": [2 * dot(a.vel, b.vel)]}
+
+
+MECHANISM_BUILDERS: dict[str, Callable[[ClassSymbols], Outputs]] = {
+    "attached_point": attached_point, "attached_vector": attached_vector,
+    "point_on_plane": point_on_plane, "dot": dot_product,
+}
+
+
 BUILDERS: dict[str, Callable[[ClassSymbols], Outputs]] = {
     "body": with_force_jacobians(body), "unit_vector": unit_vector, "distance": distance,
     "point_on_line": point_on_line, "force": with_force_jacobians(force),
     "torque": with_force_jacobians(torque), "spring": with_force_jacobians(spring),
 }
+BUILDERS.update(MECHANISM_BUILDERS)

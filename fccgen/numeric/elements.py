@@ -352,11 +352,66 @@ def _combine(*terms) -> dict[str, np.ndarray]:
     return out
 
 
+# -- mechanism level: attached triples, point on a plane, dot product ---------------
+
+class AttachedKernels(ElementKernels):
+    """A triple tied to a body: g = r_k - P for a point, g = w - (P - r_i) for a unit
+    vector (nu1 e1 + nu2 e2 + nu3 e3 = P - r_i with b = point_coefficients(nu)), where
+    P = r_i + b1 r_ij + b2 u + b3 (r_ij x u)/(alpha l) is a body point."""
+    target = "k"
+
+    def _rows(self):
+        x, s = self.x, self.x.s
+        names, pos, vel = x.body_triples()
+        P = body_point(names, pos, vel, s["l"], s["alpha"], s["b1"], s["b2"], s["b3"])
+        r, dhat = P.r, dict(P.dhat)
+        if self.target == "w":
+            r = r - pos[0]
+            dhat[names[0]] = dhat[names[0]] - EYE
+        blocks = {n: -b for n, b in dhat.items()}
+        blocks[self.target] = EYE
+        g = x.pos[self.target] - r
+        return [(g[k], {n: b[k] for n, b in blocks.items()}, -P.bias[k]) for k in range(3)]
+
+
+class AttachedVectorKernels(AttachedKernels):
+    target = "w"
+
+
+class PointOnPlaneKernels(ElementKernels):
+    """n . (r_K - r_A) = 0 for a unit normal triple n."""
+
+    def _rows(self):
+        K, A = end_point(self.x, "K"), end_point(self.x, "A")
+        n, dn = self.x.pos["n"], self.x.vel["n"]
+        d = K.r - A.r
+        blocks = _combine((n, K.dhat), (-n, A.dhat))
+        blocks["n"] = blocks.get("n", 0.0) + d
+        bias = 2.0 * dn @ (K.v - A.v) + n @ (K.bias - A.bias)
+        return [(n @ d, blocks, bias)]
+
+
+class DotKernels(ElementKernels):
+    """a . b - c = 0 for unit vector triples a, b (c = cos of their angle)."""
+
+    def _rows(self):
+        a, b = self.x.pos["a"], self.x.pos["b"]
+        da, db = self.x.vel["a"], self.x.vel["b"]
+        return [(a @ b - self.x.s["c"], {"a": b, "b": a}, 2.0 * da @ db)]
+
+
+MECHANISM_KERNELS: dict[str, type[ElementKernels]] = {
+    "attached_point": AttachedKernels, "attached_vector": AttachedVectorKernels,
+    "point_on_plane": PointOnPlaneKernels, "dot": DotKernels,
+}
+
+
 KIND_KERNELS: dict[str, type[ElementKernels]] = {
     "body": BodyKernels, "unit_vector": UnitVectorKernels, "distance": DistanceKernels,
     "point_on_line": PointOnLineKernels, "force": ForceKernels, "torque": TorqueKernels,
     "spring": SpringKernels,
 }
+KIND_KERNELS.update(MECHANISM_KERNELS)
 
 
 def element_kernels(cls: ElementClass, q, v, p) -> ElementKernels:

@@ -62,6 +62,25 @@ FOLDABLE = {
     "spring": {"L0", "c"},
 }
 END_FOLDABLE = {"beta", "b1", "b2", "b3"}
+
+# -- mechanism level (docs/joints.md): attached points and vectors, point on a plane,
+# constant dot product. Attached triples carry the coefficients b1..b3 of their
+# body-frame coordinates (fccgen.plan.geometry.point_coefficients); all rows are linear
+# or quadratic in q.
+MECHANISM_KINDS = {
+    # kind: (scalars, ends, triples, foldable, constraint rows)
+    "attached_point": (BODY_POINT_SCALARS, (), (*BODY_TRIPLES, "k"),
+                       {"beta", "b1", "b2", "b3"}, ("x", "y", "z")),
+    "attached_vector": (BODY_POINT_SCALARS, (), (*BODY_TRIPLES, "w"),
+                        {"beta", "b1", "b2", "b3"}, ("x", "y", "z")),
+    "point_on_plane": ((), ("K", "A"), ("n",), set(), ("plane",)),
+    "dot": (("c",), (), ("a", "b"), {"c"}, ("dot",)),
+}
+for _kind, (_scalars, _ends, _triples, _foldable, _rows) in MECHANISM_KINDS.items():
+    KIND_SCALARS[_kind] = _scalars
+    KIND_ENDS[_kind] = _ends
+    KIND_TRIPLES[_kind] = _triples
+    FOLDABLE[_kind] = _foldable
 KINDS = tuple(KIND_SCALARS)
 END_KINDS = ("point", "body_point")
 
@@ -140,6 +159,8 @@ class ElementClass:
             return ("distance",)           # d . d - L^2, d = r_B - r_A
         if self.kind == "point_on_line":
             return ("cross.x", "cross.y", "cross.z")   # (r_K - r_A) x (r_B - r_A)
+        if self.kind in MECHANISM_KINDS:
+            return MECHANISM_KINDS[self.kind][4]
         return ()
 
     @property
