@@ -123,5 +123,10 @@ def timed_run(plan, method, sched, options, project, run) -> Result:
         arrays, stats = run()
     info = run_info(method, stats, arrays["energy"], time.perf_counter() - start,
                     dt=sched.dt, output_dt=sched.output_dt, project=project, options=options)
-    return result_from_arrays(plan, arrays["t"], arrays["q"], arrays["v"], arrays["body"],
-                              arrays["energy"], arrays["constraint_error"], info)
+    result = result_from_arrays(plan, arrays["t"], arrays["q"], arrays["v"],
+                                arrays["body"], arrays["energy"],
+                                arrays["constraint_error"], info)
+    if getattr(plan.model, "mechanism", None) is not None:     # joint columns
+        from .mechanism.outputs import add_joint_columns
+        add_joint_columns(plan, result)
+    return result
