@@ -25,6 +25,7 @@ class CheckReport:
     classes: list[str]                        # element class descriptions
     init_report: str
     notes: list[str] = field(default_factory=list)
+    joints: list[str] = field(default_factory=list)    # what each joint was lowered to
 
     @property
     def dof_counted(self) -> int:
@@ -46,6 +47,9 @@ class CheckReport:
             f"  redundant constraint equations: {len(self.redundant)}",
         ]
         lines += [f"    {r}" for r in self.redundant]
+        if self.joints:
+            lines.append("  joints (lowering):")
+            lines += [f"    {j}" for j in self.joints]
         lines.append(f"  element classes: {len(self.classes)}")
         lines += [f"    {c}" for c in self.classes]
         lines.append("  initial state:")
@@ -88,4 +92,5 @@ def check_model(path) -> CheckReport:
         n_bodies=len(plan.bodies), n_q=plan.n_q, n_g=plan.n_g, rank=rank,
         rows=labels, redundant=redundant,
         classes=[f"{c.name}: {c.describe()}" for c in plan.classes],
-        init_report=init.report(), notes=list(plan.notes))
+        init_report=init.report(), notes=list(plan.notes),
+        joints=model.mechanism.describe() if model.mechanism is not None else [])
