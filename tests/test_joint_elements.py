@@ -28,6 +28,9 @@ CLASSES = [
     ElementClass("point_on_plane", ("body_point", "point"), (F, F, F, F, T), frozenset()),
     ElementClass("dot", (), (F, F), frozenset()),
     ElementClass("dot", (), (F, T), frozenset({"c"})),
+    ElementClass("aligned_vector", (), (F, F, F, F), frozenset()),
+    ElementClass("aligned_vector", (), (T, F, T, F), frozenset({"c1"})),
+    ElementClass("aligned_vector", (), (F, F, F, T), frozenset()),
 ]
 IDS = [c.describe().replace(" ", "") for c in CLASSES]
 KERNELS = ("constraints", "constraint_jacobian", "constraint_bias")
@@ -89,7 +92,7 @@ def test_jacobian_and_bias_by_finite_differences(cls):
     assert np.allclose(bias, d1(Bv, q, v), rtol=0, atol=1e-9 * (np.abs(bias).max() + 1))
 
 
-@pytest.mark.parametrize("kind", ["attached_point", "attached_vector"])
+@pytest.mark.parametrize("kind", ["attached_point", "attached_vector", "aligned_vector"])
 def test_attachment_holds_on_a_rigid_body(kind):
     """A body at a random pose, a point/vector with body-frame coordinates rho placed
     by the rotation itself: the rows vanish to rounding, and fail for a wrong rho."""
@@ -100,13 +103,15 @@ def test_attachment_holds_on_a_rigid_body(kind):
     u = R @ np.array([np.cos(1.1), np.sin(1.1), 0.0])
     l, alpha, beta = body_frame_numbers(ri, rj, u)
     rho = rng.normal(size=3)
-    if kind == "attached_vector":
+    if kind != "attached_point":
         rho /= np.linalg.norm(rho)
         target = R @ rho
     else:
         target = ri + R @ rho
     cls = ElementClass(kind, (), (F, F, F, F), frozenset())
     p = np.array([l, alpha, beta, *point_coefficients(rho, l, alpha, beta)])
+    if kind == "aligned_vector":          # components on e1, e2 only
+        p = np.array([l * rho[0], beta * rho[0] + alpha * rho[1]])
     q = np.concatenate([ri, rj, u, target])
     assert np.abs(element_kernel(cls, "constraints", q, None, p)).max() < 1e-14
     q_wrong = np.concatenate([ri, rj, u, target + 1e-3])

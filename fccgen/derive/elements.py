@@ -256,9 +256,26 @@ def dot_product(s: ClassSymbols) -> Outputs:
             "constraint_bias": [2 * dot(a.vel, b.vel)]}
 
 
+def aligned_vector(s: ClassSymbols) -> Outputs:
+    """g = [w.r_ij - c1, w.u - c2] (w's components along e1 and e2 of the body, scaled
+    by l and mixed by beta, alpha); B rows [w^T on rj, -w^T on ri, r_ij^T on w] and
+    [w^T on u, u^T on w]; bias [2 w'.r_ij', 2 w'.u']."""
+    ri, rj, u, w = (s.triple(t) for t in ("ri", "rj", "u", "w"))
+    rij = rj.pos - ri.pos
+    row1 = lin_combine((-1, {ri.name: w.pos.T} if ri.moving else {}),
+                       (1, {rj.name: w.pos.T} if rj.moving else {}),
+                       (1, {w.name: rij.T} if w.moving else {}))
+    row2 = lin_combine((1, {u.name: w.pos.T} if u.moving else {}),
+                       (1, {w.name: u.pos.T} if w.moving else {}))
+    return {"constraints": [dot(w.pos, rij) - s.scalar("c1"),
+                            dot(w.pos, u.pos) - s.scalar("c2")],
+            "constraint_jacobian": _jacobian_rows(s, [row1, row2]),
+            "constraint_bias": [2 * dot(w.vel, rj.vel - ri.vel), 2 * dot(w.vel, u.vel)]}
+
+
 MECHANISM_BUILDERS: dict[str, Callable[[ClassSymbols], Outputs]] = {
     "attached_point": attached_point, "attached_vector": attached_vector,
-    "point_on_plane": point_on_plane, "dot": dot_product,
+    "point_on_plane": point_on_plane, "dot": dot_product, "aligned_vector": aligned_vector,
 }
 
 

@@ -26,6 +26,12 @@ from ..errors import ModelError
 from ..model.types import (GROUND, Angle, Attached, BodyPoint, Distance, Force, Initial,
                            Model, Point, PointOnPlane, Vector)
 from .bodies import choose_frame, typical_body
+
+# |nu3| (the component of a tied vector along the body's e3) from which its two-row
+# form (components on e1, e2) is used: below it the two rows lose rank as w nears
+# the e1-e2 plane, where the sign of nu3 is no longer held. 0.5: within 60 degrees
+# of e3, a condition number of at most 2.
+ALIGN_MIN = 0.5
 from .joints import CarriedTriple, JointLowering, lower_joint
 
 
@@ -73,79 +79,131 @@ def lower(model: Model) -> Model:
     ``model.mechanism`` the :class:`Lowering`."""
     if not model.pose_bodies and not model.joints:
         return model
-    frames = {GROUND: np.eye(3), **{n: b.frame for n, b in model.pose_bodies.items()}}
-    lowered = [lower_joint(j, frames) for j in model.joints]
-    triples: dict[str, CarriedTriple] = {}
-    taken = set(model.points) | set(model.vectors) | set(model.bodies) \
-        | set(model.pose_bodies) | {j.name for j in model.joints}
-    for jl in lowered:
-        for t in jl.triples:
-            if t.name in taken - {jl.joint.name} or t.name in triples:
-                raise ModelError(model.source, jl.joint.where.line, f"joints.{jl.joint.name}",
-                                 f"the name {t.name} that this joint's points and vectors "
-                                 "take is already used; rename one of them", t.name)
-            triples[t.name] = t
-    points, vectors = dict(model.points), dict(model.vectors)
-    bodies, constraints, used_u = dict(model.bodies), [], set()
-    labels: dict[str, list[str]] = {jl.joint.name: [] for jl in lowered}
-    body_frames: dict[str, tuple[str, str, str]] = {}
-    rotations: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-    for t in triples.values():
-        fixed = GROUND in t.carriers
-        where = next(jl.joint.where for jl in lowered if jl.joint.name == t.joint)
-        if t.kind == "point":
-            points[t.name] = Point(t.name, t.value, fixed, where)
-        else:
-            vectors[t.name] = Vector(t.name, t.value, fixed, where)
-    for name, pb in model.pose_bodies.items():
-        carried = [t for t in triples.values() if name in t.carriers]
+    return _Lowerer(model).run()
+
+
+class _Lowerer:
+    """The steps of :func:`lower`, in order: joints, triples, bodies, rows."""
+
+    def __init__(self, model: Model):
+        self.model = model
+        frames = {GROUND: np.eye(3), **{n: b.frame for n, b in model.pose_bodies.items()}}
+        self.lowered = [lower_joint(j, frames) for j in model.joints]
+        self.by_joint = {jl.joint.name: jl for jl in self.lowered}
+        self.taken = (set(model.points) | set(model.vectors) | set(model.bodies)
+                      | set(model.pose_bodies) | set(self.by_joint))
+        self.triples: dict[str, CarriedTriple] = {}
+        self.points, self.vectors = dict(model.points), dict(model.vectors)
+        self.bodies = dict(model.bodies)
+        self.constraints: list = []
+        self.labels: dict[str, list[str]] = {name: [] for name in self.by_joint}
+        self.frames: dict[str, tuple[str, str, str]] = {}
+        self.rotations: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        # per attached vector: [(body, nu)], rows decided once all bodies are known
+        self.vector_ties: dict[str, list[tuple[str, np.ndarray]]] = {}
+
+    def run(self) -> Model:
+        self.collect_triples()
+        for name, pb in self.model.pose_bodies.items():
+            self.body(name, pb)
+        self.vector_rows()
+        self.relation_rows()
+        m = self.model
+        pose = {n: (*self.rotations[n], b.center, b.frame) for n, b in m.pose_bodies.items()}
+        out = replace(m, points=self.points, vectors=self.vectors, bodies=self.bodies,
+                      constraints=[*_converted(m.constraints, pose), *self.constraints],
+                      loads=_converted(m.loads, pose),
+                      initial=_initial(m.initial, m.pose_bodies), pose_bodies={}, joints=[])
+        out.mechanism = Lowering(self.lowered, self.frames, self.labels)
+        return out
+
+    def clash(self, line, item: str, name: str, what: str) -> ModelError:
+        return ModelError(self.model.source, line, item, f"the name {name} that {what} "
+                          "take is already used; rename one of them", name)
+
+    def collect_triples(self):
+        """Every joint's triples as points and vectors (fixed when ground carries them)."""
+        for jl in self.lowered:
+            j = jl.joint
+            for t in jl.triples:
+                if t.name in self.taken - {j.name} or t.name in self.triples:
+                    raise self.clash(j.where.line, f"joints.{j.name}", t.name,
+                                     "this joint's points and vectors")
+                self.triples[t.name] = t
+                fixed = GROUND in t.carriers
+                if t.kind == "point":
+                    self.points[t.name] = Point(t.name, t.value, fixed, j.where)
+                else:
+                    self.vectors[t.name] = Vector(t.name, t.value, fixed, j.where)
+
+    def body(self, name: str, pb):
+        """Choose i, j, u; attach the other points now, collect the vectors' ties."""
+        carried = [t for t in self.triples.values() if name in t.carriers]
+        used_u = {u for _, _, u in self.frames.values()}
         choice = choose_frame(
             pb, [(t.name, t.value) for t in carried if t.kind == "point"],
             [(t.name, t.value, GROUND in t.carriers) for t in carried if t.kind == "vector"],
             used_u)
         for new_name, kind, value in choice.new:
-            if new_name in taken or new_name in triples:
-                raise ModelError(model.source, pb.where.line, f"bodies.{name}",
-                                 f"the name {new_name} that this body's frame takes is "
-                                 "already used; rename one of them", new_name)
-            table, cls = (points, Point) if kind == "point" else (vectors, Vector)
+            if new_name in self.taken or new_name in self.triples:
+                raise self.clash(pb.where.line, f"bodies.{name}", new_name,
+                                 "this body's frame")
+            table, cls = (self.points, Point) if kind == "point" else (self.vectors, Vector)
             table[new_name] = cls(new_name, np.asarray(value, float), False, pb.where)
-        used_u.add(choice.u)
-        ri, rj, u = points[choice.i].at, points[choice.j].at, vectors[choice.u].along
-        bodies[name], R = typical_body(pb, ri, rj, u, choice)
-        body_frames[name] = (choice.i, choice.j, choice.u)
-        rotations[name] = (ri, R)
+        ri, rj = self.points[choice.i].at, self.points[choice.j].at
+        self.bodies[name], R = typical_body(pb, ri, rj, self.vectors[choice.u].along, choice)
+        self.frames[name] = (choice.i, choice.j, choice.u)
+        self.rotations[name] = (ri, R)
         for t in carried:
             if t.name in (choice.i, choice.j, choice.u):
                 continue
-            rho = R.T @ (t.value - ri) if t.kind == "point" else R.T @ t.value
-            jl = next(jl for jl in lowered if jl.joint.name == t.joint)
-            label = _label(jl, f"{t.kind} {t.name} on {name}")
-            labels[t.joint].append(label)
-            constraints.append(Attached(t.name, name, tuple(float(x) for x in rho), t.kind,
-                                        jl.joint.where, label))
-    for jl in lowered:
-        for rel in jl.relations:
-            kind, a, b, extra = rel
+            if t.kind == "vector":
+                self.vector_ties.setdefault(t.name, []).append((name, R.T @ t.value))
+                continue
+            rho = tuple(float(x) for x in R.T @ (t.value - ri))
+            where = self.by_joint[t.joint].joint.where
+            self.attach(t, Attached(t.name, name, rho, "point", where),
+                        f"point {t.name} on {name}")
+
+    def attach(self, t: CarriedTriple, c: Attached, what: str):
+        jl = self.by_joint[t.joint]
+        c.label = _label(jl, what)
+        self.labels[t.joint].append(c.label)
+        self.constraints.append(c)
+
+    def vector_rows(self):
+        """Three rows w - R nu = 0 for the one tie of a moving vector that makes it a
+        unit vector (the tie with the smallest |nu3|); two rows (components on e1, e2)
+        for every further tie and every tie of a fixed vector, where |nu3| >=
+        ALIGN_MIN keeps them regular; else three rows, one of them redundant."""
+        for name, ties in self.vector_ties.items():
+            t = self.triples[name]
+            ties = sorted(ties, key=lambda bn: abs(bn[1][2]))
+            first = 0 if not self.vectors[name].fixed else None
+            for k, (body, nu) in enumerate(ties):
+                where = self.by_joint[t.joint].joint.where
+                nu_t = tuple(float(x) for x in nu)
+                if k != first and abs(nu[2]) >= ALIGN_MIN:
+                    self.attach(t, Attached(name, body, nu_t, "aligned", where),
+                                f"vector {name} along {body} (e1, e2 components)")
+                else:
+                    self.attach(t, Attached(name, body, nu_t, "vector", where),
+                                f"vector {name} on {body}")
+
+    def relation_rows(self):
+        for jl in self.lowered:
             where = jl.joint.where
-            if kind == "plane":
-                label = _label(jl, f"{a} on the plane through {b} normal to {extra}")
-                constraints.append(PointOnPlane(a, b, extra, where, label))
-            elif kind == "dot":
-                label = _label(jl, f"{a} . {b} = {extra:.6g}")
-                constraints.append(Angle((a, b), extra, where, label))
-            else:
-                label = _label(jl, f"|{b} - {a}| = {extra:.6g}")
-                constraints.append(JointDistance((a, b), extra, where, label=label))
-            labels[jl.joint.name].append(label)
-    pose = {n: (*rotations[n], b.center, b.frame) for n, b in model.pose_bodies.items()}
-    out = replace(model, points=points, vectors=vectors, bodies=bodies,
-                  constraints=[*_converted(model.constraints, pose), *constraints],
-                  loads=_converted(model.loads, pose),
-                  initial=_initial(model.initial, model.pose_bodies),
-                  pose_bodies={}, joints=[])
-    out.mechanism = Lowering(lowered, body_frames, labels)
-    return out
+            for kind, a, b, extra in jl.relations:
+                if kind == "plane":
+                    label = _label(jl, f"{a} on the plane through {b} normal to {extra}")
+                    self.constraints.append(PointOnPlane(a, b, extra, where, label))
+                elif kind == "dot":
+                    label = _label(jl, f"{a} . {b} = {extra:.6g}")
+                    self.constraints.append(Angle((a, b), extra, where, label))
+                else:
+                    label = _label(jl, f"|{b} - {a}| = {extra:.6g}")
+                    self.constraints.append(JointDistance((a, b), extra, where, label=label))
+                self.labels[jl.joint.name].append(label)
 
 
 # -- items that name pose-form bodies --------------------------------------------------

@@ -400,9 +400,24 @@ class DotKernels(ElementKernels):
         return [(a @ b - self.x.s["c"], {"a": b, "b": a}, 2.0 * da @ db)]
 
 
+class AlignedVectorKernels(ElementKernels):
+    """w . r_ij - c1 = 0 and w . u - c2 = 0: a unit vector w held along a body vector
+    by its components on e1 and e2 (c1 = l nu1, c2 = beta nu1 + alpha nu2)."""
+
+    def _rows(self):
+        x, s = self.x, self.x.s
+        names, (ri, rj, u), (dri, drj, du) = x.body_triples()
+        w, dw = x.pos["w"], x.vel["w"]
+        rij = rj - ri
+        return [(w @ rij - s["c1"], {names[0]: -w, names[1]: w, "w": rij},
+                 2.0 * dw @ (drj - dri)),
+                (w @ u - s["c2"], {names[2]: w, "w": u}, 2.0 * dw @ du)]
+
+
 MECHANISM_KERNELS: dict[str, type[ElementKernels]] = {
     "attached_point": AttachedKernels, "attached_vector": AttachedVectorKernels,
     "point_on_plane": PointOnPlaneKernels, "dot": DotKernels,
+    "aligned_vector": AlignedVectorKernels,
 }
 
 

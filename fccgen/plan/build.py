@@ -162,6 +162,13 @@ def _require_moving(el: Element, model: Model, what: str):
 
 def _mechanism_element(b: _Builder, c, label: str) -> Element:
     """Elements of the mechanism level's constraints (docs/joints.md)."""
+    if isinstance(c, Attached) and c.kind == "aligned":
+        body = b.model.bodies[c.body]
+        l, alpha, beta = b.frames[c.body]
+        nu = c.rho
+        return b.element("aligned_vector", label, c.where,
+                         {"c1": float(l * nu[0]), "c2": float(beta * nu[0] + alpha * nu[1])},
+                         [("ri", body.i), ("rj", body.j), ("u", body.u), ("w", c.target)])
     if isinstance(c, Attached):
         body = b.model.bodies[c.body]
         l, alpha, beta = b.frames[c.body]

@@ -75,6 +75,10 @@ MECHANISM_KINDS = {
                         {"beta", "b1", "b2", "b3"}, ("x", "y", "z")),
     "point_on_plane": ((), ("K", "A"), ("n",), set(), ("plane",)),
     "dot": (("c",), (), ("a", "b"), {"c"}, ("dot",)),
+    # w.r_ij - c1 = 0, w.u - c2 = 0: the two rows that tie a unit vector, already a unit
+    # vector through another frame, to this body (c1 = l nu1, c2 = beta nu1 + alpha nu2)
+    "aligned_vector": (("c1", "c2"), (), (*BODY_TRIPLES, "w"), {"c1", "c2"},
+                       ("e1", "e2")),
 }
 for _kind, (_scalars, _ends, _triples, _foldable, _rows) in MECHANISM_KINDS.items():
     KIND_SCALARS[_kind] = _scalars
