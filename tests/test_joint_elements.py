@@ -28,9 +28,12 @@ CLASSES = [
     ElementClass("point_on_plane", ("body_point", "point"), (F, F, F, F, T), frozenset()),
     ElementClass("dot", (), (F, F), frozenset()),
     ElementClass("dot", (), (F, T), frozenset({"c"})),
-    ElementClass("aligned_vector", (), (F, F, F, F), frozenset()),
-    ElementClass("aligned_vector", (), (T, F, T, F), frozenset({"c1"})),
-    ElementClass("aligned_vector", (), (F, F, F, T), frozenset()),
+    ElementClass("aligned_vector_12", (), (F, F, F, F), frozenset()),
+    ElementClass("aligned_vector_12", (), (T, F, T, F), frozenset({"c1"})),
+    ElementClass("aligned_vector_12", (), (F, F, F, T), frozenset()),
+    ElementClass("aligned_vector_13", (), (F, F, F, T), frozenset()),
+    ElementClass("aligned_vector_23", (), (T, F, F, T), frozenset({"c2"})),
+    ElementClass("aligned_vector_23", (), (F, F, F, F), frozenset()),
 ]
 IDS = [c.describe().replace(" ", "") for c in CLASSES]
 KERNELS = ("constraints", "constraint_jacobian", "constraint_bias")
@@ -92,7 +95,8 @@ def test_jacobian_and_bias_by_finite_differences(cls):
     assert np.allclose(bias, d1(Bv, q, v), rtol=0, atol=1e-9 * (np.abs(bias).max() + 1))
 
 
-@pytest.mark.parametrize("kind", ["attached_point", "attached_vector", "aligned_vector"])
+@pytest.mark.parametrize("kind", ["attached_point", "attached_vector", "aligned_vector_12",
+                                  "aligned_vector_13", "aligned_vector_23"])
 def test_attachment_holds_on_a_rigid_body(kind):
     """A body at a random pose, a point/vector with body-frame coordinates rho placed
     by the rotation itself: the rows vanish to rounding, and fail for a wrong rho."""
@@ -110,8 +114,9 @@ def test_attachment_holds_on_a_rigid_body(kind):
         target = ri + R @ rho
     cls = ElementClass(kind, (), (F, F, F, F), frozenset())
     p = np.array([l, alpha, beta, *point_coefficients(rho, l, alpha, beta)])
-    if kind == "aligned_vector":          # components on e1, e2 only
-        p = np.array([l * rho[0], beta * rho[0] + alpha * rho[1]])
+    if kind.startswith("aligned_vector"):     # two components, scaled as c1, c2, c3
+        c = {"c1": l * rho[0], "c2": beta * rho[0] + alpha * rho[1], "c3": alpha * l * rho[2]}
+        p = np.array([c[n] for n in cls.scalar_names])
     q = np.concatenate([ri, rj, u, target])
     assert np.abs(element_kernel(cls, "constraints", q, None, p)).max() < 1e-14
     q_wrong = np.concatenate([ri, rj, u, target + 1e-3])

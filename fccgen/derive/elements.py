@@ -12,7 +12,7 @@ from typing import Callable
 
 import sympy
 
-from ..plan.classes import KIND_ENDS
+from ..plan.classes import ALIGNED_ROWS, KIND_ENDS
 from .kinematics import (E3, BodyFrame, PointKin, body_frame, cross, dot, end_point,
                          lin_combine, lin_row, skew)
 from .symbols import ClassSymbols, Lin
@@ -257,25 +257,44 @@ def dot_product(s: ClassSymbols) -> Outputs:
 
 
 def aligned_vector(s: ClassSymbols) -> Outputs:
-    """g = [w.r_ij - c1, w.u - c2] (w's components along e1 and e2 of the body, scaled
-    by l and mixed by beta, alpha); B rows [w^T on rj, -w^T on ri, r_ij^T on w] and
-    [w^T on u, u^T on w]; bias [2 w'.r_ij', 2 w'.u']."""
+    """Rows of cls.constraint_rows among "e1" w.r_ij - c1, "e2" w.u - c2 and
+    "e3" w.(r_ij x u) - c3: a unit vector held by two body-frame components.
+    B: e1 [-w^T on ri, w^T on rj, r_ij^T on w]; e2 [w^T on u, u^T on w];
+    e3 [(u x w)^T on r_ij, (w x r_ij)^T on u, (r_ij x u)^T on w].
+    Bias: 2 w'.r_ij', 2 w'.u', 2 [w'.(r_ij' x u) + w'.(r_ij x u') + w.(r_ij' x u')]."""
     ri, rj, u, w = (s.triple(t) for t in ("ri", "rj", "u", "w"))
-    rij = rj.pos - ri.pos
-    row1 = lin_combine((-1, {ri.name: w.pos.T} if ri.moving else {}),
-                       (1, {rj.name: w.pos.T} if rj.moving else {}),
-                       (1, {w.name: rij.T} if w.moving else {}))
-    row2 = lin_combine((1, {u.name: w.pos.T} if u.moving else {}),
-                       (1, {w.name: u.pos.T} if w.moving else {}))
-    return {"constraints": [dot(w.pos, rij) - s.scalar("c1"),
-                            dot(w.pos, u.pos) - s.scalar("c2")],
-            "constraint_jacobian": _jacobian_rows(s, [row1, row2]),
-            "constraint_bias": [2 * dot(w.vel, rj.vel - ri.vel), 2 * dot(w.vel, u.vel)]}
+    rij, rd = rj.pos - ri.pos, rj.vel - ri.vel
+
+    def on(triple, block):
+        return {triple.name: block} if triple.moving else {}
+
+    def on_rij(block):
+        return lin_combine((-1, on(ri, block)), (1, on(rj, block)))
+
+    rows = {
+        "e1": (dot(w.pos, rij) - s.scalar("c1") if "c1" in s.cls.scalar_names else None,
+               lin_combine((1, on_rij(w.pos.T)), (1, on(w, rij.T))),
+               2 * dot(w.vel, rd)),
+        "e2": (dot(w.pos, u.pos) - s.scalar("c2") if "c2" in s.cls.scalar_names else None,
+               lin_combine((1, on(u, w.pos.T)), (1, on(w, u.pos.T))),
+               2 * dot(w.vel, u.vel)),
+        "e3": (dot(w.pos, cross(rij, u.pos)) - s.scalar("c3")
+               if "c3" in s.cls.scalar_names else None,
+               lin_combine((1, on_rij(cross(u.pos, w.pos).T)), (1, on(u, cross(w.pos, rij).T)),
+                           (1, on(w, cross(rij, u.pos).T))),
+               2 * (dot(w.vel, cross(rd, u.pos)) + dot(w.vel, cross(rij, u.vel))
+                    + dot(w.pos, cross(rd, u.vel)))),
+    }
+    chosen = [rows[r] for r in s.cls.constraint_rows]
+    return {"constraints": [g for g, _, _ in chosen],
+            "constraint_jacobian": _jacobian_rows(s, [b for _, b, _ in chosen]),
+            "constraint_bias": [c for _, _, c in chosen]}
 
 
 MECHANISM_BUILDERS: dict[str, Callable[[ClassSymbols], Outputs]] = {
     "attached_point": attached_point, "attached_vector": attached_vector,
-    "point_on_plane": point_on_plane, "dot": dot_product, "aligned_vector": aligned_vector,
+    "point_on_plane": point_on_plane, "dot": dot_product,
+    **{kind: aligned_vector for kind in ALIGNED_ROWS},
 }
 
 

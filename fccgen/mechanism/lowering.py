@@ -82,6 +82,17 @@ def lower(model: Model) -> Model:
     return _Lowerer(model).run()
 
 
+def two_rows(nu, fixed: bool) -> str | None:
+    """Which two body-frame components hold an already-unit vector with components
+    nu: for a fixed vector the two smallest (the third is then at least 1/sqrt(3), and
+    w.(r_ij x u) is quadratic); for a moving one e1, e2 when |nu3| >= ALIGN_MIN
+    (w.(r_ij x u) would be cubic); None when neither is regular."""
+    if fixed:
+        drop = int(np.argmax(np.abs(nu)))
+        return "".join(str(k + 1) for k in range(3) if k != drop)
+    return "12" if abs(nu[2]) >= ALIGN_MIN else None
+
+
 class _Lowerer:
     """The steps of :func:`lower`, in order: joints, triples, bodies, rows."""
 
@@ -173,19 +184,20 @@ class _Lowerer:
 
     def vector_rows(self):
         """Three rows w - R nu = 0 for the one tie of a moving vector that makes it a
-        unit vector (the tie with the smallest |nu3|); two rows (components on e1, e2)
-        for every further tie and every tie of a fixed vector, where |nu3| >=
-        ALIGN_MIN keeps them regular; else three rows, one of them redundant."""
+        unit vector (the tie with the smallest |nu3|), two rows for every other tie
+        (:func:`two_rows`), or three when no two rows are regular (one redundant)."""
         for name, ties in self.vector_ties.items():
             t = self.triples[name]
+            where = self.by_joint[t.joint].joint.where
+            fixed = self.vectors[name].fixed
             ties = sorted(ties, key=lambda bn: abs(bn[1][2]))
-            first = 0 if not self.vectors[name].fixed else None
             for k, (body, nu) in enumerate(ties):
-                where = self.by_joint[t.joint].joint.where
+                rows = None if (k == 0 and not fixed) else two_rows(nu, fixed)
                 nu_t = tuple(float(x) for x in nu)
-                if k != first and abs(nu[2]) >= ALIGN_MIN:
-                    self.attach(t, Attached(name, body, nu_t, "aligned", where),
-                                f"vector {name} along {body} (e1, e2 components)")
+                if rows:
+                    self.attach(t, Attached(name, body, nu_t, f"aligned_{rows}", where),
+                                f"vector {name} along {body} (components e{rows[0]}, "
+                                f"e{rows[1]})")
                 else:
                     self.attach(t, Attached(name, body, nu_t, "vector", where),
                                 f"vector {name} on {body}")

@@ -75,12 +75,13 @@ class Distance:
 class Attached:
     """A point or unit-vector triple rigidly tied to a body (mechanism level):
     ``rho`` is the point's body-frame position from point i, or the vector's
-    body-frame components (nu1, nu2, nu3). Kind "aligned": a vector held by its
-    components on e1 and e2 only (two rows; it is a unit vector through another frame)."""
+    body-frame components (nu1, nu2, nu3). Kind "aligned_<ab>": a vector held by its
+    components on e_a and e_b only (two rows; it is a unit vector through another
+    frame or fixed)."""
     target: str
     body: str
     rho: tuple[float, float, float]
-    kind: str                 # "point" | "vector" | "aligned"
+    kind: str                 # "point" | "vector" | "aligned_12" | "_13" | "_23"
     where: Where
     label: str | None = None  # what made it, for reports (e.g. "joint A (revolute)")
     type: str = "attached"

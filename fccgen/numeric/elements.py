@@ -12,7 +12,7 @@ from functools import cached_property
 
 import numpy as np
 
-from ..plan.classes import KIND_ENDS, ElementClass
+from ..plan.classes import ALIGNED_ROWS, KIND_ENDS, ElementClass
 from ..plan.kernels import KERNELS
 from .kinematics import (EYE, Local, body_frame, body_point, cross, end_point,
                          inertia_tensor, skew)
@@ -401,23 +401,33 @@ class DotKernels(ElementKernels):
 
 
 class AlignedVectorKernels(ElementKernels):
-    """w . r_ij - c1 = 0 and w . u - c2 = 0: a unit vector w held along a body vector
-    by its components on e1 and e2 (c1 = l nu1, c2 = beta nu1 + alpha nu2)."""
+    """Two of "e1" w.r_ij - c1, "e2" w.u - c2, "e3" w.(r_ij x u) - c3 (the class's
+    rows): a unit vector w held along a body vector by two body-frame components
+    (c1 = l nu1, c2 = beta nu1 + alpha nu2, c3 = alpha l nu3)."""
 
     def _rows(self):
         x, s = self.x, self.x.s
-        names, (ri, rj, u), (dri, drj, du) = x.body_triples()
+        (ni, nj, nu), (ri, rj, u), (dri, drj, du) = x.body_triples()
         w, dw = x.pos["w"], x.vel["w"]
-        rij = rj - ri
-        return [(w @ rij - s["c1"], {names[0]: -w, names[1]: w, "w": rij},
-                 2.0 * dw @ (drj - dri)),
-                (w @ u - s["c2"], {names[2]: w, "w": u}, 2.0 * dw @ du)]
+        rij, drij = rj - ri, drj - dri
+        rows = {}
+        if "c1" in s:
+            rows["e1"] = (w @ rij - s["c1"], {ni: -w, nj: w, "w": rij}, 2.0 * dw @ drij)
+        if "c2" in s:
+            rows["e2"] = (w @ u - s["c2"], {nu: w, "w": u}, 2.0 * dw @ du)
+        if "c3" in s:
+            n = cross(rij, u)
+            uw = cross(u, w)
+            rows["e3"] = (w @ n - s["c3"], {ni: -uw, nj: uw, nu: cross(w, rij), "w": n},
+                          2.0 * (dw @ cross(drij, u) + dw @ cross(rij, du)
+                                 + w @ cross(drij, du)))
+        return [rows[r] for r in self.cls.constraint_rows]
 
 
 MECHANISM_KERNELS: dict[str, type[ElementKernels]] = {
     "attached_point": AttachedKernels, "attached_vector": AttachedVectorKernels,
     "point_on_plane": PointOnPlaneKernels, "dot": DotKernels,
-    "aligned_vector": AlignedVectorKernels,
+    **{kind: AlignedVectorKernels for kind in ALIGNED_ROWS},
 }
 
 

@@ -162,12 +162,15 @@ def _require_moving(el: Element, model: Model, what: str):
 
 def _mechanism_element(b: _Builder, c, label: str) -> Element:
     """Elements of the mechanism level's constraints (docs/joints.md)."""
-    if isinstance(c, Attached) and c.kind == "aligned":
+    if isinstance(c, Attached) and c.kind.startswith("aligned_"):
         body = b.model.bodies[c.body]
         l, alpha, beta = b.frames[c.body]
         nu = c.rho
-        return b.element("aligned_vector", label, c.where,
-                         {"c1": float(l * nu[0]), "c2": float(beta * nu[0] + alpha * nu[1])},
+        values = {"c1": l * nu[0], "c2": beta * nu[0] + alpha * nu[1],
+                  "c3": alpha * l * nu[2]}
+        rows = c.kind.split("_")[1]                     # "12", "13" or "23"
+        return b.element(f"aligned_vector_{rows}", label, c.where,
+                         {f"c{r}": float(values[f"c{r}"]) for r in rows},
                          [("ri", body.i), ("rj", body.j), ("u", body.u), ("w", c.target)])
     if isinstance(c, Attached):
         body = b.model.bodies[c.body]

@@ -75,11 +75,16 @@ MECHANISM_KINDS = {
                         {"beta", "b1", "b2", "b3"}, ("x", "y", "z")),
     "point_on_plane": ((), ("K", "A"), ("n",), set(), ("plane",)),
     "dot": (("c",), (), ("a", "b"), {"c"}, ("dot",)),
-    # w.r_ij - c1 = 0, w.u - c2 = 0: the two rows that tie a unit vector, already a unit
-    # vector through another frame, to this body (c1 = l nu1, c2 = beta nu1 + alpha nu2)
-    "aligned_vector": (("c1", "c2"), (), (*BODY_TRIPLES, "w"), {"c1", "c2"},
-                       ("e1", "e2")),
 }
+# Two rows that tie a unit vector w, already a unit vector through another frame, to a
+# body by two of its body-frame components: "e1" w.r_ij - c1, "e2" w.u - c2,
+# "e3" w.(r_ij x u) - c3 (c1 = l nu1, c2 = beta nu1 + alpha nu2, c3 = alpha l nu3; the
+# e3 row is quadratic only for a fixed w). Kind aligned_vector_<ab> keeps rows a, b.
+ALIGNED_ROWS = {"aligned_vector_12": ("e1", "e2"), "aligned_vector_13": ("e1", "e3"),
+                "aligned_vector_23": ("e2", "e3")}
+for _kind, _rows in ALIGNED_ROWS.items():
+    _c = tuple(f"c{r[1]}" for r in _rows)
+    MECHANISM_KINDS[_kind] = (_c, (), (*BODY_TRIPLES, "w"), set(_c), _rows)
 for _kind, (_scalars, _ends, _triples, _foldable, _rows) in MECHANISM_KINDS.items():
     KIND_SCALARS[_kind] = _scalars
     KIND_ENDS[_kind] = _ends
