@@ -169,7 +169,17 @@ def test_bricard_has_one_freedom_by_rank():
     report = check_model(EXAMPLES / "bricard.yaml")
     assert report.dof == 1
     assert report.dof_counted < 1
-    assert "joint J1 (revolute, ground -> bar1)" in report.text()
+    text = report.text()
+    assert "joint J1 (revolute, ground -> bar1)" in text
+    # the loop's dependency runs through the joints between moving bars
+    assert "rows taking part in the dependencies: joints J2, J3, J4, J5;" in text
+
+
+def test_rsup_has_no_redundant_row():
+    """Fixed and shared axes held by two rows where three would be dependent."""
+    report = check_model(EXAMPLES / "rsup.yaml")
+    assert (report.dof, report.dof_counted, report.redundant) == (1, 1, [])
+    assert "rows taking part" not in report.text()
 
 
 @pytest.mark.xfail(strict=True, reason="RK4's rank decision on B: off the constraint "
@@ -219,6 +229,10 @@ ERRORS = [
      "bodies.ground", "is the fixed body that joints name", "ground"),
     ("frame not orthogonal", ("y: [0, 1, 0]", "y: [1, 1, 0]"), "bodies.b.frame",
      "axes x and y must be orthogonal", None),
+    ("distance at one place", ("type: revolute, bodies: [ground, b], at: [0.1, 0.2, 0.3], "
+                               "axis: [0, 0.6, 0.8]",
+                               "type: distance, bodies: [ground, b], at: [[1, 2, 3], [1, 2, 3]]"),
+     "joints[0].at", "must be two different locations", [[1, 2, 3], [1, 2, 3]]),
     ("angle range", ("type: revolute, bodies: [ground, b], at: [0.1, 0.2, 0.3], "
                      "axis: [0, 0.6, 0.8]",
                      "type: angle, bodies: [ground, b], axes: [[1, 0, 0], [0, 1, 0]], "

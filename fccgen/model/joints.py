@@ -103,6 +103,9 @@ class MechanismReader(Reader):
             pair = self.sequence(e["at"], child(item, "at"), 2)
             at = tuple(self.vec3(n, child(child(item, "at"), k))
                        for k, n in enumerate(pair.items))
+            if checks.coincide(*at):
+                raise self.bad(pair, child(item, "at"), "must be two different locations "
+                               "(the distance row has no gradient where they meet)")
             if "length" in e:
                 value = self.positive(e["length"], child(item, "length"))
         elif "at" in e:
