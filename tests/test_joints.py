@@ -267,6 +267,57 @@ def test_generated_name_clash(tmp_path):
     """The joint's axis vector J_axis would take the name of a declared point."""
     text = GOOD.replace("bodies:\n", "points:\n  J_axis: {at: [5, 5, 5], fixed: true}\n"
                         "bodies:\n")
-    with pytest.raises(ModelError, match="the name J_axis that this joint's points and "
-                                         "vectors take is already used"):
+    with pytest.raises(ModelError, match="joints.J: the name J_axis, which this joint's "
+                                         "lowering needs, is already used"):
         fccgen.load_numeric(write(tmp_path, text))
+
+
+def test_generated_body_name_clash(tmp_path):
+    """A body without joint points takes <body>_center; a declared joint has it."""
+    text = ("name: m\nbodies:\n" + BODY + "  c: {mass: 1, center: [3, 0, 0], inertia: "
+            "[1, 1, 1]}\njoints:\n  - {name: c_center, type: spherical, bodies: [ground, b], "
+            "at: [0, 0, 0]}\n")
+    with pytest.raises(ModelError, match="bodies.c: the name c_center, which this body's "
+                                         "frame needs, is already used"):
+        fccgen.load_numeric(write(tmp_path, text))
+
+
+def test_joint_without_name():
+    with pytest.raises(ModelError, match="joints\\[0\\].name: missing required key"):
+        load_model_text(GOOD.replace("name: J, ", ""), "m.yaml")
+
+
+# -- pose-form bodies: mass terms, loads and initial speeds in the pose frame -----------
+POSE = ("name: pose\nbodies:\n"
+        "  box: {mass: 2.0, center: [0.3, -0.2, 0.5],\n"
+        "        inertia: [0.05, 0.07, 0.09, 0.004, -0.003, 0.002],\n"
+        "        frame: {x: [0.6, 0.8, 0], y: [0, 0, 1]}}\n"
+        "loads:\n  - {type: force, body: box, at: [0.1, 0.2, -0.3], value: [1.0, -2.0, 0.5]}\n"
+        "initial:\n  bodies: {box: {angular_velocity: [0.3, -0.5, 0.7], frame: body}}\n")
+
+
+def test_pose_body_force_at_a_pose_frame_point(tmp_path):
+    """A free body at rest: a_G = F / m and alpha = I_G^-1 (r x F) with r the force
+    point from the centre, F I F^T the inertia in the global frame. The body's i is its
+    mass centre and j a point d away, so a_j - a_i = alpha x d (rounding: 1e-12)."""
+    solver = fccgen.load_numeric(write(tmp_path, POSE))
+    plan, q = solver.plan, solver.initial_state().q
+    a = solver.accelerations(q, np.zeros_like(q))
+    idx = {name: 3 * k for k, (name, _) in enumerate(plan.triples)}
+    frame = np.column_stack([[0.6, 0.8, 0], [0, 0, 1], np.cross([0.6, 0.8, 0], [0, 0, 1])])
+    inertia = np.array([[0.05, 0.004, -0.003], [0.004, 0.07, 0.002], [-0.003, 0.002, 0.09]])
+    force, r = np.array([1.0, -2.0, 0.5]), frame @ np.array([0.1, 0.2, -0.3])
+    alpha = np.linalg.solve(frame @ inertia @ frame.T, np.cross(r, force))
+    a_i, a_j = (a[idx[n]:idx[n] + 3] for n in ("box_center", "box_end"))
+    d = q[idx["box_end"]:idx["box_end"] + 3] - q[idx["box_center"]:idx["box_center"] + 3]
+    assert np.allclose(a_i, force / 2.0, rtol=0, atol=1e-12)
+    assert np.allclose(a_j - a_i, np.cross(alpha, d), rtol=0, atol=1e-12)
+
+
+def test_pose_body_angular_velocity_in_the_pose_frame(tmp_path):
+    """initial.bodies.box.angular_velocity with frame: body is in the pose axes."""
+    solver = fccgen.load_numeric(write(tmp_path, POSE))
+    init = solver.initial_state()
+    frame = np.column_stack([[0.6, 0.8, 0], [0, 0, 1], np.cross([0.6, 0.8, 0], [0, 0, 1])])
+    w = solver.body_outputs(init.q, init.v).reshape(-1, 6)[0, 3:]
+    assert np.allclose(w, frame @ np.array([0.3, -0.5, 0.7]), rtol=0, atol=1e-12)

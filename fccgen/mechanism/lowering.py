@@ -129,8 +129,8 @@ class _Lowerer:
         return out
 
     def clash(self, line, item: str, name: str, what: str) -> ModelError:
-        return ModelError(self.model.source, line, item, f"the name {name} that {what} "
-                          "take is already used; rename one of them", name)
+        return ModelError(self.model.source, line, item, f"the name {name}, which {what} "
+                          "needs, is already used; rename one of them", name)
 
     def collect_triples(self):
         """Every joint's triples as points and vectors (fixed when ground carries them)."""
@@ -139,7 +139,7 @@ class _Lowerer:
             for t in jl.triples:
                 if t.name in self.taken - {j.name} or t.name in self.triples:
                     raise self.clash(j.where.line, f"joints.{j.name}", t.name,
-                                     "this joint's points and vectors")
+                                     "this joint's lowering")
                 self.triples[t.name] = t
                 fixed = GROUND in t.carriers
                 if t.kind == "point":
