@@ -321,3 +321,30 @@ def test_pose_body_angular_velocity_in_the_pose_frame(tmp_path):
     frame = np.column_stack([[0.6, 0.8, 0], [0, 0, 1], np.cross([0.6, 0.8, 0], [0, 0, 1])])
     w = solver.body_outputs(init.q, init.v).reshape(-1, 6)[0, 3:]
     assert np.allclose(w, frame @ np.array([0.3, -0.5, 0.7]), rtol=0, atol=1e-12)
+
+
+# -- joint outputs ---------------------------------------------------------------------
+
+def test_rsup_joint_outputs_against_point_columns(compiled):
+    """A.angle from the crank pin B: the crank starts along +z from A, and a rotation
+    by theta about +x takes z to (0, -sin, cos). S.position and S.speed are the
+    slider's joint point S_b along x from its start. Both sides are rounding apart
+    (1e-12), except the angle's atan2 of O(0.1) lengths (1e-11)."""
+    r = compiled("rsup").simulate(t_end=0.3, dt=1e-3)
+    theta = np.unwrap(np.arctan2(-(r["B.y"] - 0.1), r["B.z"] - 0.12))
+    assert np.abs(r["A.angle"] - theta).max() < 1e-11
+    assert np.abs(np.gradient(theta, r.t) - r["A.rate"])[1:-1].max() < 1e-3 * 6
+    assert r["A.angle"][-1] > 1.0                      # the crank turns
+    assert np.abs(r["S.position"] - (r["S_b.x"] - 0.2)).max() < 1e-12
+    assert np.abs(r["S.speed"] - r["S_b.vx"]).max() < 1e-12
+
+
+def test_cylindrical_outputs_of_a_steady_spin(tmp_path):
+    """No gravity, a spin w about the joint axis: the angle grows as w t (the axial
+    angular momentum is conserved), the slide stays 0 (RK4 at 1 ms: 1e-10)."""
+    text = model_text("cylindrical") + ("initial:\n  bodies: {b: {angular_velocity: "
+                                        "[0, 1.2, 1.6]}}\n")          # 2 rad/s along a
+    r = fccgen.load_numeric(write(tmp_path, text)).simulate(t_end=0.2, dt=1e-3)
+    assert np.abs(r["J.angle"] - 2.0 * r.t).max() < 1e-10
+    assert np.abs(r["J.rate"] - 2.0).max() < 1e-10
+    assert np.abs(r["J.position"]).max() < 1e-10 and np.abs(r["J.speed"]).max() < 1e-10
