@@ -349,3 +349,48 @@ def test_cylindrical_outputs_of_a_steady_spin(tmp_path):
     assert np.abs(r["J.angle"] - 2.0 * r.t).max() < 1e-10
     assert np.abs(r["J.rate"] - 2.0).max() < 1e-10
     assert np.abs(r["J.position"]).max() < 1e-10 and np.abs(r["J.speed"]).max() < 1e-10
+
+
+# -- the same rows as section-2 constraints on named points and vectors ---------------
+SECTION2 = """name: plane_rod
+points:
+  O: {at: [0, 0, 0], fixed: true}
+  P: [1, 0, 0]
+vectors:
+  z: {along: [0, 0, 1], fixed: true}
+  u: [0, 0.6, 0.8]
+bodies:
+  rod: {points: [O, P], vector: u, mass: 1.0, inertia: [0.01, 0.1, 0.1]}
+constraints:
+  - {type: point_on_plane, point: P, origin: O, normal: z}
+  - {type: angle, vectors: [u, z], angle: 0.6435011087932844}
+"""
+
+
+def test_section2_plane_and_angle_constraints(tmp_path):
+    """A rod on a fixed point: 3 freedoms; P on the plane z = 0 takes one, u at a
+    fixed angle (acos 0.8) to z another."""
+    report = check_model(write(tmp_path, SECTION2))
+    assert (report.dof, report.dof_counted) == (1, 1)
+    assert "constraints[0] (plane)" in report.rows and "constraints[1] (dot)" in report.rows
+
+
+SECTION2_ERRORS = [
+    ("normal: z", "normal: w", "constraints[0].normal", "names no vector; vectors are: z, u",
+     "w"),
+    ("origin: O", "origin: P", "constraints[0].origin", "must be another point", "P"),
+    ("vectors: [u, z]", "vectors: [u, u]", "constraints[1].vectors",
+     "must name two different vectors", ["u", "u"]),
+    ("angle: 0.6435011087932844", "angle: -1", "constraints[1].angle",
+     "must be an angle in radians from 0 to pi", -1),
+]
+
+
+@pytest.mark.parametrize("old, new, item, rule, value", SECTION2_ERRORS,
+                         ids=[c[2] for c in SECTION2_ERRORS])
+def test_section2_plane_and_angle_errors(old, new, item, rule, value):
+    with pytest.raises(ModelError) as info:
+        load_model_text(SECTION2.replace(old, new), "m.yaml")
+    err = info.value
+    assert (err.item, err.value) == (item, value) and rule in err.rule, str(err)
+    assert err.line is not None

@@ -96,7 +96,8 @@ class _ModelReader(Reader):
         joints = []
         if "joints" in e:
             joints = self.mechanism.joints(e["joints"], self.pose_bodies, self.bodies)
-        items = ItemReader(self.source, self.points, {**self.bodies, **self.pose_bodies})
+        items = ItemReader(self.source, self.points, {**self.bodies, **self.pose_bodies},
+                           self.vectors)
         constraints = items.constraints(e["constraints"]) if "constraints" in e else []
         loads = items.loads(e["loads"]) if "loads" in e else []
         initial = items.initial(e["initial"]) if "initial" in e else Initial()
