@@ -332,6 +332,7 @@ def test_rsup_joint_outputs_against_point_columns(compiled):
     (measured 2e-16; 1e-12 allowed). The rate against central differences of the
     angle, which err by dt^2 |theta_ttt| / 6 = 6e-4 here (|theta_ttt| < 3.6e3 rad/s^3)."""
     r = compiled("rsup").simulate(t_end=0.3, dt=1e-3)
+    assert r.names[1:] == compiled("rsup").plan.columns()      # the same names in order
     theta = np.unwrap(np.arctan2(-(r["B.y"] - 0.1), r["B.z"] - 0.12))
     assert np.abs(r["A.angle"] - theta).max() < 1e-12
     assert np.abs(np.gradient(theta, r.t) - r["A.rate"])[1:-1].max() < 1e-3

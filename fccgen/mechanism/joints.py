@@ -39,6 +39,21 @@ import numpy as np
 from ..model.types import Joint
 
 
+# Joint types with result columns J.angle, J.rate and J.position, J.speed.
+ANGLE_TYPES = ("revolute", "cylindrical")
+SLIDE_TYPES = ("prismatic", "cylindrical")
+
+
+def output_columns(joint: Joint) -> list[str]:
+    """The result columns of a joint (DESIGN section 2b), in the order they are added."""
+    cols = []
+    if joint.type in ANGLE_TYPES:
+        cols += [f"{joint.name}.angle", f"{joint.name}.rate"]
+    if joint.type in SLIDE_TYPES:
+        cols += [f"{joint.name}.position", f"{joint.name}.speed"]
+    return cols
+
+
 @dataclass
 class CarriedTriple:
     name: str

@@ -32,7 +32,7 @@ from .bodies import choose_frame, typical_body
 # the e1-e2 plane, where the sign of nu3 is no longer held. 0.5: within 60 degrees
 # of e3, a condition number of at most 2.
 ALIGN_MIN = 0.5
-from .joints import CarriedTriple, JointLowering, lower_joint
+from .joints import CarriedTriple, JointLowering, lower_joint, output_columns
 
 
 @dataclass
@@ -51,6 +51,10 @@ class Lowering:
 
     def joint(self, name: str) -> JointLowering:
         return next(j for j in self.joints if j.joint.name == name)
+
+    def columns(self) -> list[str]:
+        """The joint result columns (J.angle, J.rate, J.position, J.speed)."""
+        return [c for jl in self.joints for c in output_columns(jl.joint)]
 
     def describe(self) -> list[str]:
         """One line per joint and per body, for ``fccgen check``."""

@@ -15,10 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..model.types import GROUND
-from .joints import perpendiculars
-
-ANGLE_TYPES = ("revolute", "cylindrical")
-SLIDE_TYPES = ("prismatic", "cylindrical")
+from .joints import ANGLE_TYPES, SLIDE_TYPES, perpendiculars
 
 
 class _Series:

@@ -55,7 +55,10 @@ class Plan:
             cols += [f"{name}.{c}" for c in ("x", "y", "z", "vx", "vy", "vz")]
         for name, _ in self.bodies:
             cols += [f"{name}.{c}" for c in ("cx", "cy", "cz", "wx", "wy", "wz")]
-        return cols + ["energy", "constraint_error"]
+        cols += ["energy", "constraint_error"]
+        if self.model.mechanism is not None:          # joints (fccgen.mechanism)
+            cols += self.model.mechanism.columns()
+        return cols
 
 
 class _Builder:
