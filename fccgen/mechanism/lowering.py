@@ -49,9 +49,6 @@ class Lowering:
     frames: dict[str, tuple[str, str, str]]           # body -> (i, j, u)
     labels: dict[str, list[str]] = field(default_factory=dict)   # joint -> labels
 
-    def joint(self, name: str) -> JointLowering:
-        return next(j for j in self.joints if j.joint.name == name)
-
     def columns(self) -> list[str]:
         """The joint result columns (J.angle, J.rate, J.position, J.speed)."""
         return [c for jl in self.joints for c in output_columns(jl.joint)]

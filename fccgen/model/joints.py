@@ -42,6 +42,7 @@ class MechanismReader(Reader):
     def __init__(self, source: str, claim):
         super().__init__(source)
         self.claim = claim
+        self.point_bodies: set[str] = set()      # bodies given by points (section 2)
 
     # -- pose-form bodies ----------------------------------------------------------------
     def pose_body(self, name: str, line: int, node: YNode, item: str) -> PoseBody:
@@ -128,7 +129,7 @@ class MechanismReader(Reader):
         pair = self.sequence(node, item, 2)
         names = [GROUND, *body_names]
         for k, n in enumerate(pair.items):
-            if self.text(n, child(item, k)) in getattr(self, "point_bodies", ()):
+            if self.text(n, child(item, k)) in self.point_bodies:
                 raise self.fail(n.line, child(item, k), "is a body given by points; joints "
                                 "connect bodies in pose form (center, frame) and ground",
                                 n.text)
