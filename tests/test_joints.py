@@ -254,14 +254,21 @@ def test_joint_errors(edit, item, rule, value):
         assert err.value == value
 
 
-def test_joint_on_a_body_given_by_points():
-    text = GOOD.replace("bodies:\n", "points:\n  O: [0, 0, 0]\n  E: [1, 0, 0]\n"
-                        "vectors:\n  z: [0, 0, 1]\nbodies:\n"
-                        "  rod: {points: [O, E], vector: z, mass: 1, inertia: [1, 1, 1]}\n")
+def test_joint_on_a_body_given_by_points(tmp_path):
+    """A section-2 rod on a fixed point O (spin about O: 3 freedoms) and the pose body
+    b hinged to its end E: 3 + 1. The rod keeps its own i, j, u; the joint's point is
+    the rod's E (no triple of its own), its axis is attached to the rod."""
+    text = GOOD.replace("bodies:\n", "points:\n  O: {at: [0, 0, 0], fixed: true}\n"
+                        "  E: [0.1, 0.2, 0.3]\nvectors:\n  z: [0, 0, 1]\nbodies:\n"
+                        "  rod: {points: [O, E], vector: z, mass: 1, inertia: [0.01, 0.1, "
+                        "0.1]}\n")
     text = text.replace("bodies: [ground, b]", "bodies: [rod, b]")
-    with pytest.raises(ModelError, match="joints\\[0\\].bodies\\[0\\]: is a body given by "
-                                         "points"):
-        load_model_text(text, "m.yaml")
+    report = check_model(write(tmp_path, text))
+    assert report.dof == 3 + 1
+    text = report.text()
+    assert "joint J (revolute, rod -> b): point E on rod, b;" in text
+    assert "joint J (revolute): vector J_axis on rod" in text
+    assert report.n_points == 2                      # E and b's centre: no J
 
 
 def test_generated_name_clash(tmp_path):

@@ -3,7 +3,8 @@ and constraints (DESIGN section 2b).
 
 1. Every joint gives carried triples and relations (:mod:`fccgen.mechanism.joints`).
 2. Every pose-form body picks i, j, u among the triples it carries
-   (:mod:`fccgen.mechanism.bodies`) and becomes a typical body.
+   (:mod:`fccgen.mechanism.bodies`) and becomes a typical body; a body given by
+   points keeps its own.
 3. Every other triple a moving body carries is *attached* to it:
    a point  r_k - [r_i + b1 r_ij + b2 u + b3 (r_ij x u)/(alpha l)] = 0,
    a vector w - (nu1 e1 + nu2 e2 + nu3 e3) = 0 (3 rows each; b from the body-frame
@@ -23,8 +24,10 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..errors import ModelError
+from ..model import checks
 from ..model.types import (GROUND, Angle, Attached, BodyPoint, Distance, Force, Initial,
                            Model, Point, PointOnPlane, Vector)
+from ..plan.geometry import body_rotation
 from .bodies import choose_frame, typical_body
 
 # |nu3| (the component of a tied vector along the body's e3) from which its two-row
@@ -118,6 +121,8 @@ class _Lowerer:
         self.collect_triples()
         for name, pb in self.model.pose_bodies.items():
             self.body(name, pb)
+        for name, body in self.model.bodies.items():      # given by points: i, j, u kept
+            self.section2_body(name, body)
         self.vector_rows()
         self.relation_rows()
         m = self.model
@@ -138,6 +143,15 @@ class _Lowerer:
         for jl in self.lowered:
             j = jl.joint
             for t in jl.triples:
+                alias = self.section2_point(t)
+                if alias is not None:           # the joint's point is a body's i or j
+                    t.name = alias
+                    if alias in self.triples:
+                        self.triples[alias].carriers += [c for c in t.carriers
+                                                         if c not in self.triples[alias].carriers]
+                    else:
+                        self.triples[alias] = t
+                    continue
                 if t.name in self.taken - {j.name} or t.name in self.triples:
                     raise self.clash(j.where.line, f"joints.{j.name}", t.name,
                                      "this joint's lowering")
@@ -147,6 +161,18 @@ class _Lowerer:
                     self.points[t.name] = Point(t.name, t.value, fixed, j.where)
                 else:
                     self.vectors[t.name] = Vector(t.name, t.value, fixed, j.where)
+
+    def section2_point(self, t: CarriedTriple) -> str | None:
+        """The point i or j of a body given by points that the shared joint point ``t``
+        is (same place, and both moving), so that it needs no triple of its own."""
+        if t.kind != "point" or t.name != t.joint or GROUND in t.carriers:
+            return None
+        for body in (self.model.bodies.get(c) for c in t.carriers):
+            for name in (body.i, body.j) if body is not None else ():
+                p = self.model.points[name]
+                if not p.fixed and checks.coincide(p.at, t.value):
+                    return name
+        return None
 
     def body(self, name: str, pb):
         """Choose i, j, u; attach the other points now, collect the vectors' ties."""
@@ -166,8 +192,20 @@ class _Lowerer:
         self.bodies[name], R = typical_body(pb, ri, rj, self.vectors[choice.u].along, choice)
         self.frames[name] = (choice.i, choice.j, choice.u)
         self.rotations[name] = (ri, R)
+        self.tie(name, carried, ri, R, (choice.i, choice.j, choice.u))
+
+    def section2_body(self, name: str, body):
+        """A body given by points carries its joints' triples by attachment alone."""
+        carried = [t for t in self.triples.values() if name in t.carriers]
+        if carried:
+            ri, rj = self.points[body.i].at, self.points[body.j].at
+            R = body_rotation(ri, rj, self.vectors[body.u].along)
+            self.tie(name, carried, ri, R, (body.i, body.j, body.u))
+
+    def tie(self, name: str, carried, ri, R, own):
+        """Attach the carried points now and collect the vectors' ties (not ``own``)."""
         for t in carried:
-            if t.name in (choice.i, choice.j, choice.u):
+            if t.name in own:
                 continue
             if t.kind == "vector":
                 self.vector_ties.setdefault(t.name, []).append((name, R.T @ t.value))

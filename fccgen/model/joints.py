@@ -42,7 +42,6 @@ class MechanismReader(Reader):
     def __init__(self, source: str, claim):
         super().__init__(source)
         self.claim = claim
-        self.point_bodies: set[str] = set()      # bodies given by points (section 2)
 
     # -- pose-form bodies ----------------------------------------------------------------
     def pose_body(self, name: str, line: int, node: YNode, item: str) -> PoseBody:
@@ -80,10 +79,8 @@ class MechanismReader(Reader):
         return v / norm
 
     # -- joints ------------------------------------------------------------------------
-    def joints(self, node: YNode, body_names, point_bodies=()) -> list[Joint]:
-        """Joints between the pose-form bodies ``body_names`` and ground; naming a body
-        of ``point_bodies`` (given by points) is an error."""
-        self.point_bodies = set(point_bodies)
+    def joints(self, node: YNode, body_names) -> list[Joint]:
+        """Joints between the bodies ``body_names`` (in either form) and ground."""
         seq = self.sequence(node, "joints")
         return [self.joint(n, f"joints[{k}]", body_names) for k, n in enumerate(seq.items)]
 
@@ -128,11 +125,6 @@ class MechanismReader(Reader):
     def joint_bodies(self, node: YNode, item: str, body_names) -> tuple[str, str]:
         pair = self.sequence(node, item, 2)
         names = [GROUND, *body_names]
-        for k, n in enumerate(pair.items):
-            if self.text(n, child(item, k)) in self.point_bodies:
-                raise self.fail(n.line, child(item, k), "is a body given by points; joints "
-                                "connect bodies in pose form (center, frame) and ground",
-                                n.text)
         a, b = (self.name_in(n, child(item, k), names, "body", "bodies")
                 for k, n in enumerate(pair.items))
         if a == b:

@@ -95,7 +95,7 @@ class _ModelReader(Reader):
         self.check_membership()
         joints = []
         if "joints" in e:
-            joints = self.mechanism.joints(e["joints"], self.pose_bodies, self.bodies)
+            joints = self.mechanism.joints(e["joints"], [*self.bodies, *self.pose_bodies])
         items = ItemReader(self.source, self.points, {**self.bodies, **self.pose_bodies},
                            self.vectors)
         constraints = items.constraints(e["constraints"]) if "constraints" in e else []
