@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from typing import Callable
 
+from .mechanism import lower
 from .model import load_model
 from .plan import make_plan
 
@@ -15,8 +16,8 @@ Progress = Callable[[str], None] | None
 
 
 def plan_model(path):
-    """Load, validate and lay out a model file."""
-    return make_plan(load_model(path))
+    """Load, validate, lower (joints, pose-form bodies) and lay out a model file."""
+    return make_plan(lower(load_model(path)))
 
 
 def generate(path, build_dir=DEFAULT_BUILD_DIR, *, force=False, progress: Progress = None):

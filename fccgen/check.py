@@ -7,6 +7,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg
 
+from .mechanism.report import dependency_text
+
 RANK_TOL = 1e-10      # relative to the largest pivot, as in the solvers
 
 
@@ -25,6 +27,8 @@ class CheckReport:
     classes: list[str]                        # element class descriptions
     init_report: str
     notes: list[str] = field(default_factory=list)
+    joints: list[str] = field(default_factory=list)    # what each joint was lowered to
+    dependent: str = ""          # joints (and other rows) that take part in dependencies
 
     @property
     def dof_counted(self) -> int:
@@ -46,6 +50,11 @@ class CheckReport:
             f"  redundant constraint equations: {len(self.redundant)}",
         ]
         lines += [f"    {r}" for r in self.redundant]
+        if self.dependent:
+            lines.append(f"    rows taking part in the dependencies: {self.dependent}")
+        if self.joints:
+            lines.append("  joints (lowering):")
+            lines += [f"    {j}" for j in self.joints]
         lines.append(f"  element classes: {len(self.classes)}")
         lines += [f"    {c}" for c in self.classes]
         lines.append("  initial state:")
@@ -89,4 +98,6 @@ def check_model(path) -> CheckReport:
         n_bodies=len(plan.bodies), n_q=plan.n_q, n_g=plan.n_g, rank=rank,
         rows=labels, redundant=redundant,
         classes=[f"{c.name}: {c.describe()}" for c in plan.classes],
-        init_report=init.report(), notes=list(plan.notes))
+        init_report=init.report(), notes=list(plan.notes),
+        joints=model.mechanism.describe() if model.mechanism is not None else [],
+        dependent=dependency_text(B, rank, labels) if model.mechanism is not None else "")

@@ -262,8 +262,18 @@ def timed_run(plan, method, sched, options, project, run) -> Result:
         raise
     info = run_info(method, stats, arrays["energy"], time.perf_counter() - start,
                     dt=sched.dt, output_dt=sched.output_dt, project=project, options=options)
-    return result_from_arrays(plan, arrays["t"], arrays["q"], arrays["v"], arrays["body"],
-                              arrays["energy"], arrays["constraint_error"], info)
+    result = result_from_arrays(plan, arrays["t"], arrays["q"], arrays["v"],
+                                arrays["body"], arrays["energy"],
+                                arrays["constraint_error"], info)
+    return _with_joint_columns(plan, result)
+
+
+def _with_joint_columns(plan, result):
+    """Add the joint columns (J.angle, J.rate, ...) of a mechanism-level model."""
+    if getattr(plan.model, "mechanism", None) is not None:
+        from .mechanism.outputs import add_joint_columns
+        add_joint_columns(plan, result)
+    return result
 
 
 def keep_rows(exc: BaseException, arrays: dict, n_rows: int, stats: dict) -> None:
@@ -293,6 +303,6 @@ def _attach_partial(plan, method, sched, options, project, start, exc) -> None:
                     dt=sched.dt, output_dt=sched.output_dt, project=project, options=options)
     why = "interrupted (Ctrl-C)" if isinstance(exc, KeyboardInterrupt) else str(exc)
     info.update(partial=True, stopped_by=why.splitlines()[0] if why else type(exc).__name__)
-    exc.partial_result = result_from_arrays(
+    exc.partial_result = _with_joint_columns(plan, result_from_arrays(
         plan, arrays["t"], arrays["q"], arrays["v"], arrays["body"], arrays["energy"],
-        arrays["constraint_error"], info)
+        arrays["constraint_error"], info))

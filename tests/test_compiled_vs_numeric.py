@@ -8,7 +8,7 @@ import pytest
 from states import length_scale, random_state
 
 EXAMPLES = ["a01_pendulum", "double_pendulum", "free_body", "spherical_pendulum",
-            "four_bar", "deployable"]
+            "four_bar", "deployable", "rsup"]
 N_STATES = 5
 
 # Both versions evaluate the same formulas in double precision in different orders, so

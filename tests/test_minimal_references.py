@@ -244,11 +244,14 @@ def test_example_is_physically_consistent(path):
     data = yaml.safe_load(text)
     assert data["name"] == path.stem
     _stated_counts(path)
-    points = {n: _triple(e, "at") for n, e in data["points"].items()}
+    points = {n: _triple(e, "at") for n, e in data.get("points", {}).items()}
     vectors = {n: _triple(e, "along") for n, e in data.get("vectors", {}).items()}
     for name, (v, _) in vectors.items():
         assert abs(np.linalg.norm(v) - 1) < 1e-9, f"vector {name} is not a unit vector"
     for name, body in data["bodies"].items():
+        if "points" not in body:          # pose form (mechanism level)
+            _check_pose_body(name, body)
+            continue
         i, j = (points[p][0] for p in body["points"])
         u, u_fixed = vectors[body["vector"]]
         e1 = (j - i) / np.linalg.norm(j - i)
@@ -263,6 +266,16 @@ def test_example_is_physically_consistent(path):
         assert p[0] > 0, f"{name}: inertia not positive definite"
         # principal moments of a real body: each at most the sum of the other two
         assert p[2] <= p[0] + p[1] + 1e-12 * p[2], f"{name}: triangle inequality broken"
+
+
+def _check_pose_body(name, body):
+    """A body in pose form: positive mass, a real inertia, orthonormal axes."""
+    assert body["mass"] > 0
+    p = np.linalg.eigvalsh(_inertia_tensor(body["inertia"]))
+    assert p[0] > 0 and p[2] <= p[0] + p[1] + 1e-12 * p[2], f"{name}: inertia"
+    frame = body.get("frame", {"x": [1, 0, 0], "y": [0, 1, 0]})
+    x, y = (np.asarray(frame[k], float) for k in "xy")
+    assert abs(x @ y) < 1e-9 * np.linalg.norm(x) * np.linalg.norm(y), f"{name}: axes"
 
 
 # The constraint equations of DESIGN section 1 and docs/elements.md, evaluated from the
@@ -305,6 +318,12 @@ def _element_constraints(el, q):
         return [row[r] for r in cls.constraint_rows]
     if cls.kind == "unit_vector":
         return [tr["u"] @ tr["u"] - 1]
+    if cls.kind in ("attached_point", "attached_vector") or cls.kind.startswith("aligned"):
+        return _attached_constraints(cls, tr, scal)
+    if cls.kind == "point_on_plane":
+        return [tr["n"] @ (tr["K.r"] - tr["A.r"])]
+    if cls.kind == "dot":
+        return [tr["a"] @ tr["b"] - scal["c"]]
     end_names = ("K", "A", "B") if cls.kind == "point_on_line" else ("A", "B")
     ends = {e: _end_position(tr, scal, e, k) for e, k in zip(end_names, cls.ends)}
     if cls.kind == "distance":
@@ -313,6 +332,23 @@ def _element_constraints(el, q):
     if cls.kind == "point_on_line":
         return list(np.cross(ends["K"] - ends["A"], ends["B"] - ends["A"]))
     return []
+
+
+def _attached_constraints(cls, tr, scal):
+    """Mechanism level (docs/joints.md): r_k - [r_i + b1 r_ij + b2 u + b3 (r_ij x u) /
+    (alpha l)], the same for a vector without r_i; aligned rows w.r_ij - c1,
+    w.u - c2, w.(r_ij x u) - c3."""
+    ri, rj, u = tr["ri"], tr["rj"], tr["u"]
+    rij = rj - ri
+    if cls.kind.startswith("aligned"):
+        w = tr["w"]
+        row = {"e1": w @ rij, "e2": w @ u, "e3": w @ np.cross(rij, u)}
+        return [row[r] - scal[f"c{r[1]}"] for r in cls.constraint_rows]
+    b1, b2, b3 = (scal[n] for n in ("b1", "b2", "b3"))
+    offset = b1 * rij + b2 * u + b3 / (scal["alpha"] * scal["l"]) * np.cross(rij, u)
+    if cls.kind == "attached_point":
+        return list(tr["k"] - ri - offset)
+    return list(tr["w"] - offset)
 
 
 def fcc_constraints(plan, q):
@@ -331,11 +367,12 @@ def fcc_jacobian(plan, q, h=1e-30):
 def _load_plan(path):
     """The plan of an example, or a skip while fccgen's loader is not importable."""
     try:
+        from fccgen.mechanism import lower
         from fccgen.model import load_model
         from fccgen.plan import make_plan
     except ImportError as exc:
         pytest.skip(f"fccgen.model.load_model is not importable yet ({exc})")
-    return make_plan(load_model(path))
+    return make_plan(lower(load_model(path)))
 
 
 @pytest.mark.parametrize("path", EXAMPLE_FILES, ids=EXAMPLE_NAMES)

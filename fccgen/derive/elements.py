@@ -12,8 +12,8 @@ from typing import Callable
 
 import sympy
 
-from ..plan.classes import KIND_ENDS
-from .kinematics import (BodyFrame, PointKin, body_frame, cross, dot, end_point,
+from ..plan.classes import ALIGNED_ROWS, KIND_ENDS
+from .kinematics import (E3, BodyFrame, PointKin, body_frame, cross, dot, end_point,
                          lin_combine, lin_row, skew)
 from .symbols import ClassSymbols, Lin
 
@@ -200,8 +200,107 @@ def with_force_jacobians(builder: Callable[[ClassSymbols], Outputs]
     return build
 
 
+# -- mechanism level: attached triples, point on a plane, dot product ---------------
+
+def _attached(s: ClassSymbols, target: str, offset_ri: bool) -> Outputs:
+    """g = r_k - P (a point) or w - (P - r_i) (a vector), P the body point
+    r_i + b1 r_ij + b2 u + c (r_ij x u), c = b3/(alpha l): B = [E on the target,
+    -Dhat_P (minus E on r_i for a vector)], bias -2c r_ij' x u'."""
+    f = body_frame(s)
+    pt = f.point(s.scalar("b1"), s.scalar("b2"), s.scalar("b3"))
+    k = s.triple(target)
+    dhat = dict(pt.dhat)
+    pos = pt.pos
+    if not offset_ri:                      # a direction: P - r_i, no r_i term
+        pos = pt.pos - f.ri.pos
+        if f.ri.moving:
+            dhat[f.ri.name] = dhat[f.ri.name] - E3
+    jac = lin_combine((-1, dhat), (1, {k.name: E3} if k.moving else {}))
+    return {"constraints": _flat(k.pos - pos),
+            "constraint_jacobian": _flat(s.local(jac, 3)),
+            "constraint_bias": _flat(-pt.bias)}
+
+
+def attached_point(s: ClassSymbols) -> Outputs:
+    """r_k - [r_i + b1 r_ij + b2 u + b3 (r_ij x u)/(alpha l)] = 0 (three rows)."""
+    return _attached(s, "k", True)
+
+
+def attached_vector(s: ClassSymbols) -> Outputs:
+    """w - (nu1 e1 + nu2 e2 + nu3 e3) = w - [b1 r_ij + b2 u + b3 (r_ij x u)/(alpha l)]
+    = 0 with b = point_coefficients(nu) (three rows; |w| = 1 follows)."""
+    return _attached(s, "w", False)
+
+
+def point_on_plane(s: ClassSymbols) -> Outputs:
+    """g = n.(r_K - r_A); B = (r_K - r_A)^T on n, n^T (Dhat_K - Dhat_A) on the ends;
+    bias 2 n'.(r_K' - r_A') + n.(bias_K - bias_A)."""
+    n = s.triple("n")
+    k, a = _points(s)
+    d, dd = k.pos - a.pos, k.vel - a.vel
+    row = lin_combine((n.pos.T, k.dhat), (-n.pos.T, a.dhat),
+                      (1, {n.name: d.T} if n.moving else {}))
+    return {"constraints": [dot(n.pos, d)],
+            "constraint_jacobian": _jacobian_rows(s, [row]),
+            "constraint_bias": [2 * dot(n.vel, dd) + dot(n.pos, k.bias - a.bias)]}
+
+
+def dot_product(s: ClassSymbols) -> Outputs:
+    """g = a.b - c (c = cos of the angle between unit vectors a, b); B = [b^T, a^T];
+    bias 2 a'.b'."""
+    a, b = s.triple("a"), s.triple("b")
+    row = lin_combine((1, {a.name: b.pos.T} if a.moving else {}),
+                      (1, {b.name: a.pos.T} if b.moving else {}))
+    return {"constraints": [dot(a.pos, b.pos) - s.scalar("c")],
+            "constraint_jacobian": _jacobian_rows(s, [row]),
+            "constraint_bias": [2 * dot(a.vel, b.vel)]}
+
+
+def aligned_vector(s: ClassSymbols) -> Outputs:
+    """Rows of cls.constraint_rows among "e1" w.r_ij - c1, "e2" w.u - c2 and
+    "e3" w.(r_ij x u) - c3: a unit vector held by two body-frame components.
+    B: e1 [-w^T on ri, w^T on rj, r_ij^T on w]; e2 [w^T on u, u^T on w];
+    e3 [(u x w)^T on r_ij, (w x r_ij)^T on u, (r_ij x u)^T on w].
+    Bias: 2 w'.r_ij', 2 w'.u', 2 [w'.(r_ij' x u) + w'.(r_ij x u') + w.(r_ij' x u')]."""
+    ri, rj, u, w = (s.triple(t) for t in ("ri", "rj", "u", "w"))
+    rij, rd = rj.pos - ri.pos, rj.vel - ri.vel
+
+    def on(triple, block):
+        return {triple.name: block} if triple.moving else {}
+
+    def on_rij(block):
+        return lin_combine((-1, on(ri, block)), (1, on(rj, block)))
+
+    rows = {
+        "e1": (dot(w.pos, rij) - s.scalar("c1") if "c1" in s.cls.scalar_names else None,
+               lin_combine((1, on_rij(w.pos.T)), (1, on(w, rij.T))),
+               2 * dot(w.vel, rd)),
+        "e2": (dot(w.pos, u.pos) - s.scalar("c2") if "c2" in s.cls.scalar_names else None,
+               lin_combine((1, on(u, w.pos.T)), (1, on(w, u.pos.T))),
+               2 * dot(w.vel, u.vel)),
+        "e3": (dot(w.pos, cross(rij, u.pos)) - s.scalar("c3")
+               if "c3" in s.cls.scalar_names else None,
+               lin_combine((1, on_rij(cross(u.pos, w.pos).T)), (1, on(u, cross(w.pos, rij).T)),
+                           (1, on(w, cross(rij, u.pos).T))),
+               2 * (dot(w.vel, cross(rd, u.pos)) + dot(w.vel, cross(rij, u.vel))
+                    + dot(w.pos, cross(rd, u.vel)))),
+    }
+    chosen = [rows[r] for r in s.cls.constraint_rows]
+    return {"constraints": [g for g, _, _ in chosen],
+            "constraint_jacobian": _jacobian_rows(s, [b for _, b, _ in chosen]),
+            "constraint_bias": [c for _, _, c in chosen]}
+
+
+MECHANISM_BUILDERS: dict[str, Callable[[ClassSymbols], Outputs]] = {
+    "attached_point": attached_point, "attached_vector": attached_vector,
+    "point_on_plane": point_on_plane, "dot": dot_product,
+    **{kind: aligned_vector for kind in ALIGNED_ROWS},
+}
+
+
 BUILDERS: dict[str, Callable[[ClassSymbols], Outputs]] = {
     "body": with_force_jacobians(body), "unit_vector": unit_vector, "distance": distance,
     "point_on_line": point_on_line, "force": with_force_jacobians(force),
     "torque": with_force_jacobians(torque), "spring": with_force_jacobians(spring),
 }
+BUILDERS.update(MECHANISM_BUILDERS)

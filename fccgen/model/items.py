@@ -2,16 +2,21 @@
 velocities and simulation defaults."""
 from __future__ import annotations
 
+import math
+
 from .fields import Reader, child, listing
-from .types import (AngularVelocity, Body, BodyPoint, Constraint, Distance, Force,
-                    Initial, Load, Point, PointOnLine, PointRef, SimulateDefaults, Spring,
-                    Torque, Where)
+from .types import (Angle, AngularVelocity, Body, BodyPoint, Constraint, Distance, Force,
+                    Initial, Load, Point, PointOnLine, PointOnPlane, PointRef,
+                    SimulateDefaults, Spring, Torque, Where)
 from .yamlnodes import YMap, YNode
 
 # Keys of each item type: (required, optional).
 CONSTRAINT_KEYS = {
     "point_on_line": (("type", "point", "line"), ()),
     "distance": (("type", "points", "length"), ()),
+    # mechanism-level rows on named points and unit vectors (docs/joints.md)
+    "point_on_plane": (("type", "point", "origin", "normal"), ()),
+    "angle": (("type", "vectors", "angle"), ()),
 }
 LOAD_KEYS = {
     "force": (("type", "body", "value"), ("at",)),
@@ -28,10 +33,12 @@ FRAMES = ("global", "body")
 class ItemReader(Reader):
     """Reads items that name the model's points and bodies (already validated)."""
 
-    def __init__(self, source: str, points: dict[str, Point], bodies: dict[str, Body]):
+    def __init__(self, source: str, points: dict[str, Point], bodies: dict[str, Body],
+                 vectors: dict | None = None):
         super().__init__(source)
         self.points = points
         self.bodies = bodies
+        self.vectors = vectors or {}
 
     # -- point references --------------------------------------------------------------
     def ref(self, node: YNode, item: str) -> PointRef:
@@ -70,6 +77,8 @@ class ItemReader(Reader):
     def constraint(self, node: YNode, item: str) -> Constraint:
         m = self.typed(node, item, CONSTRAINT_KEYS)
         e, where = m.entries, Where(self.source, m.line)
+        if e["type"].text in ("point_on_plane", "angle"):
+            return self.mechanism_constraint(e, item, where)
         if e["type"].text == "point_on_line":
             line_item = child(item, "line")
             ends = self.sequence(e["line"], line_item, 2)
@@ -83,6 +92,32 @@ class ItemReader(Reader):
         pair = self.ref_list(self.sequence(e["points"], points_item, 2), points_item)
         length = self.positive(e["length"], child(item, "length"))
         return Distance(pair, length, where)
+
+    def mechanism_constraint(self, e, item: str, where: Where) -> Constraint:
+        """``{type: point_on_plane, point: K, origin: A, normal: n}``: n.(r_K - r_A) = 0;
+        ``{type: angle, vectors: [a, b], angle: radians}``: a.b = cos(angle). Named
+        points and vectors only, so that the rows stay quadratic."""
+        if e["type"].text == "point_on_plane":
+            point = self.name_in(e["point"], child(item, "point"), self.points, "point",
+                                 "points")
+            origin = self.name_in(e["origin"], child(item, "origin"), self.points, "point",
+                                  "points")
+            if origin == point:
+                raise self.bad(e["origin"], child(item, "origin"),
+                               "must be another point than the one on the plane")
+            normal = self.name_in(e["normal"], child(item, "normal"), self.vectors,
+                                  "vector", "vectors")
+            return PointOnPlane(point, origin, normal, where)
+        pair = self.sequence(e["vectors"], child(item, "vectors"), 2)
+        a, b = (self.name_in(n, child(child(item, "vectors"), k), self.vectors, "vector",
+                             "vectors") for k, n in enumerate(pair.items))
+        if a == b:
+            raise self.bad(pair, child(item, "vectors"), "must name two different vectors")
+        angle = self.number(e["angle"], child(item, "angle"))
+        if not 0.0 <= angle <= math.pi:
+            raise self.bad(e["angle"], child(item, "angle"),
+                           "must be an angle in radians from 0 to pi")
+        return Angle((a, b), math.cos(angle), where)
 
     # -- loads ----------------------------------------------------------------------------
     def loads(self, node: YNode) -> list[Load]:

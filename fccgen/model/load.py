@@ -17,7 +17,8 @@ from ..methods import names as _method_names
 from . import checks
 from .fields import IDENTIFIER, IDENTIFIER_RULE, Reader, child, listing
 from .items import ItemReader
-from .types import Body, Initial, Model, Point, Vector, Where
+from .joints import MechanismReader
+from .types import GROUND, Body, Initial, Model, Point, PoseBody, Vector, Where
 from .yamlnodes import YMap, YNode, parse_yaml
 
 # Integration methods a model may name in ``simulate.method`` (fccgen.methods).
@@ -27,7 +28,7 @@ MAX_NAME_LENGTH = 64          # the model name becomes a module name
 
 # Keys of each kind of mapping: (required, optional).
 TOP_KEYS = (("name", "points", "bodies"),
-            ("gravity", "vectors", "constraints", "loads", "initial", "simulate"))
+            ("gravity", "vectors", "constraints", "loads", "initial", "simulate", "joints"))
 POINT_KEYS = (("at",), ("fixed",))
 VECTOR_KEYS = (("along",), ("fixed",))
 BODY_KEYS = (("points", "vector", "mass", "inertia"), ("center",))
@@ -66,6 +67,8 @@ class _ModelReader(Reader):
         self.points: dict[str, Point] = {}
         self.vectors: dict[str, Vector] = {}
         self.bodies: dict[str, Body] = {}
+        self.pose_bodies: dict[str, PoseBody] = {}
+        self.mechanism = MechanismReader(source, self.claim)
 
     def where(self, line: int | None) -> Where:
         return Where(self.source, line)
@@ -74,16 +77,27 @@ class _ModelReader(Reader):
         if not isinstance(root, YMap):
             raise self.bad(root, "model file",
                            f"must be a mapping with the keys {listing(TOP_KEYS[0])}")
-        top = self.mapping(root, "", *TOP_KEYS)
+        required, optional = TOP_KEYS
+        if "joints" in root.entries or "points" not in root.entries:
+            # mechanism level: points are optional (bodies may be in pose form)
+            required = tuple(k for k in required if k != "points")
+            optional = ("points", *optional)
+        top = self.mapping(root, "", required, optional)
         e = top.entries
+        self.top_keys = set(e)
         name = self.model_name(e["name"])
         gravity = self.vec3(e["gravity"], "gravity") if "gravity" in e else np.zeros(3)
-        self.read_points(e["points"])
+        if "points" in e:
+            self.read_points(e["points"])
         if "vectors" in e:
             self.read_vectors(e["vectors"])
         self.read_bodies(e["bodies"])
         self.check_membership()
-        items = ItemReader(self.source, self.points, self.bodies)
+        joints = []
+        if "joints" in e:
+            joints = self.mechanism.joints(e["joints"], [*self.bodies, *self.pose_bodies])
+        items = ItemReader(self.source, self.points, {**self.bodies, **self.pose_bodies},
+                           self.vectors)
         constraints = items.constraints(e["constraints"]) if "constraints" in e else []
         loads = items.loads(e["loads"]) if "loads" in e else []
         initial = items.initial(e["initial"]) if "initial" in e else Initial()
@@ -91,7 +105,8 @@ class _ModelReader(Reader):
         return Model(name=name, source=self.source, gravity=gravity, points=self.points,
                      vectors=self.vectors, bodies=self.bodies, constraints=constraints,
                      loads=loads, initial=initial, simulate=simulate,
-                     where={k: self.where(line) for k, line in top.key_lines.items()})
+                     where={k: self.where(line) for k, line in top.key_lines.items()},
+                     pose_bodies=self.pose_bodies, joints=joints)
 
     # -- names ---------------------------------------------------------------------
     def model_name(self, node: YNode) -> str:
@@ -149,7 +164,13 @@ class _ModelReader(Reader):
             raise self.bad(bodies, "bodies", "must name at least one body")
         for name, line, value, item in self.entries(bodies, "bodies"):
             self.claim(name, "body", line, item)
-            self.bodies[name] = self.body(name, line, value, item)
+            if name == GROUND and "joints" in self.top_keys:
+                raise self.fail(line, item, "is the fixed body that joints name; it is "
+                                "not declared", name)
+            if isinstance(value, YMap) and not {"points", "vector"} & set(value.entries):
+                self.pose_bodies[name] = self.mechanism.pose_body(name, line, value, item)
+            else:
+                self.bodies[name] = self.body(name, line, value, item)
 
     def body(self, name: str, line: int, node: YNode, item: str) -> Body:
         m = self.mapping(node, item, *BODY_KEYS)

@@ -71,7 +71,44 @@ class Distance:
     type: str = "distance"
 
 
-Constraint = Union[PointOnLine, Distance]
+@dataclass
+class Attached:
+    """A point or unit-vector triple rigidly tied to a body (mechanism level):
+    ``rho`` is the point's body-frame position from point i, or the vector's
+    body-frame components (nu1, nu2, nu3). Kind "aligned_<ab>": a vector held by its
+    components on e_a and e_b only (two rows; it is a unit vector through another
+    frame or fixed)."""
+    target: str
+    body: str
+    rho: tuple[float, float, float]
+    kind: str                 # "point" | "vector" | "aligned_12" | "_13" | "_23"
+    where: Where
+    label: str | None = None  # what made it, for reports (e.g. "joint A (revolute)")
+    type: str = "attached"
+
+
+@dataclass
+class PointOnPlane:
+    """n . (r_point - r_origin) = 0, n a unit-vector name."""
+    point: str
+    origin: str
+    normal: str
+    where: Where
+    label: str | None = None
+    type: str = "point_on_plane"
+
+
+@dataclass
+class Angle:
+    """a . b = cos(angle) for two unit-vector names."""
+    vectors: tuple[str, str]
+    cos: float
+    where: Where
+    label: str | None = None
+    type: str = "angle"
+
+
+Constraint = Union[PointOnLine, Distance, Attached, PointOnPlane, Angle]
 
 
 @dataclass
@@ -117,6 +154,37 @@ class Initial:
     body_angular_velocities: dict[str, AngularVelocity] = field(default_factory=dict)
 
 
+# -- mechanism level (DESIGN section 2b; lowered by fccgen.mechanism) ---------------
+
+GROUND = "ground"             # the fixed body that joints may name without declaring it
+
+
+@dataclass
+class PoseBody:
+    """A body given by its pose: the mass centre's initial global position and the
+    body axes (columns of ``frame``, global directions) in which ``inertia`` is given."""
+    name: str
+    mass: float
+    center: np.ndarray        # (3,) global frame, initial configuration
+    frame: np.ndarray         # (3, 3) rotation, columns x, y, z
+    inertia: np.ndarray       # (3, 3) about the mass centre, in ``frame``
+    where: Where
+
+
+@dataclass
+class Joint:
+    """A joint or primitive constraint between two bodies, in global initial terms:
+    ``at`` a location (two for a distance), ``axes`` unit directions (axis or normal:
+    one; universal and angle: one per body)."""
+    name: str
+    type: str
+    bodies: tuple[str, str]
+    at: tuple[np.ndarray, ...]
+    axes: tuple[np.ndarray, ...]
+    value: float | None       # distance length or angle (radians); None: initial
+    where: Where
+
+
 @dataclass
 class SimulateDefaults:
     t_end: float = 1.0
@@ -138,6 +206,9 @@ class Model:
     initial: Initial
     simulate: SimulateDefaults
     where: dict[str, Where] = field(default_factory=dict)   # top-level keys
+    pose_bodies: dict[str, PoseBody] = field(default_factory=dict)
+    joints: list[Joint] = field(default_factory=list)
+    mechanism: object = None          # fccgen.mechanism.Lowering, once lowered
 
     @property
     def moving_points(self) -> list[Point]:

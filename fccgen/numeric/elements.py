@@ -12,7 +12,7 @@ from functools import cached_property
 
 import numpy as np
 
-from ..plan.classes import KIND_ENDS, ElementClass
+from ..plan.classes import ALIGNED_ROWS, KIND_ENDS, ElementClass
 from ..plan.kernels import KERNELS
 from .kinematics import (EYE, Local, body_frame, body_point, cross, end_point,
                          inertia_tensor, skew)
@@ -352,11 +352,91 @@ def _combine(*terms) -> dict[str, np.ndarray]:
     return out
 
 
+# -- mechanism level: attached triples, point on a plane, dot product ---------------
+
+class AttachedKernels(ElementKernels):
+    """A triple tied to a body: g = r_k - P for a point, g = w - (P - r_i) for a unit
+    vector (nu1 e1 + nu2 e2 + nu3 e3 = P - r_i with b = point_coefficients(nu)), where
+    P = r_i + b1 r_ij + b2 u + b3 (r_ij x u)/(alpha l) is a body point."""
+    target = "k"
+
+    def _rows(self):
+        x, s = self.x, self.x.s
+        names, pos, vel = x.body_triples()
+        P = body_point(names, pos, vel, s["l"], s["alpha"], s["b1"], s["b2"], s["b3"])
+        r, dhat = P.r, dict(P.dhat)
+        if self.target == "w":
+            r = r - pos[0]
+            dhat[names[0]] = dhat[names[0]] - EYE
+        blocks = {n: -b for n, b in dhat.items()}
+        blocks[self.target] = EYE
+        g = x.pos[self.target] - r
+        return [(g[k], {n: b[k] for n, b in blocks.items()}, -P.bias[k]) for k in range(3)]
+
+
+class AttachedVectorKernels(AttachedKernels):
+    target = "w"
+
+
+class PointOnPlaneKernels(ElementKernels):
+    """n . (r_K - r_A) = 0 for a unit normal triple n."""
+
+    def _rows(self):
+        K, A = end_point(self.x, "K"), end_point(self.x, "A")
+        n, dn = self.x.pos["n"], self.x.vel["n"]
+        d = K.r - A.r
+        blocks = _combine((n, K.dhat), (-n, A.dhat))
+        blocks["n"] = blocks.get("n", 0.0) + d
+        bias = 2.0 * dn @ (K.v - A.v) + n @ (K.bias - A.bias)
+        return [(n @ d, blocks, bias)]
+
+
+class DotKernels(ElementKernels):
+    """a . b - c = 0 for unit vector triples a, b (c = cos of their angle)."""
+
+    def _rows(self):
+        a, b = self.x.pos["a"], self.x.pos["b"]
+        da, db = self.x.vel["a"], self.x.vel["b"]
+        return [(a @ b - self.x.s["c"], {"a": b, "b": a}, 2.0 * da @ db)]
+
+
+class AlignedVectorKernels(ElementKernels):
+    """Two of "e1" w.r_ij - c1, "e2" w.u - c2, "e3" w.(r_ij x u) - c3 (the class's
+    rows): a unit vector w held along a body vector by two body-frame components
+    (c1 = l nu1, c2 = beta nu1 + alpha nu2, c3 = alpha l nu3)."""
+
+    def _rows(self):
+        x, s = self.x, self.x.s
+        (ni, nj, nu), (ri, rj, u), (dri, drj, du) = x.body_triples()
+        w, dw = x.pos["w"], x.vel["w"]
+        rij, drij = rj - ri, drj - dri
+        rows = {}
+        if "c1" in s:
+            rows["e1"] = (w @ rij - s["c1"], {ni: -w, nj: w, "w": rij}, 2.0 * dw @ drij)
+        if "c2" in s:
+            rows["e2"] = (w @ u - s["c2"], {nu: w, "w": u}, 2.0 * dw @ du)
+        if "c3" in s:
+            n = cross(rij, u)
+            uw = cross(u, w)
+            rows["e3"] = (w @ n - s["c3"], {ni: -uw, nj: uw, nu: cross(w, rij), "w": n},
+                          2.0 * (dw @ cross(drij, u) + dw @ cross(rij, du)
+                                 + w @ cross(drij, du)))
+        return [rows[r] for r in self.cls.constraint_rows]
+
+
+MECHANISM_KERNELS: dict[str, type[ElementKernels]] = {
+    "attached_point": AttachedKernels, "attached_vector": AttachedVectorKernels,
+    "point_on_plane": PointOnPlaneKernels, "dot": DotKernels,
+    **{kind: AlignedVectorKernels for kind in ALIGNED_ROWS},
+}
+
+
 KIND_KERNELS: dict[str, type[ElementKernels]] = {
     "body": BodyKernels, "unit_vector": UnitVectorKernels, "distance": DistanceKernels,
     "point_on_line": PointOnLineKernels, "force": ForceKernels, "torque": TorqueKernels,
     "spring": SpringKernels,
 }
+KIND_KERNELS.update(MECHANISM_KERNELS)
 
 
 def element_kernels(cls: ElementClass, q, v, p) -> ElementKernels:

@@ -7,8 +7,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ModelError
-from ..model.types import (BodyPoint, Distance, Force, Model, PointOnLine, PointRef,
-                           Spring, Torque, Where)
+from ..model.types import (Angle, Attached, BodyPoint, Distance, Force, Model,
+                           PointOnLine, PointOnPlane, PointRef, Spring, Torque, Where)
 from .classes import END_FOLDABLE, FOLDABLE, ElementClass
 from .geometry import body_frame_numbers, body_rotation, point_coefficients
 
@@ -55,7 +55,10 @@ class Plan:
             cols += [f"{name}.{c}" for c in ("x", "y", "z", "vx", "vy", "vz")]
         for name, _ in self.bodies:
             cols += [f"{name}.{c}" for c in ("cx", "cy", "cz", "wx", "wy", "wz")]
-        return cols + ["energy", "constraint_error"]
+        cols += ["energy", "constraint_error"]
+        if self.model.mechanism is not None:          # joints (fccgen.mechanism)
+            cols += self.model.mechanism.columns()
+        return cols
 
 
 class _Builder:
@@ -160,6 +163,35 @@ def _require_moving(el: Element, model: Model, what: str):
                          show_value=False)
 
 
+def _mechanism_element(b: _Builder, c, label: str) -> Element:
+    """Elements of the mechanism level's constraints (docs/joints.md)."""
+    if isinstance(c, Attached) and c.kind.startswith("aligned_"):
+        body = b.model.bodies[c.body]
+        l, alpha, beta = b.frames[c.body]
+        nu = c.rho
+        values = {"c1": l * nu[0], "c2": beta * nu[0] + alpha * nu[1],
+                  "c3": alpha * l * nu[2]}
+        rows = c.kind.split("_")[1]                     # "12", "13" or "23"
+        return b.element(f"aligned_vector_{rows}", label, c.where,
+                         {f"c{r}": float(values[f"c{r}"]) for r in rows},
+                         [("ri", body.i), ("rj", body.j), ("u", body.u), ("w", c.target)])
+    if isinstance(c, Attached):
+        body = b.model.bodies[c.body]
+        l, alpha, beta = b.frames[c.body]
+        coef = point_coefficients(c.rho, l, alpha, beta)
+        scalars = dict(zip(("l", "alpha", "beta", "b1", "b2", "b3"),
+                           (l, alpha, beta, *(float(x) for x in coef))))
+        target = "k" if c.kind == "point" else "w"
+        return b.element(f"attached_{c.kind}", label, c.where, scalars,
+                         [("ri", body.i), ("rj", body.j), ("u", body.u), (target, c.target)])
+    if isinstance(c, PointOnPlane):
+        return b.element("point_on_plane", label, c.where, {},
+                         [("n", c.normal), ("K.r", c.point), ("A.r", c.origin)],
+                         ("point", "point"))
+    return b.element("dot", label, c.where, {"c": float(c.cos)},
+                     [("a", c.vectors[0]), ("b", c.vectors[1])])
+
+
 def make_plan(model: Model) -> Plan:
     """Lay out coordinates and elements of a validated model."""
     b = _Builder(model)
@@ -173,14 +205,19 @@ def make_plan(model: Model) -> Plan:
             continue
         bodies.append((body.name, len(elements)))
         elements.append(el)
+    # an attached vector is a unit vector through its body's frame: no u.u - 1 row
+    attached = {c.target for c in model.constraints
+                if isinstance(c, Attached) and c.kind == "vector"}
     for name, _kind in b.triples:
-        if name in model.vectors:
+        if name in model.vectors and name not in attached:
             v = model.vectors[name]
             elements.append(b.element("unit_vector", f"vectors.{name}", v.where, {},
                                       [("u", name)]))
     for k, c in enumerate(model.constraints):
-        label = f"constraints[{k}]"
-        if isinstance(c, PointOnLine):
+        label = getattr(c, "label", None) or f"constraints[{k}]"
+        if isinstance(c, (Attached, PointOnPlane, Angle)):
+            el = _mechanism_element(b, c, label)
+        elif isinstance(c, PointOnLine):
             el = b.with_ends("point_on_line", label, c.where, {},
                              (c.point, *c.line), ("K", "A", "B"))
         elif isinstance(c, Distance):

@@ -62,6 +62,34 @@ FOLDABLE = {
     "spring": {"L0", "c"},
 }
 END_FOLDABLE = {"beta", "b1", "b2", "b3"}
+
+# -- mechanism level (docs/joints.md): attached points and vectors, point on a plane,
+# constant dot product. Attached triples carry the coefficients b1..b3 of their
+# body-frame coordinates (fccgen.plan.geometry.point_coefficients); all rows are linear
+# or quadratic in q.
+MECHANISM_KINDS = {
+    # kind: (scalars, ends, triples, foldable, constraint rows)
+    "attached_point": (BODY_POINT_SCALARS, (), (*BODY_TRIPLES, "k"),
+                       {"beta", "b1", "b2", "b3"}, ("x", "y", "z")),
+    "attached_vector": (BODY_POINT_SCALARS, (), (*BODY_TRIPLES, "w"),
+                        {"beta", "b1", "b2", "b3"}, ("x", "y", "z")),
+    "point_on_plane": ((), ("K", "A"), ("n",), set(), ("plane",)),
+    "dot": (("c",), (), ("a", "b"), {"c"}, ("dot",)),
+}
+# Two rows that tie a unit vector w, already a unit vector through another frame, to a
+# body by two of its body-frame components: "e1" w.r_ij - c1, "e2" w.u - c2,
+# "e3" w.(r_ij x u) - c3 (c1 = l nu1, c2 = beta nu1 + alpha nu2, c3 = alpha l nu3; the
+# e3 row is quadratic only for a fixed w). Kind aligned_vector_<ab> keeps rows a, b.
+ALIGNED_ROWS = {"aligned_vector_12": ("e1", "e2"), "aligned_vector_13": ("e1", "e3"),
+                "aligned_vector_23": ("e2", "e3")}
+for _kind, _rows in ALIGNED_ROWS.items():
+    _c = tuple(f"c{r[1]}" for r in _rows)
+    MECHANISM_KINDS[_kind] = (_c, (), (*BODY_TRIPLES, "w"), set(_c), _rows)
+for _kind, (_scalars, _ends, _triples, _foldable, _rows) in MECHANISM_KINDS.items():
+    KIND_SCALARS[_kind] = _scalars
+    KIND_ENDS[_kind] = _ends
+    KIND_TRIPLES[_kind] = _triples
+    FOLDABLE[_kind] = _foldable
 KINDS = tuple(KIND_SCALARS)
 END_KINDS = ("point", "body_point")
 
@@ -140,6 +168,8 @@ class ElementClass:
             return ("distance",)           # d . d - L^2, d = r_B - r_A
         if self.kind == "point_on_line":
             return ("cross.x", "cross.y", "cross.z")   # (r_K - r_A) x (r_B - r_A)
+        if self.kind in MECHANISM_KINDS:
+            return MECHANISM_KINDS[self.kind][4]
         return ()
 
     @property

@@ -1,0 +1,6 @@
+"""Stage 1b of the pipeline: the mechanism level (DESIGN section 2b). Joints and
+pose-form bodies are lowered onto section 2's points, vectors and constraints, so
+that plan, derive, the kernels and the solvers see one kind of model."""
+from .lowering import Lowering, lower
+
+__all__ = ["Lowering", "lower"]

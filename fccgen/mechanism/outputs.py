@@ -1,0 +1,87 @@
+"""Joint quantities as result columns (DESIGN sections 2b and 4), computed after a
+run from the recorded coordinates and speeds, vectorised over the output samples.
+
+* ``J.angle`` (revolute, cylindrical): the rotation of body B relative to body A
+  about the joint axis, right-handed, 0 at t = 0, unwrapped over turns. With
+  C = R_A^T R_B (B's frame seen from A's) and D = C C_0^T, a_A the axis in A's frame
+  and n1 a unit vector perpendicular to it: angle = atan2(a_A.(n1 x D n1), n1.D n1).
+* ``J.rate``: (w_B - w_A).a, a = R_A a_A the axis now.
+* ``J.position`` (prismatic, cylindrical): (r_Jb - r_Ja).a, the slide of B's joint
+  point from A's along the axis (0 at t = 0); ``J.speed``: (v_Jb - v_Ja).a, exact on
+  the constraint manifold where r_Jb - r_Ja is parallel to a and a' is perpendicular.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..model.types import GROUND
+from .joints import ANGLE_TYPES, SLIDE_TYPES, perpendiculars
+
+
+class _Series:
+    """Positions and speeds of the model's triples over the samples of a result."""
+
+    def __init__(self, plan, columns: dict[str, np.ndarray], n: int):
+        self.plan, self.columns, self.n = plan, columns, n
+
+    def triple(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """(n, 3) position and speed of a point or vector (fixed: constant, at rest)."""
+        if name in self.plan.index:
+            c = self.columns
+            return (np.column_stack([c[f"{name}.{k}"] for k in "xyz"]),
+                    np.column_stack([c[f"{name}.v{k}"] for k in "xyz"]))
+        m = self.plan.model
+        value = m.points[name].at if name in m.points else m.vectors[name].along
+        return np.tile(np.asarray(value, float), (self.n, 1)), np.zeros((self.n, 3))
+
+    def rotation(self, body: str) -> np.ndarray:
+        """(n, 3, 3) body frame R = [e1 e2 e3] of a body (ground: the identity)."""
+        if body == GROUND:
+            return np.tile(np.eye(3), (self.n, 1, 1))
+        b = self.plan.model.bodies[body]
+        ri, rj, u = (self.triple(x)[0] for x in (b.i, b.j, b.u))
+        e1 = rj - ri
+        e1 /= np.linalg.norm(e1, axis=1)[:, None]
+        e3 = np.cross(e1, u)
+        e3 /= np.linalg.norm(e3, axis=1)[:, None]
+        return np.stack([e1, np.cross(e3, e1), e3], axis=2)
+
+    def omega(self, body: str) -> np.ndarray:
+        names = [f"{body}.w{k}" for k in "xyz"]
+        if all(n in self.columns for n in names):
+            return np.column_stack([self.columns[n] for n in names])
+        return np.zeros((self.n, 3))
+
+
+def joint_columns(plan, columns: dict[str, np.ndarray], n: int) -> dict[str, np.ndarray]:
+    """The joint columns of a lowered model's result (empty without joints)."""
+    lowering = getattr(plan.model, "mechanism", None)
+    if lowering is None or n == 0:
+        return {}
+    s = _Series(plan, columns, n)
+    out: dict[str, np.ndarray] = {}
+    for jl in lowering.joints:
+        j = jl.joint
+        A, B = j.bodies
+        if j.type in ANGLE_TYPES:
+            RA, RB = s.rotation(A), s.rotation(B)
+            a_A = RA[0].T @ j.axes[0]
+            n1 = perpendiculars(a_A)[0]
+            C = np.einsum("nki,nkj->nij", RA, RB)
+            D = np.einsum("nij,kj->nik", C, C[0])
+            Dn = D @ n1
+            angle = np.arctan2(np.cross(n1, Dn) @ a_A, Dn @ n1)
+            out[f"{j.name}.angle"] = np.unwrap(angle)
+            a = RA @ a_A
+            out[f"{j.name}.rate"] = np.einsum("ni,ni->n", s.omega(B) - s.omega(A), a)
+        if j.type in SLIDE_TYPES:
+            (ra, va), (rb, vb) = s.triple(f"{j.name}_a"), s.triple(f"{j.name}_b")
+            a = s.triple(f"{j.name}_axis")[0]
+            out[f"{j.name}.position"] = np.einsum("ni,ni->n", rb - ra, a)
+            out[f"{j.name}.speed"] = np.einsum("ni,ni->n", vb - va, a)
+    return out
+
+
+def add_joint_columns(plan, result) -> None:
+    """Append the joint columns to ``result`` (in place)."""
+    result.columns.update(joint_columns(plan, result.columns, len(result.t)))
