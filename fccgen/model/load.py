@@ -7,8 +7,6 @@ read by one method of :class:`_ModelReader`. The first rule broken raises
 """
 from __future__ import annotations
 
-import keyword
-from pathlib import Path
 
 import numpy as np
 
@@ -17,13 +15,15 @@ from ..methods import names as _method_names
 from . import checks
 from .fields import IDENTIFIER, IDENTIFIER_RULE, Reader, child, listing
 from .items import ItemReader
+from .names import reserved_model_name
 from .types import Body, Initial, Model, Point, Vector, Where
-from .yamlnodes import YMap, YNode, parse_yaml
+from .yamlnodes import MAX_INPUT_CHARS, YMap, YNode, parse_yaml
 
 # Integration methods a model may name in ``simulate.method`` (fccgen.methods).
 METHODS: tuple[str, ...] = _method_names()
 
-MAX_NAME_LENGTH = 64          # the model name becomes a module name
+MAX_NAME_LENGTH = 64          # the model name becomes a module name and a C symbol;
+                              # point, vector and body names become result columns
 
 # Keys of each kind of mapping: (required, optional).
 TOP_KEYS = (("name", "points", "bodies"),
@@ -37,7 +37,8 @@ def load_model(path) -> Model:
     """Read and validate the model file at ``path`` (``Model.source`` is ``str(path)``)."""
     source = str(path)
     try:
-        text = Path(path).read_text(encoding="utf-8")
+        with open(path, encoding="utf-8") as f:
+            text = f.read(MAX_INPUT_CHARS + 1)      # a larger file is refused, unread
     except UnicodeDecodeError as exc:
         raise ModelError(source, None, "model file", f"is not UTF-8 text ({exc.reason})",
                          show_value=False) from None
@@ -99,9 +100,9 @@ class _ModelReader(Reader):
         if len(name) > MAX_NAME_LENGTH:
             raise self.fail(node.line, "name",
                             f"must be at most {MAX_NAME_LENGTH} characters long", name)
-        if keyword.iskeyword(name):
-            raise self.fail(node.line, "name",
-                            "must not be a Python keyword (it becomes a module name)", name)
+        problem = reserved_model_name(name)
+        if problem:
+            raise self.fail(node.line, "name", problem, name)
         return name
 
     def claim(self, name: str, kind: str, line: int, item: str):
@@ -109,6 +110,9 @@ class _ModelReader(Reader):
         so they must be unique across points, vectors and bodies."""
         if not IDENTIFIER.fullmatch(name):
             raise self.fail(line, item, IDENTIFIER_RULE, name)
+        if len(name) > MAX_NAME_LENGTH:
+            raise self.fail(line, item, f"must be at most {MAX_NAME_LENGTH} characters "
+                                        "long", name)
         if name in self.names:
             other, other_line = self.names[name]
             raise self.fail(line, item, f"name already used by the {other} on line "
