@@ -88,11 +88,19 @@ class _ModelReader(Reader):
         constraints = items.constraints(e["constraints"]) if "constraints" in e else []
         loads = items.loads(e["loads"]) if "loads" in e else []
         initial = items.initial(e["initial"]) if "initial" in e else Initial()
-        simulate = items.simulate(e.get("simulate"), METHODS)
+        simulate = items.simulate(e.get("simulate"), METHODS, self.values_per_output())
         return Model(name=name, source=self.source, gravity=gravity, points=self.points,
                      vectors=self.vectors, bodies=self.bodies, constraints=constraints,
                      loads=loads, initial=initial, simulate=simulate,
                      where={k: self.where(line) for k, line in top.key_lines.items()})
+
+    def values_per_output(self) -> int:
+        """Numbers one output row of a run records (DESIGN section 4): t, 6 per moving
+        point and vector, 6 per body (an upper bound: ground bodies have none),
+        energy and constraint_error."""
+        moving = sum(not x.fixed for table in (self.points, self.vectors)
+                     for x in table.values())
+        return 3 + 6 * (moving + len(self.bodies))
 
     # -- names ---------------------------------------------------------------------
     def model_name(self, node: YNode) -> str:
