@@ -2,8 +2,9 @@
 
 The model loader needs the line of every value to say where a rule is broken, and it
 must reject what PyYAML silently accepts (a repeated key keeps only its last value).
-So the text is *composed* into PyYAML's node tree with a safe loader, and that tree is
-walked here into three small node types:
+So the text is *composed* into PyYAML's node tree with a safe loader
+(:mod:`fccgen.model.yamlcompose`), and that tree is walked here into three small node
+types:
 
 * :class:`YScalar` -- a scalar: its safely constructed value and its source text;
 * :class:`YSeq`    -- a sequence of nodes;
@@ -15,28 +16,24 @@ nothing from the file reaches ``eval`` or an arbitrary Python constructor.
 Limits (docs/reliability.md, "Input"): a text of at most MAX_INPUT_CHARS characters,
 nested at most MAX_DEPTH levels, and at most MAX_NODES nodes, also once every alias is
 expanded. Each is refused before it costs much: the depth and the node count while
-PyYAML composes (its composer recurses, and fails with RecursionError near 490
-levels), the expanded size while the tree is walked bottom-up, where an alias is a
-shared node whose size is already known, so a "billion laughs" file is refused after
-walking its few distinct nodes and never expanded.
+the tree is composed, the expanded size while it is walked bottom-up here, where an
+alias is a shared node whose size is already known, so a "billion laughs" file is
+refused after walking its few distinct nodes and never expanded.
 """
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass
 from typing import Union
 
 import yaml
 
 from ..errors import ModelError, clip
+from . import yamlcompose
+from .yamlcompose import MAX_DEPTH, MAX_INPUT_CHARS, MAX_NODES, NestingError, compose
 
-# The largest example (A02, 40 four-bars) is 15 kB of 1,729 nodes nested 6 levels deep.
-# The limits are ~60x, ~60x and ~8x that, and keep a file's cost to seconds: PyYAML's
-# pure-Python composer takes ~45 us and ~1 kB per node (measured: 500,000 nodes, 23 s
-# and 460 MB), so MAX_NODES composed nodes cost ~5 s and ~100 MB at worst.
-MAX_INPUT_CHARS = 1_000_000
-MAX_DEPTH = 50
-MAX_NODES = 100_000
+__all__ = ["MAX_DEPTH", "MAX_INPUT_CHARS", "MAX_NODES", "YMap", "YNode", "YScalar", "YSeq",
+           "parse_yaml", "shown"]
+
 # Values of at most this many nodes are shown whole in a message; larger ones as the
 # start of their text (ModelError clips every value to SHOWN_VALUE_CHARS anyway).
 SHOW_NODES = 64
@@ -44,57 +41,11 @@ SHOWN_START = 150
 # A key longer than this is cut in the item paths of its children.
 PATH_KEY_CHARS = 100
 
-# YAML 1.2 floats with an exponent (1e-3, 5E+2, 2.5e3): PyYAML's YAML 1.1 resolver
-# wants a dot and a signed exponent, and reads these as strings otherwise.
-FLOAT_12 = re.compile(r"^[-+]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)[eE][-+]?[0-9]+$")
-
 MAP_TAG = "tag:yaml.org,2002:map"
 # Scalar tags the safe loader builds (explicit or resolved); any other tag is refused.
 SCALAR_TAGS = frozenset(f"tag:yaml.org,2002:{t}" for t in
                         ("null", "bool", "int", "float", "str", "timestamp", "binary"))
 SEQ_TAG = "tag:yaml.org,2002:seq"
-
-
-class NestingError(yaml.MarkedYAMLError):
-    """The text nests collections deeper than MAX_DEPTH or has more than MAX_NODES
-    nodes."""
-
-
-class ModelLoader(yaml.SafeLoader):
-    """Safe loader that also reads YAML 1.2 exponent floats as floats and refuses
-    nesting deeper than MAX_DEPTH before its recursive composer runs out of stack."""
-
-    depth = 0
-    composed = 0
-
-    def fetch_flow_collection_start(self, TokenClass):
-        # The scanner reads up to 1024 characters ahead for a simple key, and checks
-        # every open flow level at each token: deep ``[[[[...`` cost seconds there,
-        # before the composer's depth check below is reached.
-        if self.flow_level >= MAX_DEPTH:
-            raise NestingError(None, None, f"nests deeper than {MAX_DEPTH} levels "
-                               "(a model needs fewer than 10)", self.get_mark())
-        super().fetch_flow_collection_start(TokenClass)
-
-    def compose_node(self, parent, index):
-        if self.depth >= MAX_DEPTH:
-            mark = self.peek_event().start_mark
-            raise NestingError(None, None, f"nests deeper than {MAX_DEPTH} levels "
-                               "(a model needs fewer than 10)", mark)
-        self.composed += 1
-        if self.composed > MAX_NODES:
-            mark = self.peek_event().start_mark
-            raise NestingError(None, None, f"has more than {MAX_NODES} YAML nodes (a "
-                               "model needs far fewer)", mark)
-        self.depth += 1
-        try:
-            return super().compose_node(parent, index)
-        finally:
-            self.depth -= 1
-
-
-ModelLoader.add_implicit_resolver("tag:yaml.org,2002:float", FLOAT_12,
-                                  list("-+0123456789."))
 
 
 @dataclass(frozen=True, eq=False)
@@ -184,8 +135,7 @@ def parse_yaml(text: str, source: str) -> YNode | None:
                          f"is {len(text)} characters long; at most {MAX_INPUT_CHARS} "
                          "are read", show_value=False)
     try:
-        loader = ModelLoader(text)      # the reader checks characters here
-        node = loader.get_single_node()
+        loader, node = compose(text)
     except NestingError as exc:
         line = exc.problem_mark.line + 1
         raise ModelError(source, line, "YAML", exc.problem,
@@ -239,7 +189,7 @@ def _path(item: str, key) -> str:
 class _Walker:
     """Converts a composed node tree, once per node (aliases share the result)."""
 
-    def __init__(self, loader: ModelLoader, text: str, source: str):
+    def __init__(self, loader, text: str, source: str):
         self.loader = loader
         self.text = text
         self.source = source
@@ -273,9 +223,10 @@ class _Walker:
     def size(self, children, item: str, line: int) -> int:
         """1 + the expanded sizes of ``children``; refused above MAX_NODES."""
         total = 1 + sum(c.size for c in children)
-        if total > MAX_NODES:
+        limit = yamlcompose.MAX_NODES
+        if total > limit:
             raise ModelError(self.source, line, item or "YAML",
-                             f"expands to more than {MAX_NODES} YAML nodes (aliases "
+                             f"expands to more than {limit} YAML nodes (aliases "
                              "counted as the nodes they repeat); a model needs far fewer",
                              total)
         return total
