@@ -51,8 +51,8 @@ class RunSettingError(FccgenError, ValueError):
     ``rules`` maps each setting the rule is about to its wording, the likeliest culprit
     first; ``given`` holds the settings the caller gave (command-line flags, API
     arguments), the others came from the model file or the method's defaults. The
-    message blames the first setting of ``rules`` that was given, by its flag, else the
-    first one as the model file's ``simulate.NAME``. The model loader blames instead
+    message blames the first setting of ``rules`` that was given, by its name and flag
+    (``dt (--dt)``), else the first one as the model file's ``simulate.NAME``. The model loader blames instead
     the first one its file holds (:meth:`culprit`) at that key's line.
     """
 
@@ -63,7 +63,7 @@ class RunSettingError(FccgenError, ValueError):
         self.setting = self.culprit(self.given)
         self.rule = self.rules[self.setting]
         self.value = self.values.get(self.setting)
-        where = (flag(self.setting) if self.setting in self.given
+        where = (f"{self.setting} ({flag(self.setting)})" if self.setting in self.given
                  else f"simulate.{self.setting}")
         super().__init__(f"{where}: {self.rule} (got {self.value!r})")
 
