@@ -83,8 +83,9 @@ try:
 except ImportError:             # PyYAML built without libyaml
     CParser = None
 
-FastModelLoader = None
-if CParser is not None:
+if CParser is None:
+    FastModelLoader = None
+else:
     class FastModelLoader(_Bounded, CParser, Composer, SafeConstructor, Resolver):
         """libyaml's events, PyYAML's Python composer (bounded), safe constructors."""
 
