@@ -25,8 +25,23 @@ def shown(value) -> str:
     try:
         text = repr(value)
     except ValueError:      # an int too long for str() (sys.set_int_max_str_digits)
-        text = f"<an integer of about {value.bit_length() * 0.30103:.0f} digits>"
+        text = _long_int_repr(value)
     return clip(text, SHOWN_VALUE_CHARS)
+
+
+def _long_int_repr(value) -> str:
+    """repr that writes an integer too long for str() as its number of digits."""
+    if isinstance(value, int):
+        try:
+            return repr(value)
+        except ValueError:
+            digits = int(value.bit_length() * 0.30102999566) + 1   # log10(2)
+            return f"<an integer of about {digits} digits>"
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{k!r}: {_long_int_repr(v)}" for k, v in value.items()) + "}"
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_long_int_repr(v) for v in value) + "]"
+    return repr(value)
 
 
 class ModelError(FccgenError, ValueError):

@@ -14,7 +14,7 @@ import cmath
 import math
 from dataclasses import dataclass
 
-from .errors import FccgenError
+from .errors import FccgenError, shown
 
 EPS = 2.220446049250313e-16          # double precision: spacing of numbers near 1
 # A fixed-step run takes at most MAX_STEPS steps (about 2 minutes at 1 us per step, the
@@ -65,7 +65,7 @@ class RunSettingError(FccgenError, ValueError):
         self.value = self.values.get(self.setting)
         where = (f"{self.setting} ({flag(self.setting)})" if self.setting in self.given
                  else f"simulate.{self.setting}")
-        super().__init__(f"{where}: {self.rule} (got {self.value!r})")
+        super().__init__(f"{where}: {self.rule} (got {shown(self.value)})")
 
     def culprit(self, present) -> str:
         """The first setting of the rule in ``present``, else the first one."""

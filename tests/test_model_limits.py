@@ -145,6 +145,17 @@ def test_long_key_is_clipped_in_the_message():
     assert str(err).startswith("slider.yaml:2: " + "k" * 300 + "... (1000 characters): ")
 
 
+def test_integer_too_long_to_print_is_shown_by_its_size():
+    """A hex integer has no digit limit, but its decimal repr raises ValueError."""
+    text = edited([sub("  A: [1, 0, 0]", "  A: [0x" + "f" * 5000 + ", 0] #<")])
+    check(error_of(text), marked_line(text), "points.A", "must be a list of 3 numbers",
+          [16 ** 5000 - 1, 0])
+    assert "(got [<an integer of about 6021 digits>, 0])" in str(error_of(text))
+    with pytest.raises(RunSettingError, match=r"t_end \(--t-end\): .* \(got <an integer "
+                                              r"of about 5001 digits>\)"):
+        methods.schedule(methods.get("rk4"), _Defaults, t_end=10 ** 5000)
+
+
 def test_long_name_lists_are_cut():
     points = "".join(f"  P{k}: {{at: [{k}, 0, 0], fixed: true}}\n" for k in range(100))
     text = edited([sub("  B: [2, 0, 0]", "  B: [2, 0, 0]\n" + points.rstrip("\n")),
