@@ -5,7 +5,7 @@ Each case takes an example of examples/ and applies one to three mutations: a nu
 set to an extreme (0, -1, 1e308, nan, inf, 1e-300, 5e-324, 10**400, ...) or to any
 float, a value replaced by text, a list, a mapping or null, a key dropped, renamed or
 written twice, a value nested deeply, two values made one (a YAML alias), a value made
-an alias bomb, a tab put in, the file cut short.
+an alias bomb, a tab put in, an integer of 6,000 digits, the file cut short.
 
 Oracles:
 
@@ -157,7 +157,7 @@ def mutate(data, draw) -> bool:
 def text_mutation(text: str, draw) -> str:
     """A mutation of the YAML text itself."""
     lines = text.splitlines(keepends=True)
-    kind = draw(st.sampled_from(["duplicate", "cut", "tab", "deep", "alias"]))
+    kind = draw(st.sampled_from(["duplicate", "cut", "tab", "deep", "alias", "hex"]))
     k = draw(st.integers(0, max(len(lines) - 1, 0)))
     if kind == "duplicate" and lines:
         return "".join(lines[:k + 1] + lines[k:])
@@ -167,6 +167,11 @@ def text_mutation(text: str, draw) -> str:
         return "".join(lines[:k] + ["\t"] + lines[k:])
     if kind == "alias":
         return text + "extra: *undefined_anchor\n"
+    if kind == "hex":               # an integer too long for str(): no limit in base 16
+        numbers = list(re.finditer(r"(?<![\w.])\d+(?![\w.])", text))
+        if numbers:
+            m = numbers[draw(st.integers(0, len(numbers) - 1))]
+            return text[:m.start()] + "0x" + "f" * 5000 + text[m.end():]
     depth = draw(st.sampled_from([49, 51, 600, 5000]))
     return "deep: " + "[" * depth + "]" * depth + "\n" + text
 
