@@ -114,7 +114,8 @@ def test_input_size_limit(tmp_path):
           HIDDEN)
     path = tmp_path / "big.yaml"
     path.write_text(text)
-    with pytest.raises(ModelError, match="at most 1000000 are read"):
+    with pytest.raises(ModelError, match="is longer than 1000000 characters, the most a "
+                                         "model file may hold"):
         load_model(path)
 
 

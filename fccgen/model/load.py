@@ -45,6 +45,9 @@ def load_model(path) -> Model:
     except OSError as exc:
         raise ModelError(source, None, "model file",
                          f"cannot be read ({exc.strerror or exc})", show_value=False) from None
+    if len(text) > MAX_INPUT_CHARS:
+        raise ModelError(source, None, "model file", f"is longer than {MAX_INPUT_CHARS} "
+                         "characters, the most a model file may hold", show_value=False)
     return load_model_text(text, source)
 
 
