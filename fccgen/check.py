@@ -1,13 +1,21 @@
 """``fccgen check``: what a model is made of, its degrees of freedom counted and by
-rank, which constraint equations are redundant, and the assembly residual."""
+rank, which constraint equations are redundant, and the assembly residual.
+
+Loading the model runs every rule of the model file, including the run settings of its
+``simulate`` section exactly as ``fccgen simulate`` checks them (fccgen.run_settings),
+so a model that check passes is one that simulate accepts with its own settings. A
+number of the report that is not finite is an error, never a line of the report.
+"""
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.linalg
 
 from .mechanism.report import dependency_text
+from .errors import SimulationError
 
 RANK_TOL = 1e-10      # relative to the largest pivot, as in the solvers
 
@@ -83,15 +91,31 @@ def rank_and_redundant(B: np.ndarray, labels: list[str], tol: float = RANK_TOL,
 
 
 def check_model(path) -> CheckReport:
-    """Validate a model and report its structure (needs no compiler)."""
+    """Validate a model and report its structure (needs no compiler). Errors name the
+    model file."""
     from .api import load_numeric
     solver = load_numeric(path)
+    source = str(solver.plan.model.source)
+    try:
+        return _report(solver)
+    except SimulationError as exc:
+        if str(exc).startswith(f"{source}:"):
+            raise
+        raise SimulationError(f"{source}: {exc}") from None
+
+
+def _report(solver) -> CheckReport:
     plan = solver.plan
     init = solver.initial_state()
     labels = constraint_row_labels(plan)
     B = solver.constraint_jacobian(init.q)
-    rank, redundant = rank_and_redundant(B, labels, groups=solver.row_groups)
     model = plan.model
+    _require_finite(model.source, {
+        "the assembled positions q": init.q, "the projected velocities v": init.v,
+        "the constraint Jacobian B": B,
+        "the residuals": [init.position_residual_given, init.position_residual,
+                          init.velocity_change, init.velocity_residual]})
+    rank, redundant = rank_and_redundant(B, labels, groups=solver.row_groups)
     return CheckReport(
         name=model.name, source=str(model.source),
         n_points=len(model.moving_points), n_vectors=len(model.moving_vectors),
@@ -101,3 +125,14 @@ def check_model(path) -> CheckReport:
         init_report=init.report(), notes=list(plan.notes),
         joints=model.mechanism.describe() if model.mechanism is not None else [],
         dependent=dependency_text(B, rank, labels) if model.mechanism is not None else "")
+
+
+def _require_finite(source: str, arrays: dict):
+    """SimulationError naming the first of ``arrays`` holding a nan or an infinity."""
+    for what, values in arrays.items():
+        values = np.asarray(values, dtype=float)
+        if not np.all(np.isfinite(values)):
+            bad = next(float(x) for x in values.ravel() if not math.isfinite(x))
+            raise SimulationError(f"{source}: {what} of the initial state are not finite "
+                                  f"(found {bad!r}); the model's numbers are too far "
+                                  "apart in size for double precision")

@@ -11,14 +11,38 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from .run_settings import EPS, RunSettingError, Schedule, interval, options_for, schedule
+
 
 @dataclass(frozen=True)
 class Option:
-    """A method option: its name (a keyword of ``simulate``), default and source."""
+    """A method option: its name (a keyword of ``simulate``), default and source, and
+    its accepted range (low, high; open or closed ends; whole numbers only)."""
     name: str
     default: float
     help: str
     source: str
+    low: float = 0.0
+    high: float = 1e12
+    low_open: bool = True
+    high_open: bool = False
+    integer: bool = False
+    why: str = ""                 # the reason for the range, shown when it is broken
+
+    def rule(self) -> str:
+        positive = self.low > 0 or (self.low == 0 and self.low_open)
+        what = ("a whole number" if self.integer else "a positive number" if positive
+                else "a number")
+        text = (f"must be {what} in "
+                f"{interval(self.low, self.high, self.low_open, self.high_open)}")
+        return text + (f" ({self.why})" if self.why else "")
+
+    def accepts(self, x: float) -> bool:
+        if not math.isfinite(x) or (self.integer and x != int(x)):
+            return False
+        above = x > self.low if self.low_open else x >= self.low
+        below = x < self.high if self.high_open else x <= self.high
+        return above and below
 
 
 @dataclass(frozen=True)
@@ -34,11 +58,20 @@ class Method:
         return {o.name: o.default for o in self.options}
 
 
+__all__ = ["EPS", "METHODS", "Method", "Option", "RunSettingError", "Schedule", "describe",
+           "get", "names", "options_for", "run_info", "schedule"]
+
+
+# rtol in (10 eps, 1): an error estimate below 10 eps relative is rounding (Hairer's
+# DOPRI5 refuses RTOL <= 10 UROUND, "tolerances are too small"), and rtol >= 1 lets a
+# step be 100% wrong.
 RTOL = Option("rtol", 1e-6, "relative tolerance of the local error estimate",
               "fccgen's choice: on the examples, dopri5 at 1e-6 is within 2e-6 to 6e-6 "
               "(positions, over 1 s) of a converged solution, comparable to rk4 at "
               "dt = 1e-3 on the four-bar; SciPy's solve_ivp default 1e-3 is 1000x "
-              "looser (DESIGN section 7: compare at equal accuracy)")
+              "looser (DESIGN section 7: compare at equal accuracy)",
+              low=10 * EPS, high=1.0, high_open=True,
+              why="below 10 eps is rounding, 1 or more accepts any step")
 ATOL = Option("atol", 1e-9, "absolute tolerance of the local error estimate",
               "fccgen's choice: three decades below rtol so that coordinates passing "
               "through zero are still controlled relative to unit-size values")
@@ -51,11 +84,13 @@ ATOL = Option("atol", 1e-9, "absolute tolerance of the local error estimate",
 # typical. 5 per time unit damps a drift to 4% within one time unit, while
 # alpha * dt = 5e-3 at the default dt = 1e-3 stays far inside RK4's real stability
 # interval (alpha * dt < 2.78), so the stabilisation does not stiffen the run.
+# 0 is accepted (no stabilisation); the step's limit is checked with dt (rk4_stable).
 BAUMGARTE_ALPHA = Option("alpha", 5.0, "Baumgarte damping alpha (1/time unit)",
                          "Baumgarte 1972 (alpha = beta, critical damping); 5 within the "
-                         "typical 1-10, with alpha*dt << 2.78 at dt = 1e-3")
+                         "typical 1-10, with alpha*dt << 2.78 at dt = 1e-3",
+                         low_open=False)
 BAUMGARTE_BETA = Option("beta", 5.0, "Baumgarte stiffness beta (1/time unit)",
-                        "Baumgarte 1972: beta = alpha")
+                        "Baumgarte 1972: beta = alpha", low_open=False)
 
 # ALI3-P (fccgen/runtime/_ali3p.pyx): Bayo & Garcia de Jalon, "Kinematic and Dynamic
 # Simulation of Multibody Systems" (1994), ch. 4-5; Cuadrado, Cardenal & Bayo, Multibody
@@ -67,14 +102,18 @@ ALI3P_PENALTY = Option("penalty", 1e9, "augmented Lagrangian penalty (1/time uni
                        "(dt^2/4) penalty, so 2-4 Newton iterations per step); passing "
                        "positions where the constraint Jacobian loses rank may need more "
                        "(A02 N-four-bar at dt = 1e-3: 1e12); reasons in "
-                       "fccgen/runtime/_ali3p.pyx")
+                       "fccgen/runtime/_ali3p.pyx", high=1e30)
 ALI3P_NEWTON_TOL = Option("newton_tol", 1e-10, "Newton stops when max |dq| and "
                           "max |g_k| / ||B_k|| are both <= newton_tol times the largest "
                           "body length",
                           "fccgen's choice: near the 1e-11 relative position tolerance "
-                          "of the projections of rk4 and dopri5")
+                          "of the projections of rk4 and dopri5",
+                          low=10 * EPS, low_open=False, high=1.0, high_open=True,
+                          why="below 10 eps Newton cannot stop by tolerance")
 ALI3P_MAX_NEWTON = Option("max_newton", 30, "Newton iteration limit per step",
-                          "fccgen's choice: a converging step takes 2-5 iterations")
+                          "fccgen's choice: a converging step takes 2-5 iterations",
+                          low=1, low_open=False, high=10_000, integer=True,
+                          why="each iteration factorises the Newton matrix once")
 
 _SCIPY = ("RK45", "DOP853", "Radau", "BDF", "LSODA")
 _SCIPY_TEXT = {
@@ -123,66 +162,6 @@ def get(name: str, available: tuple[str, ...] | None = None) -> Method:
     if name not in available:
         raise ValueError(f"unknown method {name!r}; available: {', '.join(available)}")
     return METHODS[name]
-
-
-def options_for(method: Method, rtol=None, atol=None, given: dict | None = None) -> dict:
-    """The method's options: its defaults updated with rtol/atol and ``given``; unknown
-    options and non-positive values raise ValueError naming what is accepted."""
-    opts = method.defaults()
-    given = dict(given or {})
-    if rtol is not None:
-        given["rtol"] = rtol
-    if atol is not None:
-        given["atol"] = atol
-    for key, value in given.items():
-        if value is None:
-            continue
-        if key not in opts:
-            accepted = ", ".join(opts) or "none"
-            raise ValueError(f"method {method.name!r} takes no option {key!r} "
-                             f"(its options: {accepted})")
-        value = float(value)
-        if not value > 0 or value == float("inf"):
-            raise ValueError(f"option {key} of method {method.name!r} must be a positive "
-                             f"number (got {value!r})")
-        opts[key] = value
-    return opts
-
-
-@dataclass(frozen=True)
-class Schedule:
-    """When a run steps and records. Fixed-step methods: n_steps steps of dt (the last
-    shortened to end at t_end), a record every ``every`` steps. Adaptive methods: dt is
-    the first step (None: automatic) and records come at multiples of output_dt."""
-    t_end: float
-    dt: float | None
-    output_dt: float
-    every: int = 1
-    n_steps: int = 0
-
-
-def schedule(method: Method, defaults, t_end=None, dt=None, output_dt=None) -> Schedule:
-    """The run's schedule from the arguments, else the model's ``simulate`` section
-    (``defaults``: t_end, dt, output_dt), checked."""
-    t_end = float(defaults.t_end if t_end is None else t_end)
-    given_dt = dt
-    dt = float(defaults.dt if dt is None else dt)
-    for name, value in (("t_end", t_end), ("dt", dt)):
-        if not (math.isfinite(value) and value > 0):
-            raise ValueError(f"{name} must be a positive number (got {value!r})")
-    if output_dt is None:
-        output_dt = defaults.output_dt if defaults.output_dt is not None else dt
-    output_dt = float(output_dt)
-    if not (math.isfinite(output_dt) and output_dt > 0):
-        raise ValueError(f"output_dt must be a positive number (got {output_dt!r})")
-    if method.kind == "adaptive":
-        return Schedule(t_end, None if given_dt is None else dt, output_dt)
-    ratio = output_dt / dt
-    every = round(ratio)
-    if every < 1 or abs(ratio - every) > 1e-9 * ratio:
-        raise ValueError(f"output_dt must be a positive whole multiple of dt = {dt!r} "
-                         f"(got {output_dt!r})")
-    return Schedule(t_end, dt, output_dt, every, max(1, math.ceil(t_end / dt - 1e-9)))
 
 
 # Keys every run's ``result.info`` holds (besides method-specific ones).

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from fccgen.errors import ModelError
+from fccgen.errors import ModelError, shown
 from fccgen.model import load_model, load_model_text
 
 SOURCE = "slider.yaml"
@@ -327,7 +327,7 @@ def check(err: ModelError, line, item, rule, value, source=SOURCE):
         assert "(got" not in message
     else:
         assert err.value == value, message
-        assert message.endswith(f"(got {value!r})"), message
+        assert message.endswith(f"(got {shown(value)})"), message
 
 
 def test_base_model_is_valid():

@@ -9,6 +9,8 @@ import math
 
 import numpy as np
 
+from .fields import MIN_POSITIVE
+
 # |v| of a unit vector must be 1 within this (DESIGN section 2).
 UNIT_TOLERANCE = 1e-9
 # Points i, j of a body coincide when |r_ij| <= this * max(1, |r_i|, |r_j|): a few
@@ -61,6 +63,9 @@ def inertia_problem(tensor: np.ndarray) -> str | None:
     if not np.any(tensor):
         return None
     moments = np.linalg.eigvalsh(tensor)
+    if 0 < moments[-1] < MIN_POSITIVE:
+        return (f"must have a principal moment of at least {MIN_POSITIVE:g} unless all "
+                f"zero (fccgen's limit on a positive quantity); they are {_fmt(moments)}")
     if moments[0] <= DEFINITE_RELATIVE * abs(moments[-1]):
         return ("must be positive definite (or all zero for a point mass); "
                 f"its principal moments are {_fmt(moments)}")

@@ -12,10 +12,23 @@ import re
 import numpy as np
 
 from ..errors import ModelError
-from .yamlnodes import YMap, YNode, YScalar, YSeq
+from .yamlnodes import YMap, YNode, YScalar, YSeq, shown
 
 IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 IDENTIFIER_RULE = "must be a name matching [A-Za-z_][A-Za-z0-9_]*"
+
+# Every number of a model is at most MAX_MAGNITUDE in size, and every quantity that must
+# be positive (a mass, a distance, a time) at least MIN_POSITIVE. Why these: the kernels
+# are polynomials of low degree (at most ~6: m l^2 w^2, k (l - l0)^2, ...) in the
+# model's numbers, with at most a few divisions by masses and lengths, so no
+# intermediate exceeds (1e12)^6 (1e30)^2 = 1e132, far below the 1.8e308 where doubles
+# overflow, and squares of accelerations (F/m <= 1e42) stay finite too. 24 decades
+# between the two leave room for any consistent units (SI, mm-g-s, t-mm-s: a 1 um
+# gear's inertia in kg m^2 is ~1e-25).
+MAX_MAGNITUDE = 1e12
+MIN_POSITIVE = 1e-30
+# Lists of names in messages (e.g. "points are: ...") show at most this many.
+LISTED_NAMES = 20
 
 
 def child(item: str, key) -> str:
@@ -25,6 +38,8 @@ def child(item: str, key) -> str:
 
 def listing(names) -> str:
     names = list(names)
+    if len(names) > LISTED_NAMES:
+        return ", ".join(names[:LISTED_NAMES]) + f", ... ({len(names)} in all)"
     return ", ".join(names) if names else "(none)"
 
 
@@ -41,7 +56,7 @@ class Reader:
 
     def bad(self, node: YNode, item: str, rule: str) -> ModelError:
         """The error for ``node`` breaking ``rule``, showing the value seen."""
-        return self.fail(node.line, item, rule, node.plain())
+        return self.fail(node.line, item, rule, shown(node))
 
     # -- containers ----------------------------------------------------------------
     def mapping(self, node: YNode, item: str, required=(), optional=()) -> YMap:
@@ -82,7 +97,8 @@ class Reader:
 
     # -- scalars ---------------------------------------------------------------------
     def number(self, node: YNode, item: str) -> float:
-        """A finite int or float (not a bool), as float."""
+        """A finite int or float (not a bool) of magnitude at most MAX_MAGNITUDE, as
+        float."""
         value = node.value if isinstance(node, YScalar) else None
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise self.bad(node, item, "must be a number")
@@ -92,12 +108,19 @@ class Reader:
             x = math.inf
         if not math.isfinite(x):
             raise self.bad(node, item, "must be a finite number")
+        if abs(x) > MAX_MAGNITUDE:
+            raise self.bad(node, item, f"must be at most {MAX_MAGNITUDE:g} in magnitude "
+                                       "(fccgen's limit on every number of a model)")
         return x
 
     def positive(self, node: YNode, item: str) -> float:
+        """A number in [MIN_POSITIVE, MAX_MAGNITUDE]."""
         x = self.number(node, item)
         if not x > 0:
             raise self.bad(node, item, "must be a positive number")
+        if x < MIN_POSITIVE:
+            raise self.bad(node, item, f"must be at least {MIN_POSITIVE:g} (fccgen's "
+                                       "limit on a positive quantity of a model)")
         return x
 
     def nonnegative(self, node: YNode, item: str) -> float:

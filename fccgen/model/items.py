@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import math
 
+from ..methods import METHODS as REGISTRY
+from ..run_settings import RunSettingError, schedule
 from .fields import Reader, child, listing
 from .types import (Angle, AngularVelocity, Body, BodyPoint, Constraint, Distance, Force,
                     Initial, Load, Point, PointOnLine, PointOnPlane, PointRef,
@@ -177,11 +179,28 @@ class ItemReader(Reader):
         return AngularVelocity(w, frame, Where(self.source, line))
 
     # -- simulation defaults ---------------------------------------------------------------
-    def simulate(self, node: YNode | None, methods: tuple[str, ...]) -> SimulateDefaults:
-        """Defaults of ``fccgen simulate`` (DESIGN section 5); ``node`` None: all defaults."""
-        out = SimulateDefaults()
-        if node is None:
-            return out
+    def simulate(self, node: YNode | None, methods: tuple[str, ...],
+                 values_per_output: int = 0) -> SimulateDefaults:
+        """Defaults of ``fccgen simulate`` (DESIGN section 5); ``node`` None: all
+        defaults. Checked as ``fccgen simulate`` checks them, with the method's default
+        options (fccgen.run_settings.schedule), so that ``fccgen check`` refuses them
+        too."""
+        out = SimulateDefaults(values_per_output=values_per_output)
+        if node is not None:
+            self.simulate_keys(node, methods, out)
+        try:
+            method = REGISTRY[out.method]
+            schedule(method, out, options=method.defaults())
+        except RunSettingError as exc:
+            entries = node.entries if isinstance(node, YMap) else {}
+            key = exc.culprit(entries)
+            line = entries[key].line if key in entries else getattr(node, "line", None)
+            raise self.fail(line, f"simulate.{key}", exc.rules[key],
+                            exc.values.get(key)) from None
+        return out
+
+    def simulate_keys(self, node: YNode, methods: tuple[str, ...], out: SimulateDefaults):
+        """The keys of a ``simulate`` section into ``out``, each checked alone."""
         e = self.mapping(node, "simulate", *SIMULATE_KEYS).entries
         if "t_end" in e:
             out.t_end = self.positive(e["t_end"], "simulate.t_end")
@@ -199,4 +218,3 @@ class ItemReader(Reader):
         if out.output_dt is not None and out.output_dt < out.dt:
             raise self.bad(e["output_dt"], "simulate.output_dt",
                            f"must be at least dt ({out.dt:g})")
-        return out

@@ -7,8 +7,6 @@ read by one method of :class:`_ModelReader`. The first rule broken raises
 """
 from __future__ import annotations
 
-import keyword
-from pathlib import Path
 
 import numpy as np
 
@@ -18,13 +16,15 @@ from . import checks
 from .fields import IDENTIFIER, IDENTIFIER_RULE, Reader, child, listing
 from .items import ItemReader
 from .joints import MechanismReader
+from .names import reserved_model_name
 from .types import GROUND, Body, Initial, Model, Point, PoseBody, Vector, Where
-from .yamlnodes import YMap, YNode, parse_yaml
+from .yamlnodes import MAX_INPUT_CHARS, YMap, YNode, parse_yaml
 
 # Integration methods a model may name in ``simulate.method`` (fccgen.methods).
 METHODS: tuple[str, ...] = _method_names()
 
-MAX_NAME_LENGTH = 64          # the model name becomes a module name
+MAX_NAME_LENGTH = 64          # the model name becomes a module name and a C symbol;
+                              # point, vector and body names become result columns
 
 # Keys of each kind of mapping: (required, optional).
 TOP_KEYS = (("name", "points", "bodies"),
@@ -38,13 +38,17 @@ def load_model(path) -> Model:
     """Read and validate the model file at ``path`` (``Model.source`` is ``str(path)``)."""
     source = str(path)
     try:
-        text = Path(path).read_text(encoding="utf-8")
+        with open(path, encoding="utf-8") as f:
+            text = f.read(MAX_INPUT_CHARS + 1)      # a larger file is refused, unread
     except UnicodeDecodeError as exc:
         raise ModelError(source, None, "model file", f"is not UTF-8 text ({exc.reason})",
                          show_value=False) from None
     except OSError as exc:
         raise ModelError(source, None, "model file",
                          f"cannot be read ({exc.strerror or exc})", show_value=False) from None
+    if len(text) > MAX_INPUT_CHARS:
+        raise ModelError(source, None, "model file", f"is longer than {MAX_INPUT_CHARS} "
+                         "characters, the most a model file may hold", show_value=False)
     return load_model_text(text, source)
 
 
@@ -101,12 +105,20 @@ class _ModelReader(Reader):
         constraints = items.constraints(e["constraints"]) if "constraints" in e else []
         loads = items.loads(e["loads"]) if "loads" in e else []
         initial = items.initial(e["initial"]) if "initial" in e else Initial()
-        simulate = items.simulate(e.get("simulate"), METHODS)
+        simulate = items.simulate(e.get("simulate"), METHODS, self.values_per_output())
         return Model(name=name, source=self.source, gravity=gravity, points=self.points,
                      vectors=self.vectors, bodies=self.bodies, constraints=constraints,
                      loads=loads, initial=initial, simulate=simulate,
                      where={k: self.where(line) for k, line in top.key_lines.items()},
                      pose_bodies=self.pose_bodies, joints=joints)
+
+    def values_per_output(self) -> int:
+        """Numbers one output row of a run records (DESIGN section 4): t, 6 per moving
+        point and vector, 6 per body (an upper bound: ground bodies have none),
+        energy and constraint_error."""
+        moving = sum(not x.fixed for table in (self.points, self.vectors)
+                     for x in table.values())
+        return 3 + 6 * (moving + len(self.bodies))
 
     # -- names ---------------------------------------------------------------------
     def model_name(self, node: YNode) -> str:
@@ -114,9 +126,9 @@ class _ModelReader(Reader):
         if len(name) > MAX_NAME_LENGTH:
             raise self.fail(node.line, "name",
                             f"must be at most {MAX_NAME_LENGTH} characters long", name)
-        if keyword.iskeyword(name):
-            raise self.fail(node.line, "name",
-                            "must not be a Python keyword (it becomes a module name)", name)
+        problem = reserved_model_name(name)
+        if problem:
+            raise self.fail(node.line, "name", problem, name)
         return name
 
     def claim(self, name: str, kind: str, line: int, item: str):
@@ -124,6 +136,9 @@ class _ModelReader(Reader):
         so they must be unique across points, vectors and bodies."""
         if not IDENTIFIER.fullmatch(name):
             raise self.fail(line, item, IDENTIFIER_RULE, name)
+        if len(name) > MAX_NAME_LENGTH:
+            raise self.fail(line, item, f"must be at most {MAX_NAME_LENGTH} characters "
+                                        "long", name)
         if name in self.names:
             other, other_line = self.names[name]
             raise self.fail(line, item, f"name already used by the {other} on line "

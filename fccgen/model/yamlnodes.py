@@ -2,8 +2,9 @@
 
 The model loader needs the line of every value to say where a rule is broken, and it
 must reject what PyYAML silently accepts (a repeated key keeps only its last value).
-So the text is *composed* into PyYAML's node tree with a safe loader, and that tree is
-walked here into three small node types:
+So the text is *composed* into PyYAML's node tree with a safe loader
+(:mod:`fccgen.model.yamlcompose`), and that tree is walked here into three small node
+types:
 
 * :class:`YScalar` -- a scalar: its safely constructed value and its source text;
 * :class:`YSeq`    -- a sequence of nodes;
@@ -11,20 +12,34 @@ walked here into three small node types:
 
 Lines are 1-based. Scalars are built only by :class:`yaml.SafeLoader`'s constructors;
 nothing from the file reaches ``eval`` or an arbitrary Python constructor.
+
+Limits (docs/reliability.md, "Input"): a text of at most MAX_INPUT_CHARS characters,
+nested at most MAX_DEPTH levels, and at most MAX_NODES nodes, also once every alias is
+expanded. Each is refused before it costs much: the depth and the node count while
+the tree is composed, the expanded size while it is walked bottom-up here, where an
+alias is a shared node whose size is already known, so a "billion laughs" file is
+refused after walking its few distinct nodes and never expanded.
 """
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass
 from typing import Union
 
 import yaml
 
-from ..errors import ModelError
+from ..errors import ModelError, clip
+from . import yamlcompose
+from .yamlcompose import MAX_DEPTH, MAX_INPUT_CHARS, MAX_NODES, NestingError, compose
 
-# YAML 1.2 floats with an exponent (1e-3, 5E+2, 2.5e3): PyYAML's YAML 1.1 resolver
-# wants a dot and a signed exponent, and reads these as strings otherwise.
-FLOAT_12 = re.compile(r"^[-+]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)[eE][-+]?[0-9]+$")
+__all__ = ["MAX_DEPTH", "MAX_INPUT_CHARS", "MAX_NODES", "YMap", "YNode", "YScalar", "YSeq",
+           "parse_yaml", "shown"]
+
+# Values of at most this many nodes are shown whole in a message; larger ones as the
+# start of their text (ModelError clips every value to SHOWN_VALUE_CHARS anyway).
+SHOW_NODES = 64
+SHOWN_START = 150
+# A key longer than this is cut in the item paths of its children.
+PATH_KEY_CHARS = 100
 
 MAP_TAG = "tag:yaml.org,2002:map"
 # Scalar tags the safe loader builds (explicit or resolved); any other tag is refused.
@@ -33,19 +48,12 @@ SCALAR_TAGS = frozenset(f"tag:yaml.org,2002:{t}" for t in
 SEQ_TAG = "tag:yaml.org,2002:seq"
 
 
-class ModelLoader(yaml.SafeLoader):
-    """Safe loader that also reads YAML 1.2 exponent floats as floats."""
-
-
-ModelLoader.add_implicit_resolver("tag:yaml.org,2002:float", FLOAT_12,
-                                  list("-+0123456789."))
-
-
 @dataclass(frozen=True, eq=False)
 class YScalar:
     value: object          # str, int, float, bool, None (or another safe YAML scalar)
     text: str              # the scalar as written (without quotes)
     line: int
+    size = 1               # nodes, aliases expanded
 
     def plain(self):
         return self.value
@@ -55,6 +63,7 @@ class YScalar:
 class YSeq:
     items: tuple["YNode", ...]
     line: int
+    size: int = 1          # nodes, aliases expanded (set by the walker)
 
     def plain(self):
         return [n.plain() for n in self.items]
@@ -65,9 +74,51 @@ class YMap:
     entries: dict[str, "YNode"]     # key text -> value node, in file order
     key_lines: dict[str, int]       # key text -> line of the key
     line: int
+    size: int = 1                   # nodes, aliases expanded (set by the walker)
 
     def plain(self):
         return {k: n.plain() for k, n in self.entries.items()}
+
+
+class Clipped(str):
+    """The start of a large value's text; shown as is (no quotes) in a message."""
+
+    def __repr__(self) -> str:
+        return str(self)
+
+
+def shown(node: "YNode"):
+    """The value of ``node`` for a message: plain data when small, else the start of
+    its text in flow style and its size, written without expanding more than
+    SHOWN_START characters."""
+    if node.size <= SHOW_NODES:
+        return node.plain()
+    out: list[str] = []
+    _preview(node, out, SHOWN_START + 1)
+    return Clipped("".join(out)[:SHOWN_START] + f"... ({node.size} nodes)")
+
+
+def _preview(node: "YNode", out: list[str], budget: int) -> int:
+    """Append flow-style text of ``node`` to ``out`` until ``budget`` characters."""
+    if budget <= 0:
+        return 0
+    if isinstance(node, YScalar):
+        value = node.value
+        text = repr(value[:budget]) if isinstance(value, str) else node.text[:budget]
+        out.append(text[:budget])
+        return budget - len(out[-1])
+    pairs = (node.entries.items() if isinstance(node, YMap)
+             else ((None, n) for n in node.items))
+    out.append("{" if isinstance(node, YMap) else "[")
+    budget -= 1
+    for k, (key, child) in enumerate(pairs):
+        if budget <= 0:
+            break
+        out.append((", " if k else "") + ("" if key is None else f"{key[:budget]}: "))
+        out[-1] = out[-1][:budget]
+        budget = _preview(child, out, budget - len(out[-1]))
+    out.append("}" if isinstance(node, YMap) else "]")
+    return budget - 1
 
 
 YNode = Union[YScalar, YSeq, YMap]
@@ -79,9 +130,16 @@ def parse_yaml(text: str, source: str) -> YNode | None:
     YAML syntax errors, unsupported tags, repeated keys and recursive aliases raise
     :class:`ModelError` with the line PyYAML reports.
     """
+    if len(text) > MAX_INPUT_CHARS:
+        raise ModelError(source, None, "model file",
+                         f"is {len(text)} characters long; at most {MAX_INPUT_CHARS} "
+                         "are read", show_value=False)
     try:
-        loader = ModelLoader(text)      # the reader checks characters here
-        node = loader.get_single_node()
+        loader, node = compose(text)
+    except NestingError as exc:
+        line = exc.problem_mark.line + 1
+        raise ModelError(source, line, "YAML", exc.problem,
+                         _line_text(text, line)) from None
     except yaml.YAMLError as exc:
         raise _syntax_error(exc, text, source) from None
     try:
@@ -120,10 +178,18 @@ def _syntax_error(exc: yaml.YAMLError, text: str, source: str) -> ModelError:
                       _line_text(text, line))
 
 
+def _path(item: str, key) -> str:
+    """Item path of a child, with a long key cut (the path is built for every node)."""
+    if isinstance(key, int):
+        return f"{item}[{key}]"
+    key = clip(key, PATH_KEY_CHARS)
+    return f"{item}.{key}" if item else key
+
+
 class _Walker:
     """Converts a composed node tree, once per node (aliases share the result)."""
 
-    def __init__(self, loader: ModelLoader, text: str, source: str):
+    def __init__(self, loader, text: str, source: str):
         self.loader = loader
         self.text = text
         self.source = source
@@ -144,14 +210,26 @@ class _Walker:
                 result = self.mapping(node, item, line)
             elif isinstance(node, yaml.SequenceNode):
                 self.check_tag(node, SEQ_TAG, item, line)
-                result = YSeq(tuple(self.convert(n, f"{item}[{k}]")
-                                    for k, n in enumerate(node.value)), line)
+                items = tuple(self.convert(n, _path(item, k))
+                              for k, n in enumerate(node.value))
+                result = YSeq(items, line, self.size(items, item, line))
             else:
                 result = self.scalar(node, item, line)
         finally:
             self.active.discard(key)
         self.done[key] = result
         return result
+
+    def size(self, children, item: str, line: int) -> int:
+        """1 + the expanded sizes of ``children``; refused above MAX_NODES."""
+        total = 1 + sum(c.size for c in children)
+        limit = yamlcompose.MAX_NODES
+        if total > limit:
+            raise ModelError(self.source, line, item or "YAML",
+                             f"expands to more than {limit} YAML nodes (aliases "
+                             "counted as the nodes they repeat); a model needs far fewer",
+                             total)
+        return total
 
     def check_tag(self, node, tag: str, item: str, line: int):
         if node.tag != tag:
@@ -182,11 +260,11 @@ class _Walker:
                                  "has a key that is not a plain name",
                                  _line_text(self.text, key_line))
             key = key_node.value
-            path = f"{item}.{key}" if item else key
+            path = _path(item, key)
             if key in entries:
                 raise ModelError(self.source, key_line, path,
                                  f"duplicate key (first given on line {key_lines[key]})",
                                  key)
             key_lines[key] = key_line
             entries[key] = self.convert(value_node, path)
-        return YMap(entries, key_lines, line)
+        return YMap(entries, key_lines, line, self.size(entries.values(), item, line))

@@ -215,7 +215,7 @@ class NumericSolver:
         d = self.plan.model.simulate
         m = registry.get(d.method if method is None else method, tuple(INTEGRATORS))
         opts = registry.options_for(m, rtol, atol, method_options)
-        sched = registry.schedule(m, d, t_end, dt, output_dt)
+        sched = registry.schedule(m, d, t_end, dt, output_dt, opts)
         if q0 is None:
             init = self.initial_state()
             q0, v0 = init.q, (init.v if v0 is None else v0)

@@ -194,7 +194,7 @@ class CompiledSolver:
         d = self.plan.model.simulate
         m = registry.get(d.method if method is None else method, METHODS)
         opts = registry.options_for(m, rtol, atol, method_options)
-        sched = registry.schedule(m, d, t_end, dt, output_dt)
+        sched = registry.schedule(m, d, t_end, dt, output_dt, opts)
         q0, v0 = self._start_state(q0, v0)
         project = bool(project) and m.projects
         report = None
