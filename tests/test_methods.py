@@ -306,10 +306,13 @@ def test_implicit_scipy_methods_report_jacobians(compiled):
 
 
 # -- divergence and failures ---------------------------------------------------------------------
-def test_unstable_explicit_run_stops_with_time(compiled):
+def test_unstable_baumgarte_settings_are_refused_before_the_run(compiled):
+    """alpha dt = 10 is far outside RK4's stability interval (alpha dt < 2.78): the run
+    settings are refused up front with the largest stable dt (fccgen.run_settings);
+    runs that blow up anyway stop as 'diverged' (tests/test_run_guards.py)."""
     s = compiled("double_pendulum")
-    # alpha dt = 10 is far outside RK4's stability interval (alpha dt < 2.78)
-    with pytest.raises(SimulationError, match=r"simulation stopped at t = 0\.\d+"):
+    with pytest.raises(ValueError, match=r"RK4 is unstable on the Baumgarte modes.*"
+                                         r"use dt <= 0\.00279"):
         s.simulate(t_end=1.0, dt=1e-2, method="baumgarte", alpha=1e3, beta=1e3)
 
 
