@@ -274,3 +274,25 @@ def _largest_stable_dt(alpha: float, beta: float, dt: float) -> float:
         else:
             hi = mid
     return lo
+
+
+# The solvers' tolerances when neither the caller nor the model's simulate section
+# gives them (docs/reliability.md: the rank decision and the projections).
+RANK_TOL = 1e-10          # QR pivot ratio at or below which a row is lost (singular position)
+POSITION_TOL = 1e-11      # Newton projection, times the largest body length
+MAX_NEWTON = 20           # Newton iterations of one position projection
+
+
+def solver_tolerances(defaults, length_scale: float, rank_tol=None, position_tol=None,
+                      max_newton=None) -> tuple[float, float, int]:
+    """(rank_tol, position_tol, max_newton): each from the argument, else the model's
+    ``simulate`` section (``defaults``), else the defaults above (position_tol:
+    POSITION_TOL times ``length_scale``)."""
+    def pick(given, key):
+        return given if given is not None else getattr(defaults, key, None)
+    rank_tol = pick(rank_tol, "rank_tol")
+    position_tol = pick(position_tol, "position_tol")
+    max_newton = pick(max_newton, "max_newton")
+    return (RANK_TOL if rank_tol is None else float(rank_tol),
+            POSITION_TOL * length_scale if position_tol is None else float(position_tol),
+            MAX_NEWTON if max_newton is None else int(max_newton))

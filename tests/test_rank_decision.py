@@ -189,3 +189,31 @@ def test_a_projection_that_kills_the_motion_is_flagged(bricard_solvers, monkeypa
     assert any("removed 100% of the kinetic energy at t = 0.001" in t for t in texts), texts
     assert result.info["projection_energy_cut"] > 0.99
     assert result.info["energy_drift"] < 1e-5   # 6.4e-6 J of E0 = -29 J: looked right
+
+
+def test_solver_tolerances_come_from_the_model_file_unless_given(tmp_path):
+    path = tmp_path / "tolerances.yaml"
+    path.write_text(FLAT_FOUR_BAR.replace(
+        "simulate: {t_end: 1.0, dt: 1.0e-3}",
+        "simulate: {t_end: 1.0, dt: 1.0e-3, rank_tol: 1.0e-9, position_tol: 1.0e-12, "
+        "max_newton: 7}"))
+    solver = fccgen.load_numeric(path)
+    assert (solver.rank_tol, solver.position_tol, solver.max_newton) == (1e-9, 1e-12, 7)
+    solver = fccgen.load_numeric(path, max_newton=3)
+    assert solver.max_newton == 3 and solver.rank_tol == 1e-9
+
+
+@pytest.mark.parametrize("key, value, rule", [
+    ("rank_tol", "2", "must be a number in (0, 1)"),
+    ("position_tol", "-1", "must be a positive number"),
+    ("max_newton", "2.5", "must be a whole number in [1, 1000]"),
+])
+def test_bad_solver_tolerances_in_the_model_file(tmp_path, key, value, rule):
+    from fccgen.errors import ModelError
+    path = tmp_path / "bad.yaml"
+    path.write_text(FLAT_FOUR_BAR.replace("simulate: {t_end: 1.0, dt: 1.0e-3}",
+                                          f"simulate: {{t_end: 1.0, {key}: {value}}}"))
+    with pytest.raises(ModelError) as info:
+        fccgen.load_numeric(path)
+    text = str(info.value)
+    assert f"bad.yaml:19: simulate.{key}: {rule}" in text and f"(got {value})" in text, text

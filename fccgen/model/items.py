@@ -28,7 +28,8 @@ LOAD_KEYS = {
 BODY_POINT_KEYS = (("body", "at"), ())
 INITIAL_KEYS = ((), ("points", "bodies"))
 INITIAL_BODY_KEYS = (("angular_velocity",), ("frame",))
-SIMULATE_KEYS = ((), ("t_end", "dt", "method", "output_dt"))
+SIMULATE_KEYS = ((), ("t_end", "dt", "method", "output_dt", "rank_tol", "position_tol",
+                      "max_newton"))
 FRAMES = ("global", "body")
 
 
@@ -210,6 +211,19 @@ class ItemReader(Reader):
             out.method = self.choice(e["method"], "simulate.method", methods, "method")
         if "output_dt" in e:
             out.output_dt = self.positive(e["output_dt"], "simulate.output_dt")
+        for key in ("rank_tol", "position_tol"):
+            if key in e:
+                value = self.positive(e[key], f"simulate.{key}")
+                if not value < 1.0:
+                    raise self.bad(e[key], f"simulate.{key}",
+                                   "must be a number in (0, 1): a relative tolerance")
+                setattr(out, key, value)
+        if "max_newton" in e:
+            value = self.number(e["max_newton"], "simulate.max_newton")
+            if not (value == int(value) and 1 <= value <= 1000):
+                raise self.bad(e["max_newton"], "simulate.max_newton",
+                               "must be a whole number in [1, 1000]")
+            out.max_newton = int(value)
         if out.dt > out.t_end:
             key = "dt" if "dt" in e else "t_end"
             rule = (f"must be at most t_end ({out.t_end:g})" if key == "dt"

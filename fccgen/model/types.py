@@ -191,6 +191,10 @@ class SimulateDefaults:
     dt: float = 1.0e-3
     method: str = "rk4"
     output_dt: float | None = None
+    # Solver tolerances (None: the solver's defaults; fccgen.runtime.CompiledSolver).
+    rank_tol: float | None = None
+    position_tol: float | None = None
+    max_newton: int | None = None
     # Numbers in one output row (0: unknown), set by the loader from the model's size;
     # bounds a run's record (fccgen.run_settings.schedule). Not a setting: not compared.
     values_per_output: int = field(default=0, compare=False)

@@ -14,6 +14,7 @@ import numpy as np
 from .. import methods as registry
 from .. import rank as rank_rule
 from ..diagnose import explained
+from ..run_settings import solver_tolerances
 from ..errors import SimulationError
 from ..plan import Plan
 from ..results import InitialState, Result, keep_rows, timed_run
@@ -28,16 +29,14 @@ SQUARE = ("mass_matrix", "force_jacobian_q", "force_jacobian_v")
 class NumericSolver:
     """Assembly, constrained solve, projections and integration in NumPy."""
 
-    def __init__(self, plan: Plan, *, rank_tol: float = 1e-10,
-                 position_tol: float | None = None, max_newton: int = 20):
+    def __init__(self, plan: Plan, *, rank_tol: float | None = None,
+                 position_tol: float | None = None, max_newton: int | None = None):
         self.plan = plan
         self.n_q = plan.n_q
         self.n_g = plan.n_g
-        self.rank_tol = float(rank_tol)
-        self.max_newton = int(max_newton)
         self.length_scale = _length_scale(plan)
-        self.position_tol = (1e-11 * self.length_scale if position_tol is None
-                             else float(position_tol))
+        self.rank_tol, self.position_tol, self.max_newton = solver_tolerances(
+            plan.model.simulate, self.length_scale, rank_tol, position_tol, max_newton)
         self._index = [el.q_index() for el in plan.elements]
         offsets = np.cumsum([0] + [el.cls.n_g for el in plan.elements])
         self._rows = [np.arange(a, b) for a, b in zip(offsets[:-1], offsets[1:])]

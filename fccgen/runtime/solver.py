@@ -14,6 +14,7 @@ import numpy as np
 from .. import methods as registry
 from .. import rank as rank_rule
 from ..diagnose import explained
+from ..run_settings import solver_tolerances
 from ..errors import BuildError, SimulationError
 from ..results import InitialState, Result, timed_run
 from . import scipy_ivp
@@ -74,21 +75,21 @@ class CompiledSolver:
     :mod:`fccgen.methods` for one model, the per-step loops in compiled code.
 
     plan: the model's :class:`fccgen.plan.Plan`; module: its generated kernel module.
-    rank_tol: relative rank threshold of the constraint Jacobian (redundant rows below
-    it are dropped); position_tol: Newton projection tolerance on max_k |g_k| / ||B_k||
-    (default 1e-11 times the largest body length); max_newton: iteration limit.
+    rank_tol: QR pivot ratio at or below which a constraint row counts as lost at a
+    singular position (fccgen.rank); position_tol: Newton projection tolerance on
+    max_k |g_k| / ||B_k||; max_newton: its iteration limit. Each defaults to the
+    model's simulate section, else fccgen.run_settings (1e-10, 1e-11 times the largest
+    body length, 20).
     """
 
-    def __init__(self, plan, module, *, rank_tol=1e-10, position_tol=None, max_newton=20):
+    def __init__(self, plan, module, *, rank_tol=None, position_tol=None, max_newton=None):
         self.plan = plan
         self.module = module
         self.n_q = plan.n_q
         self.n_g = plan.n_g
-        self.rank_tol = float(rank_tol)
         self.length_scale = length_scale(plan)
-        self.position_tol = (1e-11 * self.length_scale if position_tol is None
-                             else float(position_tol))
-        self.max_newton = int(max_newton)
+        self.rank_tol, self.position_tol, self.max_newton = solver_tolerances(
+            plan.model.simulate, self.length_scale, rank_tol, position_tol, max_newton)
         self._asm = make_assembler(plan, module)
         self.row_groups = np.repeat(np.arange(len(plan.elements)),
                                     [el.cls.n_g for el in plan.elements])
