@@ -391,7 +391,7 @@ def simulate_ali3p(Engine engine, q0, v0, double t_end, double dt, long n_steps,
     if not length_scale > 0:
         raise ValueError("length_scale must be positive")
     opts = run_options(options, length_scale)
-    a0, lam, alpha = initial_state(engine, q0, v0, opts["penalty"])
+    a0, lam, alpha, hint = initial_state(engine, q0, v0, opts["penalty"])
     n_out = 1 + n_steps // output_every + (1 if n_steps % output_every else 0)
     arrays = dict(t=np.zeros(n_out), q=np.zeros((n_out, n)), v=np.zeros((n_out, n)),
                   body=np.zeros((n_out, engine.asm.n_bodies, 6)), energy=np.zeros(n_out),
@@ -433,7 +433,7 @@ def simulate_ali3p(Engine engine, q0, v0, double t_end, double dt, long n_steps,
             if status == RUN_DONE:
                 break
             if status == RUN_ERROR:
-                raise SimulationError(_message(&r))
+                raise SimulationError(_message(&r) + (hint if r.k < 3 else ""))
             PyErr_CheckSignals()
             if progress is not None:
                 progress(r.k * dt)
