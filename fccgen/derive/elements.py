@@ -177,6 +177,55 @@ def spring(s: ClassSymbols) -> Outputs:
             "force_jacobian_v": [wi * ds for wi in w for ds in d_scale_v]}
 
 
+def torsion_spring(s: ClassSymbols) -> Outputs:
+    """Torsion spring-damper about the shared unit vector u of bodies A and B.
+
+    p_A = r_ij,A - lA u and p_B = r_ij,B - lB u (lA = l_A beta_A: perpendicular to u on
+    the constraint manifold), a = cos0 p_A + sin0 (u x p_A) (p_A turned to the free
+    position), S = u.(a x p_B), C = a.p_B and phi = theta - theta0 = atan2(S, C).
+    V = k phi^2 / 2 and f = -(k phi + c phi') g, with N = S^2 + C^2 and
+
+        g = dphi/dq = (C/N) dS - (S/N) dC,    phi' = (C S' - S C')/N,
+        H = d2phi/dq2 = (C/N) d2S - (S/N) d2C + b1 (dS dC^T + dC dS^T)
+                        - b2 (dS dS^T - dC dC^T),  b1 = (S^2 - C^2)/N^2, b2 = 2 S C/N^2,
+        df/dq = -g (k g + c H q')^T - (k phi + c phi') H,   df/dq' = -c g g^T,
+
+    where H q' takes dS' = d2S q' in place of d2S (and likewise for C), so every output
+    holds a few scalars of S, C and small polynomials, never a whole row of H."""
+    ai, aj, bi, bj, u = (s.triple(n) for n in ("A.ri", "A.rj", "B.ri", "B.rj", "u"))
+    k, c, n = s.scalar("k"), s.scalar("c"), len(s.q)
+    pa = aj.pos - ai.pos - s.scalar("lA") * u.pos
+    pb = bj.pos - bi.pos - s.scalar("lB") * u.pos
+    a = s.scalar("cos0") * pa + s.scalar("sin0") * cross(u.pos, pa)
+    big_s, big_c = dot(u.pos, cross(a, pb)), dot(a, pb)
+    d_s = [sympy.diff(big_s, x) for x in s.q]
+    d_c = [sympy.diff(big_c, x) for x in s.q]
+    h_s = [[sympy.diff(d_s[i], s.q[j]) for j in range(n)] for i in range(n)]
+    h_c = [[sympy.diff(d_c[i], s.q[j]) for j in range(n)] for i in range(n)]
+    s_dot = sympy.Add(*[x * y for x, y in zip(d_s, s.v)])
+    c_dot = sympy.Add(*[x * y for x, y in zip(d_c, s.v)])
+    d_s_dot = [sympy.Add(*[h_s[i][j] * s.v[i] for i in range(n)]) for j in range(n)]
+    d_c_dot = [sympy.Add(*[h_c[i][j] * s.v[i] for i in range(n)]) for j in range(n)]
+    norm = big_s ** 2 + big_c ** 2
+    w_s, w_c = big_c / norm, -big_s / norm
+    b1, b2 = (big_s ** 2 - big_c ** 2) / norm ** 2, 2 * big_s * big_c / norm ** 2
+    phi = sympy.atan2(big_s, big_c)
+    g = [w_s * x + w_c * y for x, y in zip(d_s, d_c)]
+    torque = k * phi + c * (w_s * s_dot + w_c * c_dot)
+
+    def hess(i, j):
+        return (w_s * h_s[i][j] + w_c * h_c[i][j] + b1 * (d_s[i] * d_c[j] + d_c[i] * d_s[j])
+                - b2 * (d_s[i] * d_s[j] - d_c[i] * d_c[j]))
+
+    h_v = [w_s * d_s_dot[j] + w_c * d_c_dot[j] + b1 * (d_s[j] * c_dot + d_c[j] * s_dot)
+           - b2 * (d_s[j] * s_dot - d_c[j] * c_dot) for j in range(n)]
+    return {"applied_forces": [-torque * gi for gi in g],
+            "energy": [sympy.S.Zero, k * phi ** 2 / 2],
+            "force_jacobian_q": [-g[i] * (k * g[j] + c * h_v[j]) - torque * hess(i, j)
+                                 for i in range(n) for j in range(n)],
+            "force_jacobian_v": [-c * gi * gj for gi in g for gj in g]}
+
+
 # -- force Jacobians ------------------------------------------------------------------
 
 def _jacobian(exprs: list[sympy.Expr], wrt: tuple[sympy.Symbol, ...]) -> list[sympy.Expr]:
@@ -204,4 +253,5 @@ BUILDERS: dict[str, Callable[[ClassSymbols], Outputs]] = {
     "body": with_force_jacobians(body), "unit_vector": unit_vector, "distance": distance,
     "point_on_line": point_on_line, "force": with_force_jacobians(force),
     "torque": with_force_jacobians(torque), "spring": with_force_jacobians(spring),
+    "torsion_spring": torsion_spring,
 }
