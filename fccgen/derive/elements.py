@@ -202,10 +202,16 @@ def torsion_spring(s: ClassSymbols) -> Outputs:
     d_c = [sympy.diff(big_c, x) for x in s.q]
     h_s = [[sympy.diff(d_s[i], s.q[j]) for j in range(n)] for i in range(n)]
     h_c = [[sympy.diff(d_c[i], s.q[j]) for j in range(n)] for i in range(n)]
-    s_dot = sympy.Add(*[x * y for x, y in zip(d_s, s.v)])
-    c_dot = sympy.Add(*[x * y for x, y in zip(d_c, s.v)])
-    d_s_dot = [sympy.Add(*[h_s[i][j] * s.v[i] for i in range(n)]) for j in range(n)]
-    d_c_dot = [sympy.Add(*[h_c[i][j] * s.v[i] for i in range(n)]) for j in range(n)]
+    # S' and C' by the product rule on the vectors (much smaller trees than dS . q')
+    pa_dot = aj.vel - ai.vel - s.scalar("lA") * u.vel
+    pb_dot = bj.vel - bi.vel - s.scalar("lB") * u.vel
+    a_dot = s.scalar("cos0") * pa_dot + s.scalar("sin0") * (cross(u.vel, pa)
+                                                           + cross(u.pos, pa_dot))
+    s_dot = (dot(u.vel, cross(a, pb)) + dot(u.pos, cross(a_dot, pb))
+             + dot(u.pos, cross(a, pb_dot)))
+    c_dot = dot(a_dot, pb) + dot(a, pb_dot)
+    d_s_dot = [sympy.diff(s_dot, x) for x in s.q]       # = d2S q'
+    d_c_dot = [sympy.diff(c_dot, x) for x in s.q]
     norm = big_s ** 2 + big_c ** 2
     w_s, w_c = big_c / norm, -big_s / norm
     b1, b2 = (big_s ** 2 - big_c ** 2) / norm ** 2, 2 * big_s * big_c / norm ** 2
