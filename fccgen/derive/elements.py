@@ -181,8 +181,9 @@ def torsion_spring(s: ClassSymbols) -> Outputs:
     """Torsion spring-damper about the shared unit vector u of bodies A and B.
 
     p_A = r_ij,A - lA u and p_B = r_ij,B - lB u (lA = l_A beta_A: perpendicular to u on
-    the constraint manifold), a = cos0 p_A + sin0 (u x p_A) (p_A turned to the free
-    position), S = u.(a x p_B), C = a.p_B and phi = theta - theta0 = atan2(S, C).
+    the constraint manifold); D = u.(p_A x p_B) and P = p_A.p_B, so that the angle from
+    p_A to p_B is atan2(D, P). Turned back by the free position (cos0, sin0):
+    S = cos0 D - sin0 P, C = cos0 P + sin0 D and phi = theta - theta0 = atan2(S, C).
     V = k phi^2 / 2 and f = -(k phi + c phi') g, with N = S^2 + C^2 and
 
         g = dphi/dq = (C/N) dS - (S/N) dC,    phi' = (C S' - S C')/N,
@@ -190,26 +191,26 @@ def torsion_spring(s: ClassSymbols) -> Outputs:
                         - b2 (dS dS^T - dC dC^T),  b1 = (S^2 - C^2)/N^2, b2 = 2 S C/N^2,
         df/dq = -g (k g + c H q')^T - (k phi + c phi') H,   df/dq' = -c g g^T,
 
-    where H q' takes dS' = d2S q' in place of d2S (and likewise for C), so every output
-    holds a few scalars of S, C and small polynomials, never a whole row of H."""
+    where H q' takes dS' = d2S q' in place of d2S (and likewise for C). S' and C' are
+    written by the product rule on the vectors, which keeps every output a few
+    scalars of S, C and small polynomials."""
     ai, aj, bi, bj, u = (s.triple(n) for n in ("A.ri", "A.rj", "B.ri", "B.rj", "u"))
     k, c, n = s.scalar("k"), s.scalar("c"), len(s.q)
+    cos0, sin0 = s.scalar("cos0"), s.scalar("sin0")
     pa = aj.pos - ai.pos - s.scalar("lA") * u.pos
     pb = bj.pos - bi.pos - s.scalar("lB") * u.pos
-    a = s.scalar("cos0") * pa + s.scalar("sin0") * cross(u.pos, pa)
-    big_s, big_c = dot(u.pos, cross(a, pb)), dot(a, pb)
+    pa_dot = aj.vel - ai.vel - s.scalar("lA") * u.vel
+    pb_dot = bj.vel - bi.vel - s.scalar("lB") * u.vel
+    big_d, big_p = dot(u.pos, cross(pa, pb)), dot(pa, pb)
+    d_dot = (dot(u.vel, cross(pa, pb)) + dot(u.pos, cross(pa_dot, pb))
+             + dot(u.pos, cross(pa, pb_dot)))
+    p_dot = dot(pa_dot, pb) + dot(pa, pb_dot)
+    big_s, big_c = cos0 * big_d - sin0 * big_p, cos0 * big_p + sin0 * big_d
+    s_dot, c_dot = cos0 * d_dot - sin0 * p_dot, cos0 * p_dot + sin0 * d_dot
     d_s = [sympy.diff(big_s, x) for x in s.q]
     d_c = [sympy.diff(big_c, x) for x in s.q]
     h_s = [[sympy.diff(d_s[i], s.q[j]) for j in range(n)] for i in range(n)]
     h_c = [[sympy.diff(d_c[i], s.q[j]) for j in range(n)] for i in range(n)]
-    # S' and C' by the product rule on the vectors (much smaller trees than dS . q')
-    pa_dot = aj.vel - ai.vel - s.scalar("lA") * u.vel
-    pb_dot = bj.vel - bi.vel - s.scalar("lB") * u.vel
-    a_dot = s.scalar("cos0") * pa_dot + s.scalar("sin0") * (cross(u.vel, pa)
-                                                           + cross(u.pos, pa_dot))
-    s_dot = (dot(u.vel, cross(a, pb)) + dot(u.pos, cross(a_dot, pb))
-             + dot(u.pos, cross(a, pb_dot)))
-    c_dot = dot(a_dot, pb) + dot(a, pb_dot)
     d_s_dot = [sympy.diff(s_dot, x) for x in s.q]       # = d2S q'
     d_c_dot = [sympy.diff(c_dot, x) for x in s.q]
     norm = big_s ** 2 + big_c ** 2

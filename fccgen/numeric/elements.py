@@ -294,10 +294,9 @@ class TorsionSpringKernels(ElementKernels):
     (docs/elements.md), in the variables x = (p_A, p_B, u), which are linear in q:
     p_A = r_ij,A - lA u, p_B = r_ij,B - lB u, so dx/dq = L is constant.
 
-    With D = u.(p_A x p_B), P = p_A.p_B, Q = (u.p_A)(u.p_B), U = u.u, the turned
-    reference a = cos0 p_A + sin0 u x p_A gives S = u.(a x p_B) = cos0 D + sin0 (Q - U P)
-    and C = a.p_B = cos0 P + sin0 D; phi = atan2(S, C), whose gradient and Hessian in x
-    follow from those of D, P, Q, U (each a product of two or three vectors)."""
+    D = u.(p_A x p_B) (a triple product) and P = p_A.p_B (a dot product) have simple
+    gradients and Hessians in x; (C, S) = (P, D) turned by the free position,
+    C = cos0 P + sin0 D, S = cos0 D - sin0 P, and phi = atan2(S, C)."""
 
     @cached_property
     def x_map(self) -> np.ndarray:
@@ -325,23 +324,9 @@ class TorsionSpringKernels(ElementKernels):
         P = pa @ pb
         dP = np.concatenate([pb, pa, np.zeros(3)])
         hP = np.block([[Z, EYE, Z], [EYE, Z, Z], [Z, Z, Z]])
-        ua, ub = u @ pa, u @ pb
-        Q = ua * ub
-        dQ = np.concatenate([ub * u, ua * u, ub * pa + ua * pb])
-        uu = np.outer(u, u)
-        hQ = np.block([[Z, uu, ub * EYE + np.outer(u, pb)],
-                       [uu, Z, ua * EYE + np.outer(u, pa)],
-                       [ub * EYE + np.outer(pb, u), ua * EYE + np.outer(pa, u),
-                        np.outer(pa, pb) + np.outer(pb, pa)]])
-        U = u @ u
-        dU = np.concatenate([np.zeros(6), 2.0 * u])
-        hU = np.block([[Z, Z, Z], [Z, Z, Z], [Z, Z, 2.0 * EYE]])
         c0, s0 = s["cos0"], s["sin0"]
-        S = c0 * D + s0 * (Q - U * P)
-        dS = c0 * dD + s0 * (dQ - U * dP - P * dU)
-        hS = c0 * hD + s0 * (hQ - U * hP - P * hU - np.outer(dU, dP) - np.outer(dP, dU))
-        C = c0 * P + s0 * D
-        dC, hC = c0 * dP + s0 * dD, c0 * hP + s0 * hD
+        S, dS, hS = c0 * D - s0 * P, c0 * dD - s0 * dP, c0 * hD - s0 * hP
+        C, dC, hC = c0 * P + s0 * D, c0 * dP + s0 * dD, c0 * hP + s0 * hD
         N = S * S + C * C
         g = (C * dS - S * dC) / N
         H = ((np.outer(dS, dC) - np.outer(dC, dS) + C * hS - S * hC) / N
