@@ -162,8 +162,14 @@ def test_only_names_of_the_table_are_known():
         parse_expression("P.x", {"t": SYMBOLS["t"]}, **WHERE)
     with pytest.raises(ValueError, match="reserved"):
         parse_expression("t", {"t": SYMBOLS["t"], "sin": SYMBOLS["t"]}, **WHERE)
-    with pytest.raises(ModelError, match="must be an expression written as text"):
-        parse_expression(3.0, SYMBOLS, **WHERE)
+    assert parse_expression(3, SYMBOLS, **WHERE) == 3       # a YAML number
+    assert parse_expression(-2.5e-3, SYMBOLS, **WHERE) == -2.5e-3
+    with pytest.raises(ModelError, match="not finite as a double"):
+        parse_expression(10 ** 400, SYMBOLS, **WHERE)
+    for bad in (True, None, [1, 2], float("inf"), float("nan")):
+        with pytest.raises(ModelError, match="must be an expression written as text or "
+                                             "a number|must be a finite number"):
+            parse_expression(bad, SYMBOLS, **WHERE)
 
 
 @pytest.mark.parametrize("text, direction, value", [

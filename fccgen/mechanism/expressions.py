@@ -220,8 +220,13 @@ def _parse(text, symbols, source, line, item, mode_rule: str):
     def fail(rule: str) -> ModelError:
         return ModelError(source, line, item, rule, text)
 
-    if not isinstance(text, str):
-        raise ModelError(source, line, item, f"must be {mode_rule} written as text", text)
+    if isinstance(text, bool) or not isinstance(text, (str, int, float)):
+        raise ModelError(source, line, item, f"must be {mode_rule} written as text or "
+                         f"a number", text)
+    if not isinstance(text, str):           # a YAML number: the same as its text
+        if isinstance(text, float) and not math.isfinite(text):
+            raise ModelError(source, line, item, "must be a finite number", text)
+        text = repr(text)
     reserved = RESERVED & set(symbols)
     if reserved:
         raise ValueError(f"symbol table uses reserved names {sorted(reserved)}")
@@ -245,6 +250,7 @@ def parse_expression(text: str, symbols: Mapping[str, sympy.Symbol], *, source: 
                      line: int | None, item: str) -> sympy.Expr:
     """The SymPy expression of ``text`` over ``symbols`` (name -> Symbol; dotted names
     such as ``"A.angle"`` are single entries; ``t`` is one too when time is allowed).
+    A number (YAML ``0`` rather than ``"0"``) is read as its text.
 
     Raises ModelError(source, line, item, rule, text) for anything outside the grammar
     of the module docstring."""
