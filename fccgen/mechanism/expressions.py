@@ -121,9 +121,12 @@ class _Walker:
         op = BINARY.get(type(node.op))
         if op is None:
             raise self.fail(OPERATOR_RULE)
-        if isinstance(node.op, ast.Div) and b == 0:
+        if isinstance(node.op, ast.Div) and b.is_zero:
             raise self.fail("divides by zero")
-        return self.finite(op(a, b))
+        try:
+            return self.finite(op(a, b))
+        except (ZeroDivisionError, OverflowError):       # mpmath, on Float operands
+            raise self.fail("divides by zero or overflows") from None
 
     def power(self, base: sympy.Expr, exp: sympy.Expr) -> sympy.Expr:
         """base ** exp; powers of two numbers are computed in floating point unless the
@@ -131,7 +134,7 @@ class _Walker:
         if not (base.is_Number and exp.is_Number):
             return self.finite(base ** exp)
         if exp.is_Integer and abs(int(exp)) <= MAX_EXACT_EXPONENT and base.is_Rational:
-            if base == 0 and exp < 0:
+            if base.is_zero and exp < 0:
                 raise self.fail("divides by zero (0 to a negative power)")
             return self.finite(base ** exp)
         try:
@@ -196,7 +199,11 @@ class _Walker:
         args = [self.convert(a, depth + 1) for a in node.args]
         if name in ("sqrt", "log") and args[0].is_Number and args[0] < 0:
             raise self.fail(f"{name}() of a negative number is not real")
-        return self.finite(fun(*args))
+        try:
+            return self.finite(fun(*args))
+        except (ValueError, TypeError, ZeroDivisionError, OverflowError) as exc:
+            # e.g. max() of a value SymPy knows to be complex: "is not comparable"
+            raise self.fail(f"{name}() cannot take these arguments ({exc})") from None
 
     def finite(self, expr: sympy.Expr) -> sympy.Expr:
         """``expr`` if it holds no infinity, NaN or imaginary unit, and, when it is a
