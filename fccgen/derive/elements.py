@@ -177,6 +177,62 @@ def spring(s: ClassSymbols) -> Outputs:
             "force_jacobian_v": [wi * ds for wi in w for ds in d_scale_v]}
 
 
+def torsion_spring(s: ClassSymbols) -> Outputs:
+    """Torsion spring-damper about the shared unit vector u of bodies A and B.
+
+    p_A = r_ij,A - lA u and p_B = r_ij,B - lB u (lA = l_A beta_A: perpendicular to u on
+    the constraint manifold); D = u.(p_A x p_B) and P = p_A.p_B, so that the angle from
+    p_A to p_B is atan2(D, P). Turned back by the free position (cos0, sin0):
+    S = cos0 D - sin0 P, C = cos0 P + sin0 D and phi = theta - theta0 = atan2(S, C).
+    V = k phi^2 / 2 and f = -(k phi + c phi') g, with N = S^2 + C^2 and
+
+        g = dphi/dq = (C/N) dS - (S/N) dC,    phi' = (C S' - S C')/N,
+        H = d2phi/dq2 = (C/N) d2S - (S/N) d2C + b1 (dS dC^T + dC dS^T)
+                        - b2 (dS dS^T - dC dC^T),  b1 = (S^2 - C^2)/N^2, b2 = 2 S C/N^2,
+        df/dq = -g (k g + c H q')^T - (k phi + c phi') H,   df/dq' = -c g g^T,
+
+    where H q' takes dS' = d2S q' in place of d2S (and likewise for C). S' and C' are
+    written by the product rule on the vectors, which keeps every output a few
+    scalars of S, C and small polynomials."""
+    ai, aj, bi, bj, u = (s.triple(n) for n in ("A.ri", "A.rj", "B.ri", "B.rj", "u"))
+    k, c, n = s.scalar("k"), s.scalar("c"), len(s.q)
+    cos0, sin0 = s.scalar("cos0"), s.scalar("sin0")
+    pa = aj.pos - ai.pos - s.scalar("lA") * u.pos
+    pb = bj.pos - bi.pos - s.scalar("lB") * u.pos
+    pa_dot = aj.vel - ai.vel - s.scalar("lA") * u.vel
+    pb_dot = bj.vel - bi.vel - s.scalar("lB") * u.vel
+    big_d, big_p = dot(u.pos, cross(pa, pb)), dot(pa, pb)
+    d_dot = (dot(u.vel, cross(pa, pb)) + dot(u.pos, cross(pa_dot, pb))
+             + dot(u.pos, cross(pa, pb_dot)))
+    p_dot = dot(pa_dot, pb) + dot(pa, pb_dot)
+    big_s, big_c = cos0 * big_d - sin0 * big_p, cos0 * big_p + sin0 * big_d
+    s_dot, c_dot = cos0 * d_dot - sin0 * p_dot, cos0 * p_dot + sin0 * d_dot
+    d_s = [sympy.diff(big_s, x) for x in s.q]
+    d_c = [sympy.diff(big_c, x) for x in s.q]
+    h_s = [[sympy.diff(d_s[i], s.q[j]) for j in range(n)] for i in range(n)]
+    h_c = [[sympy.diff(d_c[i], s.q[j]) for j in range(n)] for i in range(n)]
+    d_s_dot = [sympy.diff(s_dot, x) for x in s.q]       # = d2S q'
+    d_c_dot = [sympy.diff(c_dot, x) for x in s.q]
+    norm = big_s ** 2 + big_c ** 2
+    w_s, w_c = big_c / norm, -big_s / norm
+    b1, b2 = (big_s ** 2 - big_c ** 2) / norm ** 2, 2 * big_s * big_c / norm ** 2
+    phi = sympy.atan2(big_s, big_c)
+    g = [w_s * x + w_c * y for x, y in zip(d_s, d_c)]
+    torque = k * phi + c * (w_s * s_dot + w_c * c_dot)
+
+    def hess(i, j):
+        return (w_s * h_s[i][j] + w_c * h_c[i][j] + b1 * (d_s[i] * d_c[j] + d_c[i] * d_s[j])
+                - b2 * (d_s[i] * d_s[j] - d_c[i] * d_c[j]))
+
+    h_v = [w_s * d_s_dot[j] + w_c * d_c_dot[j] + b1 * (d_s[j] * c_dot + d_c[j] * s_dot)
+           - b2 * (d_s[j] * s_dot - d_c[j] * c_dot) for j in range(n)]
+    return {"applied_forces": [-torque * gi for gi in g],
+            "energy": [sympy.S.Zero, k * phi ** 2 / 2],
+            "force_jacobian_q": [-g[i] * (k * g[j] + c * h_v[j]) - torque * hess(i, j)
+                                 for i in range(n) for j in range(n)],
+            "force_jacobian_v": [-c * gi * gj for gi in g for gj in g]}
+
+
 # -- force Jacobians ------------------------------------------------------------------
 
 def _jacobian(exprs: list[sympy.Expr], wrt: tuple[sympy.Symbol, ...]) -> list[sympy.Expr]:
@@ -302,5 +358,6 @@ BUILDERS: dict[str, Callable[[ClassSymbols], Outputs]] = {
     "body": with_force_jacobians(body), "unit_vector": unit_vector, "distance": distance,
     "point_on_line": point_on_line, "force": with_force_jacobians(force),
     "torque": with_force_jacobians(torque), "spring": with_force_jacobians(spring),
+    "torsion_spring": torsion_spring,
 }
 BUILDERS.update(MECHANISM_BUILDERS)

@@ -9,7 +9,7 @@ from ..run_settings import RunSettingError, schedule
 from .fields import Reader, child, listing
 from .types import (Angle, AngularVelocity, Body, BodyPoint, Constraint, Distance, Force,
                     Initial, Load, Point, PointOnLine, PointOnPlane, PointRef,
-                    SimulateDefaults, Spring, Torque, Where)
+                    SimulateDefaults, Spring, Torque, TorsionSpring, Where)
 from .yamlnodes import YMap, YNode
 
 # Keys of each item type: (required, optional).
@@ -24,6 +24,7 @@ LOAD_KEYS = {
     "force": (("type", "body", "value"), ("at",)),
     "torque": (("type", "body", "value"), ()),
     "spring": (("type", "ends", "stiffness"), ("length", "damping")),
+    "torsion_spring": (("type", "bodies", "axis", "stiffness"), ("angle", "damping")),
 }
 BODY_POINT_KEYS = (("body", "at"), ())
 INITIAL_KEYS = ((), ("points", "bodies"))
@@ -139,6 +140,8 @@ class ItemReader(Reader):
             if "at" in e:
                 at = tuple(float(x) for x in self.vec3(e["at"], child(item, "at")))
             return Force(body, value, at, where)
+        if kind == "torsion_spring":
+            return self.torsion_spring(e, item, where)
         ends_item = child(item, "ends")
         ends = self.ref_list(self.sequence(e["ends"], ends_item, 2), ends_item)
         stiffness = self.nonnegative(e["stiffness"], child(item, "stiffness"))
@@ -147,6 +150,31 @@ class ItemReader(Reader):
         damping = (self.nonnegative(e["damping"], child(item, "damping"))
                    if "damping" in e else 0.0)
         return Spring(ends, stiffness, length, damping, where)
+
+    def torsion_spring(self, e: dict, item: str, where: Where) -> TorsionSpring:
+        """``{type: torsion_spring, bodies: [A, B], axis: u, stiffness: k, angle: theta0,
+        damping: c}``: the axis must be the vector of both bodies (the hinge axis a
+        revolute joint shares)."""
+        bodies_item = child(item, "bodies")
+        seq = self.sequence(e["bodies"], bodies_item, 2)
+        a, b = (self.body_name(n, child(bodies_item, k)) for k, n in enumerate(seq.items))
+        if a == b:
+            raise self.bad(seq, bodies_item, "must name two different bodies")
+        axis = self.text(e["axis"], child(item, "axis"))
+        for name in (a, b):
+            if self.bodies[name].u != axis:
+                raise self.fail(e["axis"].line, child(item, "axis"),
+                                f"must be the vector of both bodies (the hinge axis they "
+                                f"share); body {name} has vector "
+                                f"{self.bodies[name].u}", axis)
+        stiffness = self.nonnegative(e["stiffness"], child(item, "stiffness"))
+        angle = self.number(e["angle"], child(item, "angle")) if "angle" in e else 0.0
+        if not abs(angle) < math.pi:      # the spring starts within half a turn
+            raise self.bad(e["angle"], child(item, "angle"),
+                           "must be a free angle in radians within (-pi, pi)")
+        damping = (self.nonnegative(e["damping"], child(item, "damping"))
+                   if "damping" in e else 0.0)
+        return TorsionSpring((a, b), axis, stiffness, angle, damping, where)
 
     # -- initial state ---------------------------------------------------------------------
     def initial(self, node: YNode) -> Initial:

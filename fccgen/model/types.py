@@ -138,7 +138,21 @@ class Spring:
     type: str = "spring"
 
 
-Load = Union[Force, Torque, Spring]
+@dataclass
+class TorsionSpring:
+    """A torsion spring-damper about the hinge axis ``axis`` shared by two bodies:
+    torque k (theta - angle) + c theta' on ``bodies[1]`` relative to ``bodies[0]``,
+    theta measured from the initial configuration (docs/elements.md)."""
+    bodies: tuple[str, str]
+    axis: str                 # the vector of both bodies
+    stiffness: float
+    angle: float              # free angle, radians from the initial configuration
+    damping: float
+    where: Where
+    type: str = "torsion_spring"
+
+
+Load = Union[Force, Torque, Spring, TorsionSpring]
 
 
 @dataclass

@@ -289,6 +289,78 @@ class SpringKernels(ElementKernels):
         return -self.x.s["c"] * np.outer(Dn, Dn)
 
 
+class TorsionSpringKernels(ElementKernels):
+    """A torsion spring-damper about the shared unit vector u of bodies A and B
+    (docs/elements.md), in the variables x = (p_A, p_B, u), which are linear in q:
+    p_A = r_ij,A - lA u, p_B = r_ij,B - lB u, so dx/dq = L is constant.
+
+    D = u.(p_A x p_B) (a triple product) and P = p_A.p_B (a dot product) have simple
+    gradients and Hessians in x; (C, S) = (P, D) turned by the free position,
+    C = cos0 P + sin0 D, S = cos0 D - sin0 P, and phi = atan2(S, C)."""
+
+    @cached_property
+    def x_map(self) -> np.ndarray:
+        """L = dx/dq (9 x n_q)."""
+        s = self.x.s
+        blocks = [{"A.ri": -EYE, "A.rj": EYE, "u": -s["lA"] * EYE},
+                  {"B.ri": -EYE, "B.rj": EYE, "u": -s["lB"] * EYE}, {"u": EYE}]
+        return np.vstack([self.x.columns(b, 3) for b in blocks])
+
+    @cached_property
+    def angle(self):
+        """(phi, dphi/dx (9), d2phi/dx2 (9 x 9), x' (9))."""
+        s, pos, vel = self.x.s, self.x.pos, self.x.vel
+        u = pos["u"]
+        pa = pos["A.rj"] - pos["A.ri"] - s["lA"] * u
+        pb = pos["B.rj"] - pos["B.ri"] - s["lB"] * u
+        x_dot = np.concatenate([vel["A.rj"] - vel["A.ri"] - s["lA"] * vel["u"],
+                                vel["B.rj"] - vel["B.ri"] - s["lB"] * vel["u"], vel["u"]])
+        Z = np.zeros((3, 3))
+        # gradients and Hessians in x = (p_A, p_B, u), blocks in that order
+        D = u @ cross(pa, pb)
+        dD = np.concatenate([cross(pb, u), cross(u, pa), cross(pa, pb)])
+        hD = np.block([[Z, -skew(u), skew(pb)], [skew(u), Z, -skew(pa)],
+                       [-skew(pb), skew(pa), Z]])
+        P = pa @ pb
+        dP = np.concatenate([pb, pa, np.zeros(3)])
+        hP = np.block([[Z, EYE, Z], [EYE, Z, Z], [Z, Z, Z]])
+        c0, s0 = s["cos0"], s["sin0"]
+        S, dS, hS = c0 * D - s0 * P, c0 * dD - s0 * dP, c0 * hD - s0 * hP
+        C, dC, hC = c0 * P + s0 * D, c0 * dP + s0 * dD, c0 * hP + s0 * hD
+        N = S * S + C * C
+        g = (C * dS - S * dC) / N
+        H = ((np.outer(dS, dC) - np.outer(dC, dS) + C * hS - S * hC) / N
+             - np.outer(g, 2.0 * (S * dS + C * dC)) / N)
+        return float(np.arctan2(S, C)), g, H, x_dot
+
+    @cached_property
+    def _torque(self):
+        """(k phi + c phi', dphi/dq)."""
+        phi, g, _, x_dot = self.angle
+        s = self.x.s
+        return s["k"] * phi + s["c"] * (g @ x_dot), self.x_map.T @ g
+
+    def applied_forces(self):
+        """f = -(k phi + c phi') dphi/dq."""
+        torque, gq = self._torque
+        return -torque * gq
+
+    def energy(self):
+        return [0.0, 0.5 * self.x.s["k"] * self.angle[0] ** 2]
+
+    def force_jacobian_q(self):
+        """df/dq = -L^T g (k g + c H x')^T L - (k phi + c phi') L^T H L."""
+        _, g, H, x_dot = self.angle
+        s, L = self.x.s, self.x_map
+        torque, gq = self._torque
+        return -np.outer(gq, L.T @ (s["k"] * g + s["c"] * H @ x_dot)) - torque * L.T @ H @ L
+
+    def force_jacobian_v(self):
+        """df/dq' = -c (dphi/dq)(dphi/dq)^T."""
+        gq = self._torque[1]
+        return -self.x.s["c"] * np.outer(gq, gq)
+
+
 def _dhat_t_jacobian(names, c: float, w) -> dict[tuple[str, str], np.ndarray]:
     """d(Dhat^T w)/dq at fixed w for the body point with c = b3 / (alpha l) of the
     triples names = (ri, rj, u): Dhat^T w is (1 - b1) w + c w x u on ri,
@@ -435,6 +507,7 @@ KIND_KERNELS: dict[str, type[ElementKernels]] = {
     "body": BodyKernels, "unit_vector": UnitVectorKernels, "distance": DistanceKernels,
     "point_on_line": PointOnLineKernels, "force": ForceKernels, "torque": TorqueKernels,
     "spring": SpringKernels,
+    "torsion_spring": TorsionSpringKernels,
 }
 KIND_KERNELS.update(MECHANISM_KERNELS)
 

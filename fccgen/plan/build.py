@@ -8,7 +8,8 @@ import numpy as np
 
 from ..errors import ModelError
 from ..model.types import (Angle, Attached, BodyPoint, Distance, Force, Model,
-                           PointOnLine, PointOnPlane, PointRef, Spring, Torque, Where)
+                           PointOnLine, PointOnPlane, PointRef, Spring, Torque,
+                           TorsionSpring, Where)
 from .classes import END_FOLDABLE, FOLDABLE, ElementClass
 from .geometry import body_frame_numbers, body_rotation, point_coefficients
 
@@ -250,6 +251,8 @@ def make_plan(model: Model) -> Plan:
             el = b.with_ends("spring", label, ld.where,
                              {"k": float(ld.stiffness), "L0": float(length),
                               "c": float(ld.damping)}, ld.ends, ("A", "B"))
+        elif isinstance(ld, TorsionSpring):
+            el = _torsion_spring(b, ld, label)
         else:  # pragma: no cover
             raise TypeError(type(ld))
         _require_moving(el, model, f"this {ld.type} load")
@@ -268,6 +271,29 @@ def make_plan(model: Model) -> Plan:
     v_target = _initial_speeds(model, b)
     return Plan(model, b.triples, b.index, elements, classes, class_of, bodies,
                 q0.astype(float), v_target, notes)
+
+
+def _torsion_spring(b: _Builder, ld: TorsionSpring, label: str) -> Element:
+    """The torsion spring element (docs/elements.md). With p = r_ij - (l beta) u, the
+    reference direction of a body perpendicular to the axis u, the angle of body B
+    relative to body A is atan2(u.(p_A x p_B), p_A.p_B); it is theta_init at the
+    initial positions, and the free position is theta_init + angle, whose cosine and
+    sine are the parameters cos0, sin0."""
+    m = b.model
+    body_a, body_b = (m.bodies[n] for n in ld.bodies)
+    u = np.asarray(m.vectors[ld.axis].along, float)
+    ref, lam = [], []
+    for body in (body_a, body_b):
+        rij = np.asarray(m.points[body.j].at, float) - np.asarray(m.points[body.i].at, float)
+        lam.append(float(rij @ u))                   # l beta
+        ref.append(rij - lam[-1] * u)
+    theta_init = float(np.arctan2(u @ np.cross(ref[0], ref[1]), ref[0] @ ref[1]))
+    free = theta_init + ld.angle
+    scalars = {"k": float(ld.stiffness), "c": float(ld.damping), "lA": lam[0],
+               "lB": lam[1], "cos0": float(np.cos(free)), "sin0": float(np.sin(free))}
+    triples = [("A.ri", body_a.i), ("A.rj", body_a.j), ("B.ri", body_b.i),
+               ("B.rj", body_b.j), ("u", ld.axis)]
+    return b.element("torsion_spring", label, ld.where, scalars, triples)
 
 
 def _initial_speeds(model: Model, b: _Builder) -> np.ndarray:

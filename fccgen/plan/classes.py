@@ -29,6 +29,14 @@ from functools import cached_property
 BODY_POINT_SCALARS = ("l", "alpha", "beta", "b1", "b2", "b3")
 BODY_TRIPLES = ("ri", "rj", "u")
 
+# A torsion spring between bodies A and B about their shared unit vector u
+# (docs/elements.md): the points i, j of both bodies and u. Scalars: stiffness k,
+# damping c, lA = l_A beta_A and lB = l_B beta_B (the reference directions
+# p = r_ij - (l beta) u, perpendicular to u), and cos/sin of the free angle
+# measured from p_A to p_B (cos0, sin0).
+TORSION_SPRING_TRIPLES = ("A.ri", "A.rj", "B.ri", "B.rj", "u")
+TORSION_SPRING_SCALARS = ("k", "c", "lA", "lB", "cos0", "sin0")
+
 # Per kind: own scalars, names of point ends, own triples.
 KIND_SCALARS = {
     "body": ("l", "alpha", "beta", "a1", "a2", "a3", "m",
@@ -39,16 +47,19 @@ KIND_SCALARS = {
     "force": ("l", "alpha", "beta", "b1", "b2", "b3", "Fx", "Fy", "Fz"),
     "torque": ("l", "alpha", "beta", "Tx", "Ty", "Tz"),
     "spring": ("k", "L0", "c"),
+    "torsion_spring": TORSION_SPRING_SCALARS,
 }
 KIND_ENDS = {
     "body": (), "unit_vector": (), "force": (), "torque": (),
     "distance": ("A", "B"),
     "point_on_line": ("K", "A", "B"),
     "spring": ("A", "B"),
+    "torsion_spring": (),
 }
 KIND_TRIPLES = {
     "body": BODY_TRIPLES, "force": BODY_TRIPLES, "torque": BODY_TRIPLES,
     "unit_vector": ("u",), "distance": (), "point_on_line": (), "spring": (),
+    "torsion_spring": TORSION_SPRING_TRIPLES,
 }
 # Scalars that may be folded to zero when they are exactly zero (structural zeros).
 FOLDABLE = {
@@ -60,6 +71,7 @@ FOLDABLE = {
     "force": {"beta", "b1", "b2", "b3", "Fx", "Fy", "Fz"},
     "torque": {"beta", "Tx", "Ty", "Tz"},
     "spring": {"L0", "c"},
+    "torsion_spring": {"c", "lA", "lB", "cos0", "sin0"},
 }
 END_FOLDABLE = {"beta", "b1", "b2", "b3"}
 

@@ -26,7 +26,8 @@ class KernelSpec:
         return self.size(cls) > 0
 
 
-_LOADED = ("body", "force", "torque", "spring")    # kinds with applied forces
+_LOADED = ("body", "force", "torque", "spring", "torsion_spring")   # applied forces
+_DAMPED = ("spring", "torsion_spring")              # forces that read speeds
 
 
 def _body_only(n: int):
@@ -46,7 +47,7 @@ KERNELS: tuple[KernelSpec, ...] = (
     KernelSpec("constraint_jacobian", False, lambda c: c.n_g * c.n_q, "B = dg/dq"),
     KernelSpec("constraint_bias", True, lambda c: c.n_g, "(dB/dt) q' = q'^T (d2g/dq2) q'"),
     KernelSpec("energy", True,
-               lambda c: 2 if c.kind in ("body", "force", "spring") else 0,
+               lambda c: 2 if c.kind in ("body", "force", "spring", "torsion_spring") else 0,
                "[kinetic, potential]"),
     KernelSpec("body_outputs", True, _body_only(6), "[r_G, w] (global frame)"),
     # f of a spring-damper depends on q' only linearly, so df/dq' needs no speeds;
@@ -55,7 +56,7 @@ KERNELS: tuple[KernelSpec, ...] = (
                lambda c: c.n_q * c.n_q if c.kind in _LOADED else 0,
                "df/dq of the applied forces (tangent stiffness K = -df/dq)"),
     KernelSpec("force_jacobian_v", False,
-               lambda c: c.n_q * c.n_q if c.kind == "spring" else 0,
+               lambda c: c.n_q * c.n_q if c.kind in _DAMPED else 0,
                "df/dq' of the applied forces (tangent damping C = -df/dq')"),
 )
 
