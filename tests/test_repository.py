@@ -38,3 +38,14 @@ def test_generated_output_is_not_tracked():
     assert tracked == ["generated/README.md"]
     probe = subprocess.run(["git", "check-ignore", "-q", "generated/x/x.c"], cwd=ROOT)
     assert probe.returncode == 0, "generated/ must be ignored by git"
+
+
+def test_every_package_is_installed():
+    """A package folder missing from pyproject's list works from the source tree and
+    is absent from the installed copy that CI tests."""
+    import tomllib
+    listed = set(tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
+                 ["packages"])
+    found = {".".join(p.parent.relative_to(ROOT).parts)
+             for p in (ROOT / "fccgen").rglob("__init__.py")}
+    assert found <= listed, sorted(found - listed)
