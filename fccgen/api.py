@@ -82,3 +82,23 @@ def simulate(path, *, t_end=None, dt=None, method=None, output_dt=None, project=
     if out is not None:
         result.save(out)
     return result, init
+
+
+def plot(result, columns=None, out=None, *, title=None):
+    """Plot result columns (a Result or a .csv/.npz file) against time and write the
+    figure to ``out`` (.png, .svg, .pdf; default: the result file's name with .png).
+    Returns the figure's path."""
+    from pathlib import Path
+
+    from .results import Result
+    from .viz.plot import check_figure_path, save_plot
+    if out is None:
+        if isinstance(result, Result):
+            raise ValueError("plot: give out=FIG.png for a result held in memory")
+        out = Path(result).with_suffix(".png")
+    out = check_figure_path(out)
+    if not isinstance(result, Result):
+        title = title or Path(result).name
+        result = Result.load(result)
+    return save_plot(result, columns, out, title=title)
+

@@ -4,6 +4,7 @@
     fccgen simulate MODEL.yaml ...    simulate and write results
     fccgen bench MODEL.yaml           compiled vs numeric timings and differences
     fccgen check MODEL.yaml           validate and report structure
+    fccgen plot RESULT --columns ...  time histories of result columns
 """
 from __future__ import annotations
 
@@ -18,7 +19,7 @@ from .errors import (CacheRepairWarning, FccgenError, ModelError, PartialResultW
 from .methods import describe as describe_methods
 from .methods import names as method_names
 
-COMMANDS = ("simulate", "bench", "check", "generate")
+COMMANDS = ("simulate", "bench", "check", "generate", "plot")
 EXIT_INTERRUPTED = 130      # 128 + SIGINT, as shells report it
 
 
@@ -147,7 +148,19 @@ def _parser() -> argparse.ArgumentParser:
 
     c = sub.add_parser("check", help="validate and report coordinates, constraints, DOF")
     common(c)
+    _viz_sweep_parsers(sub, common)
     return p
+
+
+def _viz_sweep_parsers(sub, common) -> None:
+    """plot, animate (fccgen.viz) and sweep (fccgen.sweep): one call of the API each."""
+    pl = sub.add_parser("plot", help="plot time histories of result columns")
+    pl.add_argument("result", help="a result file written by simulate (.csv or .npz)")
+    pl.add_argument("--columns", help="comma-separated column names, e.g. P.x,P.y,energy "
+                    "(default: the first moving point's position)")
+    pl.add_argument("--out", help="figure file, .png, .svg or .pdf (default: the "
+                    "result's name with .png)")
+    pl.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
 
 
 def _method_options(items: list[str]) -> dict[str, float]:
@@ -311,6 +324,9 @@ def _run(args, progress) -> int:
         report = bench_model(args.model, args.build_dir, repeats=args.repeats,
                              progress=progress)
         print(report.text())
+        return 0
+    if args.command == "plot":
+        print(f"figure: {api.plot(args.result, args.columns, args.out)}")
         return 0
     if args.command == "check":
         from .check import check_model
