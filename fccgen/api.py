@@ -102,3 +102,23 @@ def plot(result, columns=None, out=None, *, title=None):
         result = Result.load(result)
     return save_plot(result, columns, out, title=title)
 
+
+def animate(path, out, *, result=None, t_end=None, max_frames=None,
+            build_dir=DEFAULT_BUILD_DIR, progress: Progress = None):
+    """Write a self-contained page (``out``, .html, plotly.js inlined) that plays the
+    model's motion in 3-D: ``result`` (a Result or a .csv/.npz file of this model), or
+    else a run of the model's default simulation (its simulate settings; ``t_end``
+    overrides the end time). At most ``max_frames`` frames (default 300), rows spread
+    evenly. Returns ``(page path, number of frames, the result shown)``."""
+    from .model import load_model
+    from .results import Result
+    from .viz.animate import DEFAULT_MAX_FRAMES, check_page_path, write_animation
+    out = check_page_path(out)
+    model = load_model(path)
+    if result is None:
+        result, _ = simulate(path, t_end=t_end, build_dir=build_dir, progress=progress)
+    elif not isinstance(result, Result):
+        result = Result.load(result)
+    page, n_frames = write_animation(model, result, out, max_frames or DEFAULT_MAX_FRAMES)
+    return page, n_frames, result
+

@@ -5,6 +5,7 @@
     fccgen bench MODEL.yaml           compiled vs numeric timings and differences
     fccgen check MODEL.yaml           validate and report structure
     fccgen plot RESULT --columns ...  time histories of result columns
+    fccgen animate MODEL.yaml --out F.html   the motion in 3-D, one offline page
 """
 from __future__ import annotations
 
@@ -19,7 +20,7 @@ from .errors import (CacheRepairWarning, FccgenError, ModelError, PartialResultW
 from .methods import describe as describe_methods
 from .methods import names as method_names
 
-COMMANDS = ("simulate", "bench", "check", "generate", "plot")
+COMMANDS = ("simulate", "bench", "check", "generate", "plot", "animate")
 EXIT_INTERRUPTED = 130      # 128 + SIGINT, as shells report it
 
 
@@ -161,6 +162,18 @@ def _viz_sweep_parsers(sub, common) -> None:
     pl.add_argument("--out", help="figure file, .png, .svg or .pdf (default: the "
                     "result's name with .png)")
     pl.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
+    an = sub.add_parser("animate", help="write an offline web page playing the motion "
+                        "in 3-D (bodies, mass centres, points; play button, time slider)")
+    an.add_argument("model", help="model file (YAML)")
+    an.add_argument("--out", required=True, help="the page to write (.html)")
+    an.add_argument("--result", help="a result of this model (.csv or .npz; default: "
+                    "run the model's own simulate settings first)")
+    an.add_argument("--t-end", type=float, help="without --result: end time of the run")
+    an.add_argument("--frames", type=int, metavar="N", help="at most N frames, rows "
+                    "spread evenly (default 300)")
+    an.add_argument("--build-dir", default="generated",
+                    help="where compiled modules go (default: ./generated)")
+    an.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
 
 
 def _method_options(items: list[str]) -> dict[str, float]:
@@ -327,6 +340,12 @@ def _run(args, progress) -> int:
         return 0
     if args.command == "plot":
         print(f"figure: {api.plot(args.result, args.columns, args.out)}")
+        return 0
+    if args.command == "animate":
+        page, n_frames, result = api.animate(
+            args.model, args.out, result=args.result, t_end=args.t_end,
+            max_frames=args.frames, build_dir=args.build_dir, progress=progress)
+        print(f"animation: {page} ({n_frames} frames of {len(result.t)} rows)")
         return 0
     if args.command == "check":
         from .check import check_model
