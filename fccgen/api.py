@@ -122,3 +122,21 @@ def animate(path, out, *, result=None, t_end=None, max_frames=None,
     page, n_frames = write_animation(model, result, out, max_frames or DEFAULT_MAX_FRAMES)
     return page, n_frames, result
 
+
+def sweep(path, sets, out=None, *, scheduler=None, method=None, workers=None,
+          build_dir=DEFAULT_BUILD_DIR, progress: Progress = None):
+    """Run the model once per combination of ``sets`` ({key: [values]}, or
+    ``["KEY=V1,V2", ...]``) on Dask, compiled once; write the table to ``out`` (.csv)
+    if given. Keys: :mod:`fccgen.runtime.params`; figures: :mod:`fccgen.sweep`.
+    Returns a :class:`fccgen.sweep.SweepTable`."""
+    from .sweep import check_table_path, parse_sets
+    from .sweep import sweep as run_sweep
+    out = None if out is None else check_table_path(out)
+    if not isinstance(sets, dict):
+        sets = parse_sets(sets)
+    solver = load(path, build_dir, progress=progress)
+    table = run_sweep(solver, sets, scheduler=scheduler, method=method, workers=workers,
+                      progress=progress)
+    if out is not None:
+        table.save(out)
+    return table

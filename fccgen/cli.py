@@ -6,6 +6,7 @@
     fccgen check MODEL.yaml           validate and report structure
     fccgen plot RESULT --columns ...  time histories of result columns
     fccgen animate MODEL.yaml --out F.html   the motion in 3-D, one offline page
+    fccgen sweep MODEL.yaml --set K=V1,V2 --out T.csv   many runs on Dask
 """
 from __future__ import annotations
 
@@ -20,7 +21,8 @@ from .errors import (CacheRepairWarning, FccgenError, ModelError, PartialResultW
 from .methods import describe as describe_methods
 from .methods import names as method_names
 
-COMMANDS = ("simulate", "bench", "check", "generate", "plot", "animate")
+COMMANDS = ("simulate", "bench", "check", "generate", "plot", "animate",
+            "sweep")
 EXIT_INTERRUPTED = 130      # 128 + SIGINT, as shells report it
 
 
@@ -174,6 +176,17 @@ def _viz_sweep_parsers(sub, common) -> None:
     an.add_argument("--build-dir", default="generated",
                     help="where compiled modules go (default: ./generated)")
     an.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
+    sw = sub.add_parser("sweep", help="many runs of one compiled model with different "
+                        "numbers, on Dask; one row of summary figures per run")
+    common(sw)
+    sw.add_argument("--set", action="append", default=[], metavar="KEY=V1,V2,...",
+                    required=True, help="numbers to try (repeatable: every combination "
+                    "runs), e.g. bodies.arm.mass=1,2 or simulate.dt=1e-3,5e-4")
+    sw.add_argument("--out", required=True, help="the table to write (.csv)")
+    sw.add_argument("--scheduler", metavar="ADDRESS", help="a running Dask scheduler, "
+                    "e.g. tcp://host:8786 (default: a local cluster)")
+    sw.add_argument("--method", help="integration method (default: the model's)")
+    sw.add_argument("--workers", type=int, help="threads of the local cluster")
 
 
 def _method_options(items: list[str]) -> dict[str, float]:
@@ -346,6 +359,13 @@ def _run(args, progress) -> int:
             args.model, args.out, result=args.result, t_end=args.t_end,
             max_frames=args.frames, build_dir=args.build_dir, progress=progress)
         print(f"animation: {page} ({n_frames} frames of {len(result.t)} rows)")
+        return 0
+    if args.command == "sweep":
+        table = api.sweep(args.model, args.set, args.out, scheduler=args.scheduler,
+                          method=args.method, workers=args.workers,
+                          build_dir=args.build_dir, progress=progress)
+        print(f"sweep: {len(table.rows)} runs ({table.failed} failed) on {table.where} "
+              f"in {table.wall_time:.3g} s\ntable: {args.out}")
         return 0
     if args.command == "check":
         from .check import check_model
