@@ -149,6 +149,10 @@ def sweep(solver, sets: dict[str, list[float]], *, scheduler=None, method=None,
     runs = combinations(sets)
     for params in runs:                       # bad keys and values stop it here
         solver.with_parameters(params)
+    if method is not None:
+        from .methods import get as method_named
+        from .runtime.solver import METHODS
+        method_named(method, METHODS)
     if workers is not None and workers < 1:
         raise ValueError(f"--workers must be at least 1 (got {workers})")
     workers = workers or min(os.cpu_count() or 1, 4)

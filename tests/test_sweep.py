@@ -98,6 +98,8 @@ def test_workers_in_other_processes_unpickle_the_solver(build_dir):
     (["--set", "bodies.rod2.mas=1,2"], ["bodies.rod2.mas", "is not a number fccgen can set"]),
     (["--set", "bodies.rod2.mass=1,-2"], ["double_pendulum.yaml:", "must be a positive"]),
     (["--set", "bodies.rod2.mass=1", "--out", "table.txt"], ["table.txt", ".csv"]),
+    (["--set", "bodies.rod2.mass=1", "--method", "euler"], ["unknown method 'euler'"]),
+    (["--set", "bodies.rod2.mass=1", "--workers", "0"], ["--workers must be at least 1"]),
 ])
 def test_bad_sweeps_stop_before_running(build_dir, tmp_path, capsys, args, words):
     if "--out" not in args:
