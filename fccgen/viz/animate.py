@@ -94,9 +94,13 @@ def _moving_traces(model, result, tracks, k, go):
     return traces
 
 
-def _scene(tracks) -> dict:
-    """Axis ranges covering the whole motion, equal scales on the three axes."""
-    every = np.concatenate(list(tracks.values()))
+def _scene(tracks, result) -> dict:
+    """Axis ranges covering the whole motion (points and mass centres), equal scales
+    on the three axes; a planar motion (one coordinate constant to 1e-6 of the
+    largest extent) is seen along its normal, without perspective."""
+    centres = [np.column_stack([result.columns[f"{n[:-3]}.c{c}"] for c in "xyz"])
+               for n in result.columns if n.endswith(".cx")]
+    every = np.concatenate([*tracks.values(), *centres])
     lo, hi = every.min(axis=0), every.max(axis=0)
     pad = 0.05 * max(float((hi - lo).max()), 1e-9)
     lo, hi = lo - pad, hi + pad
@@ -107,7 +111,7 @@ def _scene(tracks) -> dict:
     scene = dict(**axes, aspectmode="manual",
                  aspectratio=dict(x=float(ratio[0]), y=float(ratio[1]), z=float(ratio[2])))
     flat = int(np.argmin(span))
-    if span[flat] <= 0.2 * span.max():        # a planar motion: look along its normal
+    if span[flat] - 2 * pad <= 1e-6 * span.max():
         eye, up = [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]
         eye[flat] = 1.0
         up[(flat + 2) % 3] = 1.0
@@ -146,7 +150,7 @@ def animation_figure(model, result, max_frames: int = DEFAULT_MAX_FRAMES):
     fig = go.Figure(data=[*frames[0].data, static], frames=frames)
     fig.update_layout(
         title=f"{model.name}: {len(rows)} frames of {len(result.t)} recorded rows",
-        scene=_scene(tracks), sliders=[slider], margin=dict(l=0, r=0, t=50, b=0),
+        scene=_scene(tracks, result), sliders=[slider], margin=dict(l=0, r=0, t=50, b=0),
         updatemenus=[dict(type="buttons", buttons=buttons, x=0.02, y=0.02,
                           xanchor="left", yanchor="bottom", direction="left")],
         legend=dict(x=0.01, y=0.98))
