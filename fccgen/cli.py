@@ -177,7 +177,13 @@ def _viz_sweep_parsers(sub, common) -> None:
                     help="where compiled modules go (default: ./generated)")
     an.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
     sw = sub.add_parser("sweep", help="many runs of one compiled model with different "
-                        "numbers, on Dask; one row of summary figures per run")
+                        "numbers, on Dask; one row of summary figures per run",
+                        epilog="KEY is an item path of the model file: gravity[k], "
+                        "points.P.at[k], vectors.u.along[k], bodies.B.mass, "
+                        "bodies.B.center[k], bodies.B.inertia[k], constraints[K].length, "
+                        "loads[K].value[k], loads[K].at[k], loads[K].stiffness, "
+                        "loads[K].length, loads[K].damping, initial.points.P[k], "
+                        "simulate.t_end, simulate.dt, simulate.output_dt")
     common(sw)
     sw.add_argument("--set", action="append", default=[], metavar="KEY=V1,V2,...",
                     required=True, help="numbers to try (repeatable: every combination "
