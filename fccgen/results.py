@@ -119,7 +119,8 @@ class Result:
         """Time histories of ``columns`` (names, or one comma-separated string; default:
         the first moving point's position), one panel per quantity, on a new pyplot
         figure, or all on ``ax``. Returns the matplotlib Figure; needs matplotlib."""
-        from .viz.plot import plot_columns
+        from .viz.plot import plot_columns, require_matplotlib
+        require_matplotlib()
         if ax is not None:
             return plot_columns(self, columns, ax=ax)
         import matplotlib.pyplot as plt

@@ -97,3 +97,12 @@ def test_quantity_labels_name_no_unit_of_length():
     assert quantity("arm.wz").startswith("angular velocity")
     assert quantity("mystery") == "value"
     assert not any(" m" in quantity(c) for c in ("P.x", "P.vx", "arm.cx", "energy"))
+
+
+def test_plot_without_matplotlib_says_how_to_install_it(result_file, tmp_path, capsys,
+                                                        monkeypatch):
+    import sys
+    monkeypatch.setitem(sys.modules, "matplotlib", None)      # import fails
+    code, out, err = run(["plot", result_file, "--out", tmp_path / "a.png"], capsys)
+    assert code == 1 and err.startswith("fccgen: error: plotting needs matplotlib")
+    assert "fccgen[plot]" in err and not list(tmp_path.glob("*.png"))

@@ -77,6 +77,16 @@ def default_columns(result) -> list[str]:
     return ["energy"]
 
 
+def require_matplotlib() -> None:
+    """HostError saying how to install matplotlib when it is missing."""
+    try:
+        import matplotlib  # noqa: F401
+    except ImportError:
+        from ..errors import HostError
+        raise HostError("plotting needs matplotlib: pip install 'fccgen[plot]' (or "
+                        "pip install matplotlib)") from None
+
+
 def plot_columns(result, columns=None, ax=None, title: str | None = None, figure=None):
     """Draw the columns against ``t``; returns the matplotlib Figure.
 
@@ -118,6 +128,7 @@ def _panel(ax, result, names, label) -> None:
 def save_plot(result, columns, out, title: str | None = None) -> Path:
     """Plot the columns and write the figure to ``out`` (.png, .svg or .pdf)."""
     out = check_figure_path(out)
+    require_matplotlib()
     fig = plot_columns(result, columns, title=title)
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=120)
