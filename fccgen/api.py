@@ -83,3 +83,61 @@ def simulate(path, *, t_end=None, dt=None, method=None, output_dt=None, project=
     if out is not None:
         result.save(out)
     return result, init
+
+
+def plot(result, columns=None, out=None, *, title=None):
+    """Plot result columns (a Result or a .csv/.npz file) against time and write the
+    figure to ``out`` (.png, .svg, .pdf; default: the result file's name with .png).
+    Returns the figure's path."""
+    from pathlib import Path
+
+    from .results import Result
+    from .viz.plot import check_figure_path, save_plot
+    if out is None:
+        if isinstance(result, Result):
+            raise ValueError("plot: give out=FIG.png for a result held in memory")
+        out = Path(result).with_suffix(".png")
+    out = check_figure_path(out)
+    if not isinstance(result, Result):
+        title = title or Path(result).name
+        result = Result.load(result)
+    return save_plot(result, columns, out, title=title)
+
+
+def animate(path, out, *, result=None, t_end=None, max_frames=None,
+            build_dir=DEFAULT_BUILD_DIR, progress: Progress = None):
+    """Write a self-contained page (``out``, .html, plotly.js inlined) that plays the
+    model's motion in 3-D: ``result`` (a Result or a .csv/.npz file of this model), or
+    else a run of the model's default simulation (its simulate settings; ``t_end``
+    overrides the end time). At most ``max_frames`` frames (default 300), rows spread
+    evenly. Returns ``(page path, number of frames, the result shown)``."""
+    from .model import load_model
+    from .results import Result
+    from .viz.animate import DEFAULT_MAX_FRAMES, check_page_path, write_animation
+    out = check_page_path(out)
+    model = load_model(path)
+    if result is None:
+        result, _ = simulate(path, t_end=t_end, build_dir=build_dir, progress=progress)
+    elif not isinstance(result, Result):
+        result = Result.load(result)
+    page, n_frames = write_animation(model, result, out, max_frames or DEFAULT_MAX_FRAMES)
+    return page, n_frames, result
+
+
+def sweep(path, sets, out=None, *, scheduler=None, method=None, workers=None,
+          build_dir=DEFAULT_BUILD_DIR, progress: Progress = None):
+    """Run the model once per combination of ``sets`` ({key: [values]}, or
+    ``["KEY=V1,V2", ...]``) on Dask, compiled once; write the table to ``out`` (.csv)
+    if given. Keys: :mod:`fccgen.runtime.params`; figures: :mod:`fccgen.sweep`.
+    Returns a :class:`fccgen.sweep.SweepTable`."""
+    from .sweep import check_table_path, parse_sets
+    from .sweep import sweep as run_sweep
+    out = None if out is None else check_table_path(out)
+    if not isinstance(sets, dict):
+        sets = parse_sets(sets)
+    solver = load(path, build_dir, progress=progress)
+    table = run_sweep(solver, sets, scheduler=scheduler, method=method, workers=workers,
+                      progress=progress)
+    if out is not None:
+        table.save(out)
+    return table

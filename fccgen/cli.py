@@ -4,6 +4,9 @@
     fccgen simulate MODEL.yaml ...    simulate and write results
     fccgen bench MODEL.yaml           compiled vs numeric timings and differences
     fccgen check MODEL.yaml           validate and report structure
+    fccgen plot RESULT --columns ...  time histories of result columns
+    fccgen animate MODEL.yaml --out F.html   the motion in 3-D, one offline page
+    fccgen sweep MODEL.yaml --set K=V1,V2 --out T.csv   many runs on Dask
 """
 from __future__ import annotations
 
@@ -18,7 +21,8 @@ from .errors import (CacheRepairWarning, FccgenError, ModelError, PartialResultW
 from .methods import describe as describe_methods
 from .methods import names as method_names
 
-COMMANDS = ("simulate", "bench", "check", "generate")
+COMMANDS = ("simulate", "bench", "check", "generate", "plot", "animate",
+            "sweep")
 EXIT_INTERRUPTED = 130      # 128 + SIGINT, as shells report it
 
 
@@ -147,7 +151,48 @@ def _parser() -> argparse.ArgumentParser:
 
     c = sub.add_parser("check", help="validate and report coordinates, constraints, DOF")
     common(c)
+    _viz_sweep_parsers(sub, common)
     return p
+
+
+def _viz_sweep_parsers(sub, common) -> None:
+    """plot, animate (fccgen.viz) and sweep (fccgen.sweep): one call of the API each."""
+    pl = sub.add_parser("plot", help="plot time histories of result columns")
+    pl.add_argument("result", help="a result file written by simulate (.csv or .npz)")
+    pl.add_argument("--columns", help="comma-separated column names, e.g. P.x,P.y,energy "
+                    "(default: the first moving point's position)")
+    pl.add_argument("--out", help="figure file, .png, .svg or .pdf (default: the "
+                    "result's name with .png)")
+    pl.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
+    an = sub.add_parser("animate", help="write an offline web page playing the motion "
+                        "in 3-D (bodies, mass centres, points; play button, time slider)")
+    an.add_argument("model", help="model file (YAML)")
+    an.add_argument("--out", required=True, help="the page to write (.html)")
+    an.add_argument("--result", help="a result of this model (.csv or .npz; default: "
+                    "run the model's own simulate settings first)")
+    an.add_argument("--t-end", type=float, help="without --result: end time of the run")
+    an.add_argument("--frames", type=int, metavar="N", help="at most N frames, rows "
+                    "spread evenly (default 300)")
+    an.add_argument("--build-dir", default="generated",
+                    help="where compiled modules go (default: ./generated)")
+    an.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
+    sw = sub.add_parser("sweep", help="many runs of one compiled model with different "
+                        "numbers, on Dask; one row of summary figures per run",
+                        epilog="KEY is an item path of the model file: gravity[k], "
+                        "points.P.at[k], vectors.u.along[k], bodies.B.mass, "
+                        "bodies.B.center[k], bodies.B.inertia[k], constraints[K].length, "
+                        "loads[K].value[k], loads[K].at[k], loads[K].stiffness, "
+                        "loads[K].length, loads[K].damping, initial.points.P[k], "
+                        "simulate.t_end, simulate.dt, simulate.output_dt")
+    common(sw)
+    sw.add_argument("--set", action="append", default=[], metavar="KEY=V1,V2,...",
+                    required=True, help="numbers to try (repeatable: every combination "
+                    "runs), e.g. bodies.arm.mass=1,2 or simulate.dt=1e-3,5e-4")
+    sw.add_argument("--out", required=True, help="the table to write (.csv)")
+    sw.add_argument("--scheduler", metavar="ADDRESS", help="a running Dask scheduler, "
+                    "e.g. tcp://host:8786 (default: a local cluster)")
+    sw.add_argument("--method", help="integration method (default: the model's)")
+    sw.add_argument("--workers", type=int, help="threads of the local cluster")
 
 
 def _method_options(items: list[str]) -> dict[str, float]:
@@ -311,6 +356,22 @@ def _run(args, progress) -> int:
         report = bench_model(args.model, args.build_dir, repeats=args.repeats,
                              progress=progress)
         print(report.text())
+        return 0
+    if args.command == "plot":
+        print(f"figure: {api.plot(args.result, args.columns, args.out)}")
+        return 0
+    if args.command == "animate":
+        page, n_frames, result = api.animate(
+            args.model, args.out, result=args.result, t_end=args.t_end,
+            max_frames=args.frames, build_dir=args.build_dir, progress=progress)
+        print(f"animation: {page} ({n_frames} frames of {len(result.t)} rows)")
+        return 0
+    if args.command == "sweep":
+        table = api.sweep(args.model, args.set, args.out, scheduler=args.scheduler,
+                          method=args.method, workers=args.workers,
+                          build_dir=args.build_dir, progress=progress)
+        print(f"sweep: {len(table.rows)} runs ({table.failed} failed) on {table.where} "
+              f"in {table.wall_time:.3g} s\ntable: {args.out}")
         return 0
     if args.command == "check":
         from .check import check_model

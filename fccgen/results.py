@@ -115,6 +115,17 @@ class Result:
         """All columns side by side, ``t`` first: shape (n_out, 1 + n_columns)."""
         return np.column_stack([self.t, *self.columns.values()])
 
+    def plot(self, columns=None, ax=None):
+        """Time histories of ``columns`` (names, or one comma-separated string; default:
+        the first moving point's position), one panel per quantity, on a new pyplot
+        figure, or all on ``ax``. Returns the matplotlib Figure; needs matplotlib."""
+        from .viz.plot import plot_columns, require_matplotlib
+        require_matplotlib()
+        if ax is not None:
+            return plot_columns(self, columns, ax=ax)
+        import matplotlib.pyplot as plt
+        return plot_columns(self, columns, figure=plt.figure())
+
     @property
     def partial(self) -> bool:
         """Whether the run stopped before its end (Ctrl-C, a failure)."""

@@ -248,6 +248,17 @@ class CompiledSolver:
             return scipy_ivp.run(self, m.name[len("scipy-"):], s, opts, q0, v0, report)
         raise AssertionError(f"no compiled dispatch for method {m.name!r}")
 
+    # -- other numbers, pickling (fccgen.runtime.params) --------------------------------
+    def with_parameters(self, values: dict) -> "CompiledSolver":
+        """A solver of the same compiled module with other numbers, e.g.
+        ``{"bodies.arm.mass": 2.0}``; see :mod:`fccgen.runtime.params`."""
+        from .params import with_parameters
+        return with_parameters(self, values)
+
+    def __reduce__(self):
+        from .params import reduce_solver
+        return reduce_solver(self)
+
     # -- timing (for fccgen bench) ---------------------------------------------------------
     def time_kernels(self, q, v, repeats=200) -> dict:
         """Seconds per global assembly of each kernel the module has (median of warm,
