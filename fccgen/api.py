@@ -82,3 +82,34 @@ def simulate(path, *, t_end=None, dt=None, method=None, output_dt=None, project=
     if out is not None:
         result.save(out)
     return result, init
+
+
+def statics(path, *, numeric=False, build_dir=DEFAULT_BUILD_DIR, progress: Progress = None):
+    """The static equilibrium of a model from its initial configuration
+    (:func:`fccgen.analysis.statics`); returns an :class:`~fccgen.analysis.Equilibrium`."""
+    from .analysis import statics as solve_statics
+    solver = load_numeric(path) if numeric else load(path, build_dir, progress=progress)
+    return solve_statics(solver)
+
+
+def modes(path, *, about="equilibrium", out=None, numeric=False,
+          build_dir=DEFAULT_BUILD_DIR, progress: Progress = None):
+    """Natural frequencies and mode shapes about the static equilibrium
+    (``about="equilibrium"``) or the model's initial state (``about="initial"``);
+    writes the rows ``mode, frequency_hz, damping_ratio, rigid`` to ``out`` (CSV) if
+    given. Returns ``(modes, equilibrium or None)``."""
+    from .analysis import linearize
+    from .analysis import modes as solve_modes
+    from .analysis import statics as solve_statics
+    if about not in ("equilibrium", "initial"):
+        raise ValueError(f"about must be 'equilibrium' or 'initial' (got {about!r})")
+    solver = load_numeric(path) if numeric else load(path, build_dir, progress=progress)
+    if about == "equilibrium":
+        equilibrium = solve_statics(solver)
+        result = solve_modes(linearize(solver, equilibrium.q))
+    else:
+        equilibrium, init = None, solver.initial_state()
+        result = solve_modes(linearize(solver, init.q, init.v))
+    if out is not None:
+        result.write_csv(out)
+    return result, equilibrium

@@ -32,6 +32,8 @@ from ..errors import SimulationError
 from .tangent import amax, bases, curvature, min_norm_multipliers
 
 FORCE_RTOL = 1e-11       # max |N^T f| relative to the largest applied force entry
+POSITION_RTOL = 1e-13    # max |g_k| / ||B_k|| relative to the largest body length
+                         # (rounding of g = |r|^2 - l^2 is ~1e-16 l^2, of B ~1e-16 l)
 MIN_LOAD_STEP = 2.0 ** -12
 MAX_ITERATIONS = 30
 
@@ -104,7 +106,8 @@ def statics(solver, q0=None, *, force_rtol=FORCE_RTOL, max_iterations=MAX_ITERAT
             min_load_step=MIN_LOAD_STEP) -> Equilibrium:
     """The static equilibrium nearest (by Newton) to q0 (default: the model's initial
     configuration, assembled). Converged when max |N^T f| <= force_rtol times the
-    largest applied-force entry and max |g_k| / ||B_k|| <= the solver's position_tol.
+    largest applied-force entry and max |g_k| / ||B_k|| <= POSITION_RTOL times the
+    largest body length.
     Raises SimulationError when even the smallest load step fails."""
     q = np.array(solver.initial_state().q if q0 is None else q0, float)
     lam = np.zeros(solver.n_g)
@@ -148,7 +151,7 @@ def _newton(solver, q, s, force_rtol, max_iterations):
         lam = min_norm_multipliers(B, f)
         if scale is None:
             scale = max(amax(f), 1e-300)
-        if amax(N.T @ f) <= force_rtol * scale and _scaled(g, B) <= solver.position_tol:
+        if amax(N.T @ f) <= force_rtol * scale and _scaled(g, B) <= POSITION_RTOL * solver.length_scale:
             return q, lam, it, True
         if it == max_iterations:
             break
