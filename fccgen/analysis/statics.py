@@ -151,7 +151,8 @@ def _newton(solver, q, s, force_rtol, max_iterations):
         lam = min_norm_multipliers(B, f)
         if scale is None:
             scale = max(amax(f), 1e-300)
-        if amax(N.T @ f) <= force_rtol * scale and _scaled(g, B) <= POSITION_RTOL * solver.length_scale:
+        if (amax(N.T @ f) <= force_rtol * scale
+                and _scaled(g, B) <= POSITION_RTOL * solver.length_scale):
             return q, lam, it, True
         if it == max_iterations:
             break
