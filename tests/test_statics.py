@@ -132,10 +132,15 @@ def test_deployable_statics_compiled_and_numeric_agree(compiled, numeric):
     np.testing.assert_allclose(other.q, eq.q, rtol=0, atol=1e-8 * 1118.0)
 
 
-def test_statics_command(tmp_path, capsys):
-    path = write(tmp_path, SPRUNG_ROD, "sprung_rod")
-    assert main(["statics", str(path), "--build-dir", str(tmp_path / "gen"), "-q"]) == 0
+def test_statics_command(build_dir, capsys):
+    from conftest import EXAMPLES
+    path = EXAMPLES / "double_pendulum.yaml"
+    assert main(["statics", str(path), "--build-dir", str(build_dir), "-q"]) == 0
     out = capsys.readouterr().out
-    assert "stability: stable" in out and "P.x" in out
-    assert main(["statics", str(tmp_path / "missing.yaml")]) == 2
+    assert "stability: stable" in out and "P2.y" in out
+    # both rods hang down: P2 at y = -(1.0 + 0.8)
+    value = next(line.split()[1] for line in out.splitlines()
+                 if line.strip().startswith("P2.y"))
+    assert float(value) == pytest.approx(-1.8, abs=1e-12)
+    assert main(["statics", str(path.parent / "missing.yaml")]) == 2
     assert capsys.readouterr().err.startswith("fccgen: error: ")
