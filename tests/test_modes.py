@@ -9,6 +9,7 @@ import pytest
 import fccgen
 from fccgen.analysis import linearize, modes, state_from_z, statics
 from fccgen.cli import main
+from fccgen.errors import SimulationError
 
 MASS, K = 3.0, 30.0
 
@@ -100,6 +101,23 @@ bodies:
     assert eq.q[1] == pytest.approx(-1.0, abs=1e-12)      # hanging straight down
     assert m.frequency_hz[0] == pytest.approx(np.sqrt(9.81 / l_eff) / (2 * np.pi),
                                               rel=1e-10)
+
+
+def test_motion_without_inertia_is_refused(tmp_path):
+    path = tmp_path / "massless.yaml"
+    path.write_text("""
+name: massless
+points:
+  O: {at: [0, 0, 0], fixed: true}
+  P: [1, 0, 0]
+vectors:
+  z: {along: [0, 0, 1], fixed: true}
+bodies:
+  rod: {points: [O, P], vector: z, mass: 1.0, center: [0, 0, 0], inertia: [0, 0, 0]}
+""")                       # all mass at the pivot: the rod turns without inertia
+    solver = fccgen.load_numeric(path)
+    with pytest.raises(SimulationError, match="massless.yaml.*without inertia"):
+        linearize(solver, solver.plan.q0)        # consistent as given
 
 
 def test_free_body_has_six_rigid_modes(numeric):

@@ -65,10 +65,7 @@ def linearize(solver, q, v=None) -> Linearization:
     N, Y, _ = bases(solver, q)
     M = solver.mass_matrix(q)
     M_r = N.T @ M @ N
-    if N.shape[1] and np.linalg.cond(M_r) > 1e12:
-        raise SimulationError(f"{solver.plan.model.source}: the reduced mass matrix "
-                              f"N^T M N is singular (condition {np.linalg.cond(M_r):.3g}): "
-                              "a motion without inertia; modes are not defined")
+    _check_inertia(solver, M_r)
     B = solver.constraint_jacobian(q)
     a = np.asarray(solver.accelerations(q, v), float)
     lam = min_norm_multipliers(B, solver.applied_forces(q, v) - solver.h_vector(q, v)
@@ -90,6 +87,25 @@ def linearize(solver, q, v=None) -> Linearization:
     K_r = N.T @ (R_q @ N + R_v @ V_z + M @ Y @ A_z)
     C_r = N.T @ (R_v @ N + M @ Y @ A_zd)
     return Linearization(q=q, v=v, null_basis=N, range_basis=Y, M_r=M_r, C_r=C_r, K_r=K_r)
+
+
+def _check_inertia(solver, M_r) -> None:
+    """Refuse a reduced mass matrix that is singular: its diagonal-scaled form
+    D^-1/2 M_r D^-1/2 (independent of the units of each z) has an eigenvalue at or
+    below 1e-12 of its largest, or a diagonal entry is not positive."""
+    if not M_r.size:
+        return
+    d = np.diag(M_r)
+    ok = bool(np.all(d > 0.0))
+    if ok:
+        s = 1.0 / np.sqrt(d)
+        eig = np.linalg.eigvalsh(0.5 * (M_r + M_r.T) * np.outer(s, s))
+        ok = eig[0] > 1e-12 * eig[-1]
+    if not ok:
+        raise SimulationError(f"{solver.plan.model.source}: the reduced mass matrix "
+                              "N^T M N is singular: a motion without inertia (a "
+                              "massless body, or mass with no inertia about a free "
+                              "axis); modes are not defined")
 
 
 def state_from_z(lin: Linearization, solver, z, zdot, tol=1e-13, max_iterations=30):
