@@ -159,3 +159,16 @@ def test_statics_command(build_dir, capsys):
     assert float(value) == pytest.approx(-1.8, abs=1e-12)
     assert main(["statics", str(path.parent / "missing.yaml")]) == 2
     assert capsys.readouterr().err.startswith("fccgen: error: ")
+
+
+def test_no_equilibrium_is_an_error_naming_the_way_out(tmp_path):
+    """A free body under gravity has no equilibrium: every load step fails (few
+    iterations and coarse load steps keep the test short)."""
+    from conftest import EXAMPLES
+
+    from fccgen.errors import SimulationError
+    text = (EXAMPLES / "free_body.yaml").read_text().replace(
+        "name: free_body", "name: falling_body\ngravity: [0, 0, -9.81]")
+    solver = fccgen.load_numeric(write(tmp_path, text, "falling_body"))
+    with pytest.raises(SimulationError, match="no equilibrium.*--about initial"):
+        statics(solver, max_iterations=4, min_load_step=0.25)

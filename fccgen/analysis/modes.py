@@ -57,8 +57,11 @@ def modes(lin: Linearization) -> Modes:
     K, C, M = lin.K_r, lin.C_r, lin.M_r
     N = lin.null_basis
     scale = max(np.max(np.abs(K)) if K.size else 0.0, 1e-300)
-    conservative = (np.max(np.abs(C)) == 0.0 if C.size else True) and \
-        np.max(np.abs(K - K.T), initial=0.0) <= 1e-9 * scale
+    # damping below 1e-12 of the critical scale sqrt(|K| |M|) is rounding (h and
+    # dB/dt v differenced in v at v = 0), not a damper
+    undamped = np.max(np.abs(C), initial=0.0) <= 1e-12 * np.sqrt(
+        scale * np.max(np.abs(M), initial=0.0))
+    conservative = undamped and np.max(np.abs(K - K.T), initial=0.0) <= 1e-9 * scale
     if conservative:
         w2, phi = scipy.linalg.eigh(0.5 * (K + K.T), M)
         w = np.sign(w2) * np.sqrt(np.abs(w2))        # negative: an unstable direction

@@ -125,7 +125,9 @@ def statics(solver, q0=None, *, force_rtol=FORCE_RTOL, max_iterations=MAX_ITERAT
             raise SimulationError(
                 f"statics: Newton's method did not converge at load factor "
                 f"{target:.6g} even with load steps of {2 * ds:.3g} (reached load factor "
-                f"{s:.6g} after {iterations} iterations)")
+                f"{s:.6g} after {iterations} iterations): the loads may have no "
+                f"equilibrium (e.g. a free body under gravity); 'fccgen modes --about "
+                f"initial' linearizes about the initial state instead")
     return _equilibrium(solver, q, lam, iterations, steps)
 
 
