@@ -110,15 +110,16 @@ def _check_inertia(solver, M_r) -> None:
 
 def state_from_z(lin: Linearization, solver, z, zdot, tol=1e-13, max_iterations=30):
     """The consistent state (q, q') with N^T (q - q*) = z and N^T q' = z' (so that
-    z = 0, z' = N^T v* gives back (q*, v*)): Newton on
-    g(q* + N z + Y w) = 0 for w, then B(q) (N z' + Y s) = 0 for s (least squares)."""
+    z = 0, z' = N^T v* gives back (q*, v*)): Newton on g(q* + N z + Y w) = 0 for w,
+    to max |g_k| / ||B_k|| <= tol times the largest body length, then
+    B(q) (N z' + Y s) = 0 for s (least squares)."""
     N, Y = lin.null_basis, lin.range_basis
     q = lin.q + N @ z
     for _ in range(max_iterations):
-        g = solver.constraints(q)
-        if amax(g) <= tol * solver.length_scale:
+        g, B = solver.constraints(q), solver.constraint_jacobian(q)
+        norms = np.linalg.norm(B, axis=1)
+        if amax(g / np.where(norms > 0.0, norms, 1.0)) <= tol * solver.length_scale:
             break
-        B = solver.constraint_jacobian(q)
         q = q + Y @ np.linalg.lstsq(B @ Y, -g, rcond=1e-10)[0]
     else:
         raise SimulationError("state_from_z: the dependent coordinates did not converge")

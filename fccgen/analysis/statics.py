@@ -104,20 +104,20 @@ class Equilibrium:
 
 def statics(solver, q0=None, *, force_rtol=FORCE_RTOL, max_iterations=MAX_ITERATIONS,
             min_load_step=MIN_LOAD_STEP) -> Equilibrium:
-    """The static equilibrium nearest (by Newton) to q0 (default: the model's initial
-    configuration, assembled). Converged when max |N^T f| <= force_rtol times the
+    """The static equilibrium reached by Newton's method from q0 (default: the model's
+    initial configuration, assembled): the nearest one, or a stable one where the
+    start is not near a stable equilibrium (see the module docstring). Converged when max |N^T f| <= force_rtol times the
     largest applied-force entry and max |g_k| / ||B_k|| <= POSITION_RTOL times the
     largest body length.
     Raises SimulationError when even the smallest load step fails."""
     q = np.array(solver.initial_state().q if q0 is None else q0, float)
-    lam = np.zeros(solver.n_g)
     s, ds, iterations, steps = 0.0, 1.0, 0, 0
     while s < 1.0:
         target = min(1.0, s + ds)
-        q_new, lam_new, its, ok = _newton(solver, q, target, force_rtol, max_iterations)
+        q_new, its, ok = _newton(solver, q, target, force_rtol, max_iterations)
         iterations += its
         if ok:
-            q, lam, s, steps = q_new, lam_new, target, steps + 1
+            q, s, steps = q_new, target, steps + 1
             ds *= 2.0
             continue
         ds *= 0.5
@@ -128,11 +128,11 @@ def statics(solver, q0=None, *, force_rtol=FORCE_RTOL, max_iterations=MAX_ITERAT
                 f"{s:.6g} after {iterations} iterations): the loads may have no "
                 f"equilibrium (e.g. a free body under gravity); 'fccgen modes --about "
                 f"initial' linearizes about the initial state instead")
-    return _equilibrium(solver, q, lam, iterations, steps)
+    return _equilibrium(solver, q, iterations, steps)
 
 
 def _newton(solver, q, s, force_rtol, max_iterations):
-    """(q, lambda, iterations, converged) of Newton's method at load factor s.
+    """(q, iterations, converged) of Newton's method at load factor s.
 
     lambda is the least-squares multiplier of the current iterate, B^T lambda ~ f.
     Where the symmetric part of K_r is not positive definite (near an unstable or
@@ -148,14 +148,14 @@ def _newton(solver, q, s, force_rtol, max_iterations):
         f = s * solver.applied_forces(q, zero)
         B, g = solver.constraint_jacobian(q), solver.constraints(q)
         if not (np.all(np.isfinite(f)) and np.all(np.isfinite(g))):
-            return q, None, it, False
+            return q, it, False
         N, _, _ = bases(solver, q)
         lam = min_norm_multipliers(B, f)
         if scale is None:
             scale = max(amax(f), 1e-300)
         if (amax(N.T @ f) <= force_rtol * scale
                 and _scaled(g, B) <= POSITION_RTOL * solver.length_scale):
-            return q, lam, it, True
+            return q, it, True
         if it == max_iterations:
             break
         J = s * solver.force_jacobian_q(q, zero) - curvature(solver, q, lam)
@@ -163,7 +163,7 @@ def _newton(solver, q, s, force_rtol, max_iterations):
         z = _tangential_step(-N.T @ J @ N, N.T @ (f + J @ dq_p), scale,
                              solver.length_scale)
         q = q + dq_p + N @ z
-    return q, None, max_iterations, False
+    return q, max_iterations, False
 
 
 def _tangential_step(K_r, rhs, force_scale, length):
@@ -187,7 +187,7 @@ def _scaled(g, B) -> float:
     return amax(g / np.where(norms > 0.0, norms, 1.0))
 
 
-def _equilibrium(solver, q, lam, iterations, steps) -> Equilibrium:
+def _equilibrium(solver, q, iterations, steps) -> Equilibrium:
     zero = np.zeros(solver.n_q)
     f = solver.applied_forces(q, zero)
     B = solver.constraint_jacobian(q)
