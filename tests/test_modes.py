@@ -120,6 +120,37 @@ bodies:
         linearize(solver, solver.plan.q0)        # consistent as given
 
 
+@pytest.mark.parametrize("damping", [0.0, 0.05])
+def test_inverted_pendulum_has_a_negative_frequency(tmp_path, damping):
+    """Upright, omega^2 = -m g d / I_O: reported as -sqrt(m g d / I_O) / (2 pi), by
+    eigh without damping and from the saddle pair of real eigenvalues of A with a
+    torsion-like damper (a damped spring of free length equal to its length);
+    damping of 0.05 moves sqrt(|s1 s2|) away from sqrt(m g d / I_O) not at all
+    (s1 s2 = K/M exactly), so both to 1e-10."""
+    mass, d, i_c = 2.0, 0.5, 0.16
+    path = tmp_path / "upright.yaml"
+    path.write_text(f"""
+name: upright
+gravity: [0, -9.81, 0]
+points:
+  O: {{at: [0, 0, 0], fixed: true}}
+  S: {{at: [1, 1, 0], fixed: true}}
+  P: [0, 1, 0]
+vectors:
+  z: {{along: [0, 0, 1], fixed: true}}
+bodies:
+  rod: {{points: [O, P], vector: z, mass: {mass}, center: [{d}, 0, 0],
+         inertia: [1.0e-4, {i_c}, 0.16]}}
+loads:
+  - {{type: spring, ends: [S, P], stiffness: 0.0, length: 1.0, damping: {damping}}}
+""")
+    eq, m = at_equilibrium(fccgen.load_numeric(path))
+    assert eq.stability == "unstable"
+    expected = -np.sqrt(mass * 9.81 * d / (i_c + mass * d * d)) / (2 * np.pi)
+    assert m.method == ("eigh" if damping == 0.0 else "state matrix")
+    assert m.frequency_hz[0] == pytest.approx(expected, rel=1e-10)
+
+
 def test_free_body_has_six_rigid_modes(numeric):
     eq, m = at_equilibrium(numeric("free_body"))
     assert eq.stability == "neutral"

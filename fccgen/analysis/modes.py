@@ -9,6 +9,10 @@ of magnitude (the i-th smallest with the i-th largest, exact for one overdamped 
 a convention when there are several) into w = sqrt(s1 s2),
 zeta = -(s1 + s2) / (2 w).
 
+Unstable motions: a negative frequency marks a divergent direction (omega^2 < 0 in the
+eigh path, a saddle pair s1 s2 < 0 of real eigenvalues in the state-matrix path, given
+as -sqrt(|s1 s2|)); a negative damping ratio a growing oscillation (flutter).
+
 A mode whose w is at most RIGID_RTOL times the largest w (or all, when every w is
 zero) is a rigid-body motion: reported with the ``rigid`` flag and frequency 0.
 """
@@ -94,7 +98,9 @@ def _from_state_matrix(lin: Linearization):
     for i in range(len(real) // 2):
         s1, s2 = s[real[i]].real, s[real[-1 - i]].real
         w = np.sqrt(abs(s1 * s2))
-        out.append((w, (-(s1 + s2) / (2.0 * w)) if w > 0 else 0.0, vec[:n, real[i]].real))
+        zeta = (-(s1 + s2) / (2.0 * w)) if w > 0 else 0.0
+        # s1 s2 < 0: a saddle (one growing, one decaying motion), unstable: w < 0
+        out.append((w if s1 * s2 >= 0.0 else -w, zeta, vec[:n, real[i]].real))
     out.sort(key=lambda m: m[0])
     w = np.array([m[0] for m in out])
     zeta = np.array([m[1] for m in out])
