@@ -101,8 +101,13 @@ def modes(path, *, about="equilibrium", out=None, numeric=False,
     from .analysis import linearize
     from .analysis import modes as solve_modes
     from .analysis import statics as solve_statics
+    from .results import check_output
     if about not in ("equilibrium", "initial"):
         raise ValueError(f"about must be 'equilibrium' or 'initial' (got {about!r})")
+    if out is not None:
+        if not str(out).endswith(".csv"):
+            raise ValueError(f"modes are written as CSV: give --out a .csv name (got {out})")
+        out = check_output(out)
     solver = load_numeric(path) if numeric else load(path, build_dir, progress=progress)
     if about == "equilibrium":
         equilibrium = solve_statics(solver)

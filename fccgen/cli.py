@@ -341,7 +341,7 @@ def _analysis(args, progress, api) -> int:
     result, equilibrium = api.modes(args.model, about=args.about, out=args.out,
                                     build_dir=args.build_dir, progress=progress)
     if equilibrium is not None:
-        print(equilibrium.text().split("\ncoordinates:")[0])
+        print(equilibrium.summary())
     print(result.text())
     if args.out:
         print(f"modes: {args.out}")

@@ -53,6 +53,7 @@ class Equilibrium:
     rank: int                        # rank of B at q
     n_g: int
     names: list[str] = field(default_factory=list)    # coordinate names, P.x ...
+    row_labels: list[str] = field(default_factory=list)   # model item of each row
 
     @property
     def dof(self) -> int:
@@ -81,6 +82,19 @@ class Equilibrium:
         return "neutral" if eig[0] >= -tol else "unstable"
 
     def text(self) -> str:
+        """The summary, the coordinates and the multipliers."""
+        lines = [self.summary(), "coordinates:"]
+        lines += [f"  {n:<14s} {x: .12g}" for n, x in zip(self.names, self.q)]
+        note = (" (minimum-norm set: the constraints are redundant)" if self.redundant
+                else "")
+        lines.append(f"multipliers (reactions) lambda{note}:")
+        labels = self.row_labels or [""] * len(self.multipliers)
+        lines += [f"  [{k}] {x: .12g}  {label}" for k, (x, label) in
+                  enumerate(zip(self.multipliers, labels))]
+        return "\n".join(lines)
+
+    def summary(self) -> str:
+        """Iterations, residuals, rank and stability."""
         eig = self.stiffness_eigenvalues
         lines = [f"equilibrium after {self.iterations} Newton iterations in "
                  f"{self.load_steps} load step(s)",
@@ -93,12 +107,6 @@ class Equilibrium:
                          f"reduced stiffness {eig[0]:.6g}, largest {eig[-1]:.6g})")
         else:
             lines.append("stability: no degree of freedom (a structure)")
-        lines.append("coordinates:")
-        lines += [f"  {n:<14s} {x: .12g}" for n, x in zip(self.names, self.q)]
-        note = (" (minimum-norm set: the constraints are redundant)" if self.redundant
-                else "")
-        lines.append(f"multipliers (reactions) lambda{note}:")
-        lines += [f"  [{k}] {x: .12g}" for k, x in enumerate(self.multipliers)]
         return "\n".join(lines)
 
 
@@ -199,4 +207,5 @@ def _equilibrium(solver, q, iterations, steps) -> Equilibrium:
                        force_residual=amax(N.T @ f), force_scale=amax(f) or 1.0,
                        constraint_residual=amax(solver.constraints(q)),
                        reduced_stiffness=K_r, null_basis=N, rank=rank, n_g=solver.n_g,
-                       names=names)
+                       names=names, row_labels=[solver.plan.elements[e].label
+                                                for e in solver.row_groups])
