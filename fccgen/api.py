@@ -141,3 +141,37 @@ def sweep(path, sets, out=None, *, scheduler=None, method=None, workers=None,
     if out is not None:
         table.save(out)
     return table
+def statics(path, *, numeric=False, build_dir=DEFAULT_BUILD_DIR, progress: Progress = None):
+    """The static equilibrium of a model from its initial configuration
+    (:func:`fccgen.analysis.statics`); returns an :class:`~fccgen.analysis.Equilibrium`."""
+    from .analysis import statics as solve_statics
+    solver = load_numeric(path) if numeric else load(path, build_dir, progress=progress)
+    return solve_statics(solver)
+
+
+def modes(path, *, about="equilibrium", out=None, numeric=False,
+          build_dir=DEFAULT_BUILD_DIR, progress: Progress = None):
+    """Natural frequencies and mode shapes about the static equilibrium
+    (``about="equilibrium"``) or the model's initial state (``about="initial"``);
+    writes the rows ``mode, frequency_hz, damping_ratio, rigid`` to ``out`` (CSV) if
+    given. Returns ``(modes, equilibrium or None)``."""
+    from .analysis import linearize
+    from .analysis import modes as solve_modes
+    from .analysis import statics as solve_statics
+    from .results import check_output
+    if about not in ("equilibrium", "initial"):
+        raise ValueError(f"about must be 'equilibrium' or 'initial' (got {about!r})")
+    if out is not None:
+        if not str(out).endswith(".csv"):
+            raise ValueError(f"modes are written as CSV: give --out a .csv name (got {out})")
+        out = check_output(out)
+    solver = load_numeric(path) if numeric else load(path, build_dir, progress=progress)
+    if about == "equilibrium":
+        equilibrium = solve_statics(solver)
+        result = solve_modes(linearize(solver, equilibrium.q))
+    else:
+        equilibrium, init = None, solver.initial_state()
+        result = solve_modes(linearize(solver, init.q, init.v))
+    if out is not None:
+        result.write_csv(out)
+    return result, equilibrium

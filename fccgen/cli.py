@@ -7,6 +7,8 @@
     fccgen plot RESULT --columns ...  time histories of result columns
     fccgen animate MODEL.yaml --out F.html   the motion in 3-D, one offline page
     fccgen sweep MODEL.yaml --set K=V1,V2 --out T.csv   many runs on Dask
+    fccgen statics MODEL.yaml         static equilibrium, reactions, stability
+    fccgen modes MODEL.yaml           natural frequencies about the equilibrium
 """
 from __future__ import annotations
 
@@ -21,8 +23,8 @@ from .errors import (CacheRepairWarning, FccgenError, ModelError, PartialResultW
 from .methods import describe as describe_methods
 from .methods import names as method_names
 
-COMMANDS = ("simulate", "bench", "check", "generate", "plot", "animate",
-            "sweep")
+COMMANDS = ("simulate", "bench", "check", "generate", "plot", "animate", "sweep",
+            "statics", "modes")
 EXIT_INTERRUPTED = 130      # 128 + SIGINT, as shells report it
 
 
@@ -152,6 +154,16 @@ def _parser() -> argparse.ArgumentParser:
     c = sub.add_parser("check", help="validate and report coordinates, constraints, DOF")
     common(c)
     _viz_sweep_parsers(sub, common)
+
+    st = sub.add_parser("statics", help="static equilibrium from the initial configuration")
+    common(st)
+    mo = sub.add_parser("modes", help="natural frequencies (Hz) and damping ratios")
+    common(mo)
+    mo.add_argument("--about", choices=("equilibrium", "initial"), default="equilibrium",
+                    help="linearize about the static equilibrium (default) or the "
+                         "model's initial state")
+    mo.add_argument("--out", help="write the rows mode, frequency_hz, damping_ratio, "
+                                  "rigid to FILE.csv")
     return p
 
 
@@ -377,7 +389,24 @@ def _run(args, progress) -> int:
         from .check import check_model
         print(check_model(args.model).text())
         return 0
+    if args.command in ("statics", "modes"):
+        return _analysis(args, progress, api)
     raise AssertionError(args.command)
+
+
+def _analysis(args, progress, api) -> int:
+    """``fccgen statics`` and ``fccgen modes``: one call of the API each."""
+    if args.command == "statics":
+        print(api.statics(args.model, build_dir=args.build_dir, progress=progress).text())
+        return 0
+    result, equilibrium = api.modes(args.model, about=args.about, out=args.out,
+                                    build_dir=args.build_dir, progress=progress)
+    if equilibrium is not None:
+        print(equilibrium.summary())
+    print(result.text())
+    if args.out:
+        print(f"modes: {args.out}")
+    return 0
 
 
 def _accuracy(args, progress) -> int:
