@@ -72,7 +72,7 @@ def test_a_failed_run_is_a_row_with_its_error(build_dir):
                       workers=1)
     ok, failed = table.rows
     assert ok["status"] == "ok" and failed["status"] == "failed"
-    assert "output_dt must be a positive whole multiple of dt" in failed["error"]
+    assert "output_dt: must be a positive whole multiple of dt" in failed["error"]
     assert table.failed == 1 and "final.P2.x" not in failed
 
 
