@@ -267,3 +267,14 @@ def test_repaired_cache_is_one_warning_line(cli_build_dir, tmp_path, capsys, mon
         "incomplete (its fccgen.json lacks cache_key, extension, files, flags, "
         "model_name, n_ops, structure_hash, timings); rebuilding it",
         "fccgen: error: not compiled in this test"]
+
+
+def test_python_dash_m_fccgen_is_the_command(tmp_path):
+    """python -m fccgen runs the command line (from a folder that does not shadow the
+    installed package)."""
+    from conftest import run_python
+    out = run_python("import runpy, sys; sys.argv = ['fccgen', '--version']; "
+                     "runpy.run_module('fccgen', run_name='__main__')", tmp_path,
+                     check=False)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.startswith("fccgen ")
