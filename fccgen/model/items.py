@@ -27,7 +27,10 @@ LOAD_KEYS = {
     "torsion_spring": (("type", "bodies", "axis", "stiffness"), ("angle", "damping")),
 }
 BODY_POINT_KEYS = (("body", "at"), ())
-INITIAL_KEYS = ((), ("points", "bodies"))
+INITIAL_KEYS = ((), ("points", "bodies", "joints"))
+# Joint speeds an initial state may fix: quantity -> joint types that have it.
+JOINT_SPEED_TYPES = {"rate": ("revolute", "cylindrical"),
+                     "speed": ("prismatic", "cylindrical")}
 INITIAL_BODY_KEYS = (("angular_velocity",), ("frame",))
 SIMULATE_KEYS = ((), ("t_end", "dt", "method", "output_dt", "rank_tol", "position_tol",
                       "max_newton"))
@@ -177,9 +180,12 @@ class ItemReader(Reader):
         return TorsionSpring((a, b), axis, stiffness, angle, damping, where)
 
     # -- initial state ---------------------------------------------------------------------
-    def initial(self, node: YNode) -> Initial:
+    def initial(self, node: YNode, joints=()) -> Initial:
         m = self.mapping(node, "initial", *INITIAL_KEYS)
         result = Initial()
+        if "joints" in m.entries:
+            result.joint_speeds = self.joint_speeds(m.entries["joints"],
+                                                    {j.name: j for j in joints})
         if "points" in m.entries:
             for name, line, value, item in self.entries(m.entries["points"],
                                                         "initial.points"):
@@ -199,6 +205,27 @@ class ItemReader(Reader):
                 result.body_angular_velocities[name] = self.angular_velocity(value, item,
                                                                               line)
         return result
+
+    def joint_speeds(self, node: YNode, joints: dict) -> dict:
+        """``initial.joints``: {J: {rate: w}} or {J: {speed: s}}, kept exactly."""
+        out = {}
+        for name, line, value, item in self.entries(node, "initial.joints"):
+            if name not in joints:
+                raise self.fail(line, item, "names no joint; joints are: "
+                                + listing(joints), name)
+            e = self.mapping(value, item, (), tuple(JOINT_SPEED_TYPES)).entries
+            if len(e) != 1:
+                raise self.fail(line, item, "must give exactly one of rate (revolute, "
+                                "cylindrical) or speed (prismatic, cylindrical)", sorted(e))
+            (quantity, number), = e.items()
+            types = JOINT_SPEED_TYPES[quantity]
+            if joints[name].type not in types:
+                raise self.bad(number, child(item, quantity),
+                               f"a {joints[name].type} joint has no {quantity}; "
+                               f"{quantity} is for {' and '.join(types)} joints")
+            out[name] = (quantity, self.number(number, child(item, quantity)),
+                         Where(self.source, number.line))
+        return out
 
     def angular_velocity(self, node: YNode, item: str, line: int) -> AngularVelocity:
         e = self.mapping(node, item, *INITIAL_BODY_KEYS).entries

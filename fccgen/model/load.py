@@ -104,7 +104,7 @@ class _ModelReader(Reader):
                            self.vectors)
         constraints = items.constraints(e["constraints"]) if "constraints" in e else []
         loads = items.loads(e["loads"]) if "loads" in e else []
-        initial = items.initial(e["initial"]) if "initial" in e else Initial()
+        initial = items.initial(e["initial"], joints) if "initial" in e else Initial()
         simulate = items.simulate(e.get("simulate"), METHODS, self.values_per_output())
         return Model(name=name, source=self.source, gravity=gravity, points=self.points,
                      vectors=self.vectors, bodies=self.bodies, constraints=constraints,

@@ -166,6 +166,8 @@ class AngularVelocity:
 class Initial:
     point_velocities: dict[str, np.ndarray] = field(default_factory=dict)
     body_angular_velocities: dict[str, AngularVelocity] = field(default_factory=dict)
+    # joint -> (quantity "rate" | "speed", value, where): kept exactly at t = 0
+    joint_speeds: dict[str, tuple[str, float, Where]] = field(default_factory=dict)
 
 
 # -- mechanism level (DESIGN section 2b; lowered by fccgen.mechanism) ---------------

@@ -14,6 +14,7 @@ import numpy as np
 from .. import methods as registry
 from .. import rank as rank_rule
 from ..diagnose import explained
+from ..mechanism.initial_speeds import initial_speeds
 from ..run_settings import solver_tolerances
 from ..errors import SimulationError
 from ..plan import Plan
@@ -181,7 +182,7 @@ class NumericSolver:
         self.decide_rank(q)
         v_given = np.array(self.plan.v_target, float)
         try:
-            v = self.project_velocities(q, v_given)
+            v = initial_speeds(self, q, v_given)
         except SimulationError as exc:
             raise explained(exc, self, q) from None
         return InitialState(

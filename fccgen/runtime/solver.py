@@ -14,6 +14,7 @@ import numpy as np
 from .. import methods as registry
 from .. import rank as rank_rule
 from ..diagnose import explained
+from ..mechanism.initial_speeds import initial_speeds
 from ..run_settings import solver_tolerances
 from ..errors import BuildError, SimulationError
 from ..results import InitialState, Result, timed_run
@@ -166,7 +167,7 @@ class CompiledSolver:
                                   f"assembled onto the constraints: {exc}") from None
         self.decide_rank(q)
         try:
-            v = self.project_velocities(q, plan.v_target)
+            v = initial_speeds(self, q, plan.v_target)
         except SimulationError as exc:
             raise explained(exc, self, q) from None
         return InitialState(q=q, v=v, position_residual_given=given,
