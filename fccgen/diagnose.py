@@ -10,7 +10,6 @@ bodies and constraints that use them are the items to look at.
 from __future__ import annotations
 
 import numpy as np
-import scipy.linalg
 
 from .errors import SimulationError
 
@@ -19,6 +18,7 @@ def massless_motion(plan, M: np.ndarray, B: np.ndarray, top: int = 4) -> str:
     """A sentence naming the coordinates (and the model items that use them) of the
     motion with the least kinetic energy, or '' when M is positive definite on the
     null space of B."""
+    import scipy.linalg                  # only on this (rare) path
     N = scipy.linalg.null_space(B) if B.size else np.eye(M.shape[0])
     if N.shape[1] == 0:
         return ""

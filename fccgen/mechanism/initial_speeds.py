@@ -16,7 +16,6 @@ rate on a joint the mechanism cannot move) leave a residual C v - d and are refu
 from __future__ import annotations
 
 import numpy as np
-import scipy.linalg
 
 from ..errors import ModelError
 from .joints import ANGLE_TYPES, SLIDE_TYPES
@@ -54,6 +53,7 @@ def speeds_with_joints(solver, q: np.ndarray, v_target: np.ndarray, wanted: dict
     """The initial speeds keeping the joint speeds ``wanted`` exactly (module
     docstring); ModelError naming the first joint speed the constraints refuse."""
     C, d, items = speed_rows(solver, q, wanted)
+    import scipy.linalg                  # only on this (rare) path
     N = scipy.linalg.null_space(B) if B.size else np.eye(len(q))
     CN = C @ N
     K = np.block([[N.T @ M @ N, CN.T], [CN, np.zeros((len(d), len(d)))]])

@@ -18,7 +18,6 @@ from ..mechanism.initial_speeds import initial_speeds
 from ..run_settings import solver_tolerances
 from ..errors import BuildError, SimulationError
 from ..results import InitialState, Result, timed_run
-from . import scipy_ivp
 from ._assemble import FLAGS, Assembler
 from ._dopri5 import simulate_dopri5
 from ._engine import Engine
@@ -246,6 +245,7 @@ class CompiledSolver:
             return simulate_ali3p(e, q0, v0, s.t_end, s.dt, s.n_steps, s.every, opts,
                                   report, length_scale=self.length_scale)
         if m.name.startswith("scipy-"):
+            from . import scipy_ivp              # imports scipy.integrate: only when used
             return scipy_ivp.run(self, m.name[len("scipy-"):], s, opts, q0, v0, report)
         raise AssertionError(f"no compiled dispatch for method {m.name!r}")
 
