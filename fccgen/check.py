@@ -37,6 +37,8 @@ class CheckReport:
     notes: list[str] = field(default_factory=list)
     joints: list[str] = field(default_factory=list)    # what each joint was lowered to
     dependent: str = ""          # joints (and other rows) that take part in dependencies
+    rank_gap: tuple[float, float] = (1.0, 0.0)    # sigma_r / sigma_1, sigma_{r+1} / sigma_1
+    uncertain: list[float] = field(default_factory=list)   # sigma / sigma_1 in the band
 
     @property
     def dof_counted(self) -> int:
@@ -55,6 +57,11 @@ class CheckReport:
             f"rank {self.rank}",
             f"  degrees of freedom: {self.dof_counted} counted (coordinates - equations), "
             f"{self.dof} by rank",
+            f"  rank decision: last kept singular value {self.rank_gap[0]:.2g}, first "
+            f"dropped {self.rank_gap[1]:.2g} (relative; the rule: docs/reliability.md)"
+            + (f"; UNCERTAIN: {', '.join(f'{x:.2g}' for x in self.uncertain)} between "
+               "1e-10 and 1e-6, the initial configuration is near a singular position"
+               if self.uncertain else ""),
             f"  redundant constraint equations: {len(self.redundant)}",
         ]
         lines += [f"    {r}" for r in self.redundant]
@@ -116,6 +123,8 @@ def _report(solver) -> CheckReport:
         "the residuals": [init.position_residual_given, init.position_residual,
                           init.velocity_change, init.velocity_residual]})
     rank, redundant = rank_and_redundant(B, labels, groups=solver.row_groups)
+    from . import rank as rank_rule
+    decision = rank_rule.decide(B, B.shape[1], solver.row_groups)
     return CheckReport(
         name=model.name, source=str(model.source),
         n_points=len(model.moving_points), n_vectors=len(model.moving_vectors),
@@ -124,7 +133,8 @@ def _report(solver) -> CheckReport:
         classes=[f"{c.name}: {c.describe()}" for c in plan.classes],
         init_report=init.report(), notes=list(plan.notes),
         joints=model.mechanism.describe() if model.mechanism is not None else [],
-        dependent=dependency_text(B, rank, labels) if model.mechanism is not None else "")
+        dependent=dependency_text(B, rank, labels) if model.mechanism is not None else "",
+        rank_gap=tuple(decision.gap), uncertain=list(decision.uncertain))
 
 
 def _require_finite(source: str, arrays: dict):

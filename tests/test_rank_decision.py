@@ -217,3 +217,22 @@ def test_bad_solver_tolerances_in_the_model_file(tmp_path, key, value, rule):
         fccgen.load_numeric(path)
     text = str(info.value)
     assert f"bad.yaml:19: simulate.{key}: {rule}" in text and f"(got {value})" in text, text
+
+
+def test_a_start_near_a_singular_position_is_called_uncertain(tmp_path, build_dir):
+    """The four-bar as a parallelogram 1e-8 rad from flat: the singular value that
+    vanishes at the flat position is ~1e-8 of the largest, inside [1e-10, 1e-6].
+    check says the decision is uncertain and a run warns about it (then, leaving the
+    position, the run also reports its change from 2 to 1 degree of freedom)."""
+    eps = 1e-8
+    c, s = float(np.cos(eps)), float(np.sin(eps))
+    path = tmp_path / "near_flat.yaml"
+    path.write_text(FLAT_FOUR_BAR.replace("name: flat_four_bar", "name: near_flat")
+                    .replace("P: [1, 0, 0]", f"P: [{c!r}, {s!r}, 0]")
+                    .replace("Q: [3, 0, 0]", f"Q: [{2 + c!r}, {s!r}, 0]"))
+    report = check_model(path)
+    assert report.uncertain and all(1e-10 <= x <= 1e-6 for x in report.uncertain)
+    assert "UNCERTAIN" in report.text()
+    with pytest.warns(RunWarning) as record:        # and, as it moves away, a DOF change
+        fccgen.load(path, build_dir).simulate(t_end=0.01)
+    assert any("close to a singular position" in str(w.message) for w in record)
