@@ -15,9 +15,9 @@ import numpy as np
 import scipy.linalg
 
 from .mechanism.report import dependency_text
+from . import rank as rank_rule
 from .errors import SimulationError
 
-RANK_TOL = 1e-10      # relative to the largest pivot, as in the solvers
 
 
 @dataclass
@@ -82,19 +82,15 @@ def constraint_row_labels(plan) -> list[str]:
     return [f"{el.label} ({row})" for el in plan.elements for row in el.cls.constraint_rows]
 
 
-def rank_and_redundant(B: np.ndarray, labels: list[str], tol: float = RANK_TOL,
-                       groups=None):
-    """Rank of B by the solvers' SVD gap test (fccgen.rank; rows scaled per element,
-    ``groups``) and the rows that depend on earlier ones, by QR with column pivoting
-    of the scaled B^T."""
-    from . import rank as rank_rule
+def redundant_rows(B: np.ndarray, labels: list[str], rank: int, groups=None):
+    """The rows that depend on earlier ones, given the rank of B (fccgen.rank): those
+    past the first ``rank`` columns of the QR with column pivoting of the scaled B^T
+    (rows scaled per element, ``groups``)."""
     if B.shape[0] == 0:
-        return 0, []
-    rank = max(rank_rule.decide(B, B.shape[1], groups).rank, 0)
+        return []
     scaled = B / rank_rule.row_scales(B, groups)[:, None]
     _, _, piv = scipy.linalg.qr(scaled.T, mode="economic", pivoting=True)
-    redundant = sorted(int(k) for k in piv[rank:])
-    return rank, [labels[k] for k in redundant]
+    return [labels[k] for k in sorted(int(k) for k in piv[rank:])]
 
 
 def check_model(path) -> CheckReport:
@@ -122,9 +118,9 @@ def _report(solver) -> CheckReport:
         "the constraint Jacobian B": B,
         "the residuals": [init.position_residual_given, init.position_residual,
                           init.velocity_change, init.velocity_residual]})
-    rank, redundant = rank_and_redundant(B, labels, groups=solver.row_groups)
-    from . import rank as rank_rule
-    decision = rank_rule.decide(B, B.shape[1], solver.row_groups)
+    decision = rank_rule.decide(B, B.shape[1], plan.row_groups)
+    rank = max(decision.rank, 0)
+    redundant = redundant_rows(B, labels, rank, plan.row_groups)
     return CheckReport(
         name=model.name, source=str(model.source),
         n_points=len(model.moving_points), n_vectors=len(model.moving_vectors),

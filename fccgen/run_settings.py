@@ -15,6 +15,7 @@ import math
 from dataclasses import dataclass
 
 from .errors import FccgenError, shown
+from .rank import RANK_TOL
 
 EPS = 2.220446049250313e-16          # double precision: spacing of numbers near 1
 # A fixed-step run takes at most MAX_STEPS steps (about 2 minutes at 1 us per step, the
@@ -278,7 +279,7 @@ def _largest_stable_dt(alpha: float, beta: float, dt: float) -> float:
 
 # The solvers' tolerances when neither the caller nor the model's simulate section
 # gives them (docs/reliability.md: the rank decision and the projections).
-RANK_TOL = 1e-10          # QR pivot ratio at or below which a row is lost (singular position)
+# RANK_TOL (fccgen.rank): QR pivot ratio at or below which a row is lost (singular position)
 POSITION_TOL = 1e-11      # Newton projection, times the largest body length
 MAX_NEWTON = 20           # Newton iterations of one position projection
 

@@ -41,8 +41,7 @@ class NumericSolver:
         self._index = [el.q_index() for el in plan.elements]
         offsets = np.cumsum([0] + [el.cls.n_g for el in plan.elements])
         self._rows = [np.arange(a, b) for a, b in zip(offsets[:-1], offsets[1:])]
-        self.row_groups = np.repeat(np.arange(len(plan.elements)),
-                                    [el.cls.n_g for el in plan.elements])
+        self.row_groups = plan.row_groups
         self._rank = RankKeeper(groups=self.row_groups)
 
     # -- element evaluation ------------------------------------------------------------

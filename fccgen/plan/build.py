@@ -49,6 +49,13 @@ class Plan:
     def n_g(self) -> int:
         return sum(e.cls.n_g for e in self.elements)
 
+    @property
+    def row_groups(self) -> np.ndarray:
+        """Per constraint row, the index of the element it belongs to (the rank
+        decision scales rows per element: fccgen.rank.row_scales)."""
+        return np.repeat(np.arange(len(self.elements)),
+                         [e.cls.n_g for e in self.elements])
+
     def columns(self) -> list[str]:
         """Result column names (DESIGN section 4), without ``t``."""
         cols = []

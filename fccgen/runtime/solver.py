@@ -91,8 +91,7 @@ class CompiledSolver:
         self.rank_tol, self.position_tol, self.max_newton = solver_tolerances(
             plan.model.simulate, self.length_scale, rank_tol, position_tol, max_newton)
         self._asm = make_assembler(plan, module)
-        self.row_groups = np.repeat(np.arange(len(plan.elements)),
-                                    [el.cls.n_g for el in plan.elements])
+        self.row_groups = plan.row_groups
         self._engine = Engine(self._asm, self.rank_tol, self.position_tol, self.max_newton)
 
     # -- global quantities ------------------------------------------------------------
