@@ -21,6 +21,7 @@ import numpy as np
 
 from . import methods as registry
 from .errors import FccgenError
+from .progress import Reporter, restaged
 
 TIME_MATCH = 1e-9        # output times and reference times must agree to this (s)
 
@@ -112,12 +113,16 @@ def compared_triples(plan) -> tuple[str, list[str]]:
     return kind, [name for name, k in plan.triples if k == kind]
 
 
-def converged_reference(solver, t_end: float, output_dt: float, dt: float) -> Reference:
+def converged_reference(solver, t_end: float, output_dt: float, dt: float,
+                        progress=None) -> Reference:
     """The compiled RK4 with projection at ``dt`` (finer than any rung), checked against
     the same run at ``2 dt``: RK4's error falls 16-fold when the step halves, so the
-    difference of the two runs over 15 estimates the reference's own error."""
-    fine = solver.simulate(t_end=t_end, dt=dt, output_dt=output_dt, method="rk4")
-    coarse = solver.simulate(t_end=t_end, dt=2 * dt, output_dt=output_dt, method="rk4")
+    difference of the two runs over 15 estimates the reference's own error. progress:
+    the two runs' events, as stages "reference dt=..." and "reference dt=2..."."""
+    fine = solver.simulate(t_end=t_end, dt=dt, output_dt=output_dt, method="rk4",
+                           progress=restaged(progress, f"reference dt={dt:g}"))
+    coarse = solver.simulate(t_end=t_end, dt=2 * dt, output_dt=output_dt, method="rk4",
+                             progress=restaged(progress, f"reference dt={2 * dt:g}"))
     kind, names = compared_triples(solver.plan)
     points = {n: {f"{n}.{c}": np.asarray(fine[f"{n}.{c}"]) for c in "xyz"} for n in names}
     ref = Reference("converged", "", np.asarray(fine.t), points)
@@ -274,22 +279,25 @@ def run_ladder(compiled, reference: Reference, ladder: Ladder, variants=None,
     name = (compiled or numeric).plan.model.name
     rows = []
     unsupported = set()
+    runs = []
     for v in (default_variants() if variants is None else variants):
         for k, (setting, value) in enumerate(ladder.settings(registry.get(v.method))):
             todo = [(compiled, v)] if compiled is not None else []
             if numeric is not None and k < ladder.numeric_rungs:
                 todo.append((numeric, Variant(v.method, v.project, "numeric")))
-            for solver, variant in todo:
-                if variant in unsupported:
-                    continue
-                if progress:
-                    progress(f"{name}: {variant.label}, {setting} = {value:g}")
-                row = run_one(solver, variant, setting, value, reference, ladder, name)
-                rows.append(row)
-                if on_row is not None:
-                    on_row(rows)
-                if row.status == "unsupported":     # one row says so; skip the rest
-                    unsupported.add(variant)
+            runs += [(solver, variant, setting, value) for solver, variant in todo]
+    report = Reporter(progress, "accuracy", total=len(runs))
+    for done, (solver, variant, setting, value) in enumerate(runs):
+        if variant in unsupported:
+            continue
+        report(f"{name}: {variant.label}, {setting} = {value:g}", done=done)
+        row = run_one(solver, variant, setting, value, reference, ladder, name)
+        rows.append(row)
+        if on_row is not None:
+            on_row(rows)
+        if row.status == "unsupported":     # one row says so; skip the rest
+            unsupported.add(variant)
+    report(f"{name}: {len(rows)} runs done", done=len(runs))
     return rows
 
 
@@ -323,7 +331,8 @@ def bench_accuracy(path, build_dir="generated", out_dir="accuracy", *, t_end=Non
     if reference is None:
         if progress:
             progress("computing the converged reference run")
-        reference = converged_reference(compiled, t_end, output_dt, min(ladder.steps) / 4)
+        reference = converged_reference(compiled, t_end, output_dt, min(ladder.steps) / 4,
+                                        progress)
     numeric = load_numeric(path) if numeric_rungs > 0 else None
     variants = default_variants(methods)
     rows = run_ladder(compiled, reference, ladder, variants, numeric, progress)

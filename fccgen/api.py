@@ -2,17 +2,19 @@
 
 Nothing here imports SymPy: generation (which does) is imported lazily by
 ``fccgen.build`` only on a cache miss.
+
+``progress``: a callback called with :class:`fccgen.progress.ProgressEvent` objects
+(stage, done, total, t, elapsed), each also the one-line message as a ``str``, so a
+callback written for text keeps working.
 """
 from __future__ import annotations
-
-from typing import Callable
 
 from .mechanism import lower
 from .model import load_model
 from .plan import make_plan
+from .progress import Progress
 
 DEFAULT_BUILD_DIR = "generated"
-Progress = Callable[[str], None] | None
 
 
 def plan_model(path):

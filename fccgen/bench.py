@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .plan.kernels import KERNEL_NAMES
+from .progress import Reporter
 from .threads import single_threaded_blas
 
 GLOBAL_KERNELS = {  # kernel -> (solver method, takes v)
@@ -146,10 +147,11 @@ def _bench_model(path, build_dir="generated", *, repeats=200, progress=None,
     report = BenchReport(plan.model.name, plan.n_q, plan.n_g,
                          build=_last_build_timings(built), cache_hit_seconds=hit)
     length = max([el.params[0] for el in plan.elements if el.cls.kind == "body"] or [1.0])
-    if progress:
-        progress(f"timing up to {len(KERNEL_NAMES)} kernels, accelerations and RK4 steps")
+    tick = _ticker(progress, len(GLOBAL_KERNELS) + 9)
+    tick(f"timing up to {len(KERNEL_NAMES)} kernels, accelerations and RK4 steps")
     c_kernels = cs.time_kernels(q, v, repeats)
     for kernel, (method, takes_v) in GLOBAL_KERNELS.items():
+        tick(f"timing the numeric {kernel}")
         if kernel not in c_kernels:
             report.absent.append(kernel)
             continue
@@ -160,24 +162,36 @@ def _bench_model(path, build_dir="generated", *, repeats=200, progress=None,
         report.rows.append(BenchRow(kernel, c_kernels[kernel], median_time(lambda: n_fn(*args),
                                                                             repeats),
                                     _rel(getattr(cs, method)(*args), n_fn(*args), scale)))
+    tick("timing the accelerations")
     report.rows.append(BenchRow(
         "accelerations", cs.time_accelerations(q, v, repeats),
         median_time(lambda: ns.accelerations(q, v), repeats),
         _rel(cs.accelerations(q, v), ns.accelerations(q, v))))
     dt = plan.model.simulate.dt
     n_steps = 20
+    tick("timing numeric RK4 steps")
     t_num = median_time(lambda: ns.simulate(t_end=n_steps * dt, dt=dt, q0=q, v0=v,
                                             output_dt=n_steps * dt),
                         max(repeats // 40, 3), min_batch_seconds=0.0) / n_steps
     c_steps = []
-    for _ in range(5):
+    for k in range(5):
+        tick(f"timing compiled RK4 steps ({k + 1} of 5)")
         r = cs.simulate(t_end=rk4_steps * dt, dt=dt, q0=q, v0=v, output_dt=rk4_steps * dt)
         c_steps.append(r.info["wall_time"] / rk4_steps)
+    tick("comparing the two versions' runs")
     rn = ns.simulate(t_end=n_steps * dt, dt=dt, q0=q, v0=v, output_dt=n_steps * dt)
     rc = cs.simulate(t_end=n_steps * dt, dt=dt, q0=q, v0=v, output_dt=n_steps * dt)
     diff = _state_difference(plan, rc, rn)
     report.rows.append(BenchRow("rk4 step (projected)", statistics.median(c_steps), t_num, diff))
+    tick("done")
     return report
+
+
+def _ticker(progress, total: int):
+    """``tick(message)``: one more of ``total`` measurements begins (stage "bench")."""
+    report = Reporter(progress, "bench", total=total)
+    done = iter(range(total + 1))
+    return lambda message: report(f"bench: {message}", done=min(next(done, total), total))
 
 
 def _state_difference(plan, a, b) -> float:

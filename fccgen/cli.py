@@ -18,6 +18,8 @@ import time
 import warnings
 
 from . import __version__
+from .cli_progress import ProgressDisplay as _Progress
+from .cli_progress import write_line
 from .errors import (CacheRepairWarning, FccgenError, ModelError, PartialResultWarning,
                      RunWarning)
 from .methods import describe as describe_methods
@@ -26,36 +28,6 @@ from .methods import names as method_names
 COMMANDS = ("simulate", "bench", "check", "generate", "plot", "animate", "sweep",
             "statics", "modes")
 EXIT_INTERRUPTED = 130      # 128 + SIGINT, as shells report it
-
-
-class _Progress:
-    """Stage messages and long-run progress on stderr; at most one line per second
-    when stderr is not a terminal."""
-
-    def __init__(self, quiet: bool):
-        self.quiet = quiet
-        self.tty = sys.stderr.isatty()
-        self.last = 0.0
-        self.open_line = False      # a transient line ends in '\r', not '\n'
-
-    def __call__(self, message: str) -> None:
-        if self.quiet:
-            return
-        now = time.monotonic()
-        transient = message.startswith("t = ")
-        if transient and not self.tty and now - self.last < 5.0:
-            return
-        self.last = now
-        end = "\r" if (transient and self.tty) else "\n"
-        sys.stderr.write(f"fccgen: {message}{' ' * 8 if end == chr(13) else ''}{end}")
-        sys.stderr.flush()
-        self.open_line = end == "\r"
-
-    def close_line(self) -> None:
-        """End a transient progress line before a final message."""
-        if self.open_line:
-            sys.stderr.write("\n")
-            self.open_line = False
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -281,16 +253,19 @@ def main(argv=None) -> int:
         warnings.simplefilter("always", PartialResultWarning)
         warnings.simplefilter("always", RunWarning)
         warnings.showwarning = _show_warning
-        return _guarded(args, progress)
+        try:
+            return _guarded(args, progress)
+        finally:
+            progress.close()
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
     """fccgen's warnings as one line on stderr (no source location)."""
-    print(f"fccgen: warning: {message}", file=sys.stderr)
+    write_line(f"fccgen: warning: {message}")
 
 
 def _error(progress, text: str, code: int) -> int:
-    progress.close_line()
+    progress.close()
     print(f"fccgen: {text}", file=sys.stderr)
     return code
 

@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .errors import FccgenError, HostError
+from .progress import Reporter
 
 FIGURES = ("status", "error", "wall_time", "steps", "t_final", "energy_drift",
            "max_constraint_error")
@@ -144,9 +145,11 @@ def sweep(solver, sets: dict[str, list[float]], *, scheduler=None, method=None,
           workers=None, progress=None, connect_timeout=10.0) -> SweepTable:
     """Run every combination of ``sets`` with a compiled ``solver``; see the module
     docstring. ``workers``: threads of the local cluster (default: the cores, at most
-    4); ``connect_timeout``: seconds to wait for the scheduler."""
-    say = progress or (lambda _m: None)
+    4); ``connect_timeout``: seconds to wait for the scheduler. ``progress``: called
+    with a :class:`~fccgen.progress.ProgressEvent` (stage "sweep", done of total runs)
+    as the runs end."""
     runs = combinations(sets)
+    say = Reporter(progress, "sweep", total=len(runs))
     for params in runs:                       # bad keys and values stop it here
         solver.with_parameters(params)
     if method is not None:
@@ -161,15 +164,12 @@ def sweep(solver, sets: dict[str, list[float]], *, scheduler=None, method=None,
     try:
         from dask.distributed import as_completed
         where = scheduler or f"a local cluster of {workers} thread(s)"
-        say(f"sweep: {len(runs)} runs on {where}")
+        say(f"sweep: {len(runs)} runs on {where}", done=0)
         shared = client.scatter(solver, broadcast=True)
         futures = [client.submit(run_one, shared, params, method, pure=False)
                    for params in runs]
-        last = time.monotonic()
         for done, _ in enumerate(as_completed(futures), 1):
-            if done == len(runs) or time.monotonic() - last > 2.0:
-                say(f"sweep: {done} of {len(runs)} runs done")
-                last = time.monotonic()
+            say(f"sweep: {done} of {len(runs)} runs done", done=done)
         rows = client.gather(futures)
     finally:
         client.close()

@@ -139,9 +139,14 @@ def test_an_unexpected_exception_is_raised_not_recorded():
 def test_an_unsupported_method_gets_one_row_not_one_per_rung():
     class Solver(_Raising):
         plan = type("P", (), {"model": type("M", (), {"name": "m"})})
+    seen = []
     rows = run_ladder(Solver(ValueError("unknown method 'rk4'; available: x")), _ref(),
-                      Ladder((0.5, 0.25, 0.125)), [Variant("rk4", True)])
+                      Ladder((0.5, 0.25, 0.125)), [Variant("rk4", True)],
+                      progress=seen.append)
     assert [r.status for r in rows] == ["unsupported"]
+    # progress counts the planned runs; the skipped rungs jump to the end
+    assert [(e.stage, e.done, e.total) for e in seen] == [("accuracy", 0, 3),
+                                                         ("accuracy", 3, 3)]
 
 
 def test_the_error_is_the_largest_distance_and_times_must_match():

@@ -76,6 +76,10 @@ def test_miss_then_hit(first_build):
     assert built.timings["compile"] > 0 and built.timings["derive"] > 0
     assert any(m.startswith("deriving") for m in messages)
     assert any(m.startswith("compiling") for m in messages)
+    # the messages are structured events too (fccgen.progress): classes counted
+    derive = [m for m in messages if m.stage == "derive"]
+    assert derive[0].done == 0 and derive[-1].done == derive[-1].total > 0
+    assert [m.stage for m in messages if m.done is None] == ["render", "compile", "compile"]
     assert built.directory == out_dir / "pendulum" / built.cache_key[:16]
     assert built.path.is_file()
     before = snapshot(built.directory)

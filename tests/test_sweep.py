@@ -68,8 +68,12 @@ def test_cli_sweep_gives_the_rows_of_separate_runs(build_dir, tmp_path, capsys):
 
 def test_a_failed_run_is_a_row_with_its_error(build_dir):
     solver = fccgen.load(DOUBLE, build_dir)
+    seen = []
     table = run_sweep(solver, {"simulate.dt": [1e-3, 0.05], "simulate.t_end": [0.1]},
-                      workers=1)
+                      workers=1, progress=seen.append)
+    # structured progress: runs done of the total, each event also its message
+    assert [(e.stage, e.done, e.total) for e in seen] == [("sweep", k, 2) for k in range(3)]
+    assert seen[-1] == "sweep: 2 of 2 runs done"
     ok, failed = table.rows
     assert ok["status"] == "ok" and failed["status"] == "failed"
     assert "output_dt: must be a positive whole multiple of dt" in failed["error"]

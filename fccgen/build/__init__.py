@@ -31,9 +31,10 @@ from .cache import (HEADER, MANIFEST, cache_key, check_entry, files_problem,
                     tool_versions)
 from .compile import (FLAG_POLICY, compile_args, compile_sources, extension_filename,
                       install, link_args, require_compiler)
+from ..progress import Reporter
 from .store import build_lock, clean_legacy, clean_stale, entry_dir
 
-Progress = Callable[[str], None]
+Progress = Callable[[str], None]     # called with fccgen.progress.ProgressEvent
 STAGES = ("derive", "print", "render", "compile")
 
 
@@ -49,10 +50,6 @@ class BuiltModule:
     timings: dict[str, float]     # seconds: derive, print, render, compile, total
     n_ops: dict[str, int]         # per class name: operations after CSE
     flags: tuple[str, ...]        # compiler flags of the build
-
-
-def _quiet(_message: str) -> None:
-    """Default progress callback: says nothing."""
 
 
 def _classes(n: int) -> str:
@@ -71,15 +68,18 @@ def build_module(plan, out_dir="generated", *, force: bool = False,
                  progress: Progress | None = None) -> BuiltModule:
     """Build (or reuse) the compiled kernel module of a ``fccgen.plan.Plan``."""
     classes = list(plan.classes)
-    say = progress or _quiet
+    say = Reporter(progress, "build")
 
     def derive_all():
         from ..derive import derive_class
-        say(f"deriving {_classes(len(classes))}")
+        n = len(classes)
+        say(f"deriving {_classes(n)}", stage="derive", done=0, total=n)
         derived = []
         for k, cls in enumerate(classes, 1):
-            say(f"deriving class {k}/{len(classes)}: {cls.name} ({cls.describe()})")
+            say(f"deriving class {k}/{n}: {cls.name} ({cls.describe()})", stage="derive",
+                done=k - 1, total=n)
             derived.append(derive_class(cls))
+        say(f"derived {_classes(n)}", stage="derive", done=n, total=n)
         return derived
 
     return _build(plan.model.name, classes, Path(out_dir).absolute(), derive_all, "", force,
@@ -99,7 +99,7 @@ def build_derived(model_name: str, derived: list, out_dir="generated", *,
                       for d in derived)
     classes = [d.cls for d in derived]
     return _build(model_name, classes, Path(out_dir).absolute(), lambda: list(derived),
-                  extra, force, progress or _quiet)
+                  extra, force, Reporter(progress, "build"))
 
 
 class _Stopwatch:
@@ -119,17 +119,21 @@ class _Stopwatch:
         return self.timings
 
 
-def _generate(model_name: str, derived: list, say: Progress, watch: _Stopwatch):
+def _generate(model_name: str, derived: list, say: Reporter, watch: _Stopwatch):
     """Print and render: (sources by file name, operations per class, compiler flags)."""
     from ..printing import print_class
     from ..render import render_sources
 
-    say(f"printing C for {_classes(len(derived))}")
-    printed = [print_class(d) for d in derived]
+    n = len(derived)
+    say(f"printing C for {_classes(n)}", stage="print", done=0, total=n)
+    printed = []
+    for k, d in enumerate(derived, 1):
+        printed.append(print_class(d))
+        say(f"printed C for class {k}/{n}", stage="print", done=k, total=n)
     n_ops = {p.name: p.n_ops for p in printed}
     flags = compile_args(sum(n_ops.values()))
     watch.lap("print")
-    say("rendering sources")
+    say("rendering sources", stage="render")
     s_hash = structure_hash([d.cls for d in derived])
     sources = render_sources(model_name, s_hash, printed, flags, link_args())
     sources[HEADER] = runtime_header()
@@ -137,7 +141,7 @@ def _generate(model_name: str, derived: list, say: Progress, watch: _Stopwatch):
     return sources, n_ops, flags
 
 
-def _cached(model_name: str, key: str, entry: Path, force: bool, say: Progress,
+def _cached(model_name: str, key: str, entry: Path, force: bool, say: Reporter,
             watch: _Stopwatch) -> tuple[BuiltModule | None, str | None]:
     """(the cached build, None), or (None, what is wrong with the entry, if anything)."""
     if force:
@@ -145,13 +149,14 @@ def _cached(model_name: str, key: str, entry: Path, force: bool, say: Progress,
     manifest, problem = check_entry(entry, key, model_name)
     if manifest is None:
         return None, problem
-    say(f"{model_name}: unchanged structure, using the cached build in {entry}")
+    say(f"{model_name}: unchanged structure, using the cached build in {entry}",
+        stage="cache")
     watch.timings.update(dict.fromkeys(STAGES, 0.0))
     return _built(entry, manifest, True, watch.total()), None
 
 
 def _build(model_name: str, classes: list, out_dir: Path, derive_all, extra: str,
-           force: bool, say: Progress) -> BuiltModule:
+           force: bool, say: Reporter) -> BuiltModule:
     """Serve the build from the cache, or derive, print, render, compile, install."""
     watch = _Stopwatch()
     key = cache_key(model_name, classes, FLAG_POLICY, extra)
@@ -180,14 +185,15 @@ def _build(model_name: str, classes: list, out_dir: Path, derive_all, extra: str
 
 
 def _compile_and_install(model_name: str, classes: list, key: str, entry: Path,
-                         derive_all, say: Progress, watch: _Stopwatch) -> BuiltModule:
+                         derive_all, say: Reporter, watch: _Stopwatch) -> BuiltModule:
     require_compiler()              # before the derivation: it can take long
     derived = derive_all()
     if [d.cls for d in derived] != list(classes):
         raise BuildError(f"{model_name}: derived classes do not match the plan's classes")
     watch.lap("derive")
     sources, n_ops, flags = _generate(model_name, derived, say, watch)
-    say(f"compiling {model_name} ({sum(n_ops.values())} operations, {' '.join(flags)})")
+    say(f"compiling {model_name} ({sum(n_ops.values())} operations, {' '.join(flags)})",
+        stage="compile")
     tmp = compile_sources(sources, entry, model_name)
     watch.lap("compile")
     manifest = {
@@ -199,7 +205,7 @@ def _compile_and_install(model_name: str, classes: list, key: str, entry: Path,
         "extension": extension_filename(model_name), "sources": sorted(sources),
     }
     install(tmp, entry, model_name, manifest)
-    say(f"built {entry / manifest['extension']}")
+    say(f"built {entry / manifest['extension']}", stage="compile")
     return _built(entry, manifest, False, watch.timings)
 
 

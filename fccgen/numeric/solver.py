@@ -17,6 +17,7 @@ from ..diagnose import explained
 from ..mechanism.initial_speeds import initial_speeds
 from ..run_settings import solver_tolerances
 from ..errors import SimulationError
+from ..progress import run_reporter
 from ..plan import Plan
 from ..results import InitialState, Result, keep_rows, timed_run
 from .constrained import RankKeeper, constrained_solve, scaled_residual
@@ -222,13 +223,16 @@ class NumericSolver:
             v0 = self.project_velocities(q0, self.plan.v_target)
         project = bool(project) and m.projects
         decision = self.decide_rank(q0)
+        report = run_reporter(progress, sched.t_end)
         try:
             result = timed_run(self.plan, m, sched, opts, project,
                                lambda: INTEGRATORS[m.name](
                                    self, np.array(q0, float), np.array(v0, float), sched,
-                                   opts, project, progress))
+                                   opts, project, report))
         except SimulationError as exc:
             raise explained(exc, self, q0) from None
+        if report is not None:
+            report.finish(result.t[-1])          # the run's end: 100%
         return rank_rule.report_run(result, decision, self._rank.stats)
 
     def decide_rank(self, q) -> rank_rule.RankDecision:
@@ -292,7 +296,7 @@ def simulate_rk4(solver: NumericSolver, q, v, sched, opts, project, progress=Non
                  accelerations=None):
     """Fixed-step RK4, the last step shortened to land on t_end; after each step the
     positions and then the speeds are projected onto the constraints (if ``project``).
-    progress(message) about every 0.5 s of wall time. Returns (arrays, stats)."""
+    progress(t) about every 0.5 s of wall time. Returns (arrays, stats)."""
     accelerations = accelerations or solver.accelerations
     n_steps, every, dt, t_end = sched.n_steps, sched.every, sched.dt, sched.t_end
     record = _Recorder(solver)
@@ -320,7 +324,7 @@ def simulate_rk4(solver: NumericSolver, q, v, sched, opts, project, progress=Non
         if k % every == 0 or k == n_steps:
             record(t, q, v)
         if progress is not None and time.monotonic() >= deadline:
-            progress(f"t = {t:.6g} of {t_end:.6g}")
+            progress(t)
             deadline = time.monotonic() + 0.5
     arrays = record.arrays()
     stats["max_constraint_error"] = float(arrays["constraint_error"].max())
@@ -338,8 +342,7 @@ def simulate_scipy(method: str):
     """The integrator of SciPy's ``method`` on the numeric right-hand side."""
     def run(solver, q, v, sched, opts, project, progress=None):
         from ..runtime import scipy_ivp           # pure Python; SciPy loaded on use
-        report = None if progress is None else (lambda t: progress(f"t = {t:.6g}"))
-        return scipy_ivp.run(solver, method, sched, opts, q, v, report)
+        return scipy_ivp.run(solver, method, sched, opts, q, v, progress)
     return run
 
 

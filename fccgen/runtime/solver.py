@@ -17,6 +17,7 @@ from ..diagnose import explained
 from ..mechanism.initial_speeds import initial_speeds
 from ..run_settings import solver_tolerances
 from ..errors import BuildError, SimulationError
+from ..progress import run_reporter
 from ..results import InitialState, Result, timed_run
 from ._assemble import FLAGS, Assembler
 from ._dopri5 import simulate_dopri5
@@ -188,8 +189,9 @@ class CompiledSolver:
         output_dt by dense output. project: after each (accepted) step, Newton position
         projection then velocity projection, for the methods that project.
         method_options: the method's options (e.g. alpha, beta for baumgarte).
-        progress: called with a one-line message (``"t = ..."``) at most about every
-        0.5 s of wall time. ``result.info`` holds fccgen.methods.INFO_KEYS and more.
+        progress: called with a :class:`~fccgen.progress.ProgressEvent` (stage
+        "simulate", done = t of total = t_end; its text ``"t = ... of ..."``) at most
+        about every 0.5 s of wall time. ``result.info`` holds fccgen.methods.INFO_KEYS and more.
         """
         d = self.plan.model.simulate
         m = registry.get(d.method if method is None else method, METHODS)
@@ -197,17 +199,15 @@ class CompiledSolver:
         sched = registry.schedule(m, d, t_end, dt, output_dt, opts)
         q0, v0 = self._start_state(q0, v0)
         project = bool(project) and m.projects
-        report = None
-        if progress is not None:
-            def report(t):
-                progress(f"t = {t:.6g} of {sched.t_end:.6g} "
-                         f"({100.0 * t / sched.t_end:.0f}%)")
+        report = run_reporter(progress, sched.t_end)
         decision = self.decide_rank(q0)
         try:
             result = timed_run(self.plan, m, sched, opts, project,
                                lambda: self._run(m, sched, opts, project, q0, v0, report))
         except SimulationError as exc:
             raise explained(exc, self, q0) from None
+        if report is not None:
+            report.finish(result.t[-1])          # the run's end: 100%
         return rank_rule.report_run(result, decision, self._engine.rank_statistics())
 
     def decide_rank(self, q) -> rank_rule.RankDecision:

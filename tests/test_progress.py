@@ -1,0 +1,162 @@
+"""Progress of long work: structured events for Python callbacks (still usable as the
+text they were before), a bar with a time estimate on a terminal that is cleared when
+done, plain lines in a log, nothing with --quiet."""
+from __future__ import annotations
+
+import io
+import os
+import pickle
+import sys
+
+import pytest
+
+import fccgen
+from conftest import EXAMPLES
+from fccgen.cli_progress import LOG_INTERVAL, ProgressDisplay
+from fccgen.progress import ProgressEvent, Reporter, restaged, run_reporter
+
+DOUBLE = EXAMPLES / "double_pendulum.yaml"
+
+
+class Terminal(io.StringIO):
+    def isatty(self):
+        return True
+
+
+def test_an_event_is_its_message_and_carries_numbers():
+    e = ProgressEvent("t = 1 of 4 (25%)", "simulate", 1.0, 4.0, 1.0, 0.5)
+    assert e == "t = 1 of 4 (25%)" and e.startswith("t = ") and f"{e}" == e.message
+    assert (e.stage, e.done, e.total, e.t, e.elapsed, e.fraction) == (
+        "simulate", 1.0, 4.0, 1.0, 0.5, 0.25)
+    assert ProgressEvent("compiling", "compile").fraction is None
+    back = pickle.loads(pickle.dumps(e))
+    assert back == e and back.total == 4.0 and type(back) is ProgressEvent
+    assert e.with_stage("reference").stage == "reference" and e.stage == "simulate"
+
+
+def test_reporter_keeps_a_clock_per_stage_and_forwards_under_another_name():
+    seen = []
+    report = Reporter(restaged(seen.append, "renamed"), "sweep", total=3)
+    report("a", done=1)
+    report("b", stage="other")
+    assert [(e.stage, e.done, e.total) for e in seen] == [("renamed", 1, 3),
+                                                         ("renamed", None, 3)]
+    assert all(e.elapsed >= 0.0 for e in seen)
+    Reporter(None, "x")("nobody listens")                 # no callback: no error
+    quiet = run_reporter(seen.append, 2.0)
+    quiet.finish(2.0)                   # a run that never paused stays silent
+    assert len(seen) == 2
+
+
+def test_a_run_reports_its_simulated_time(compiled):
+    """A run long enough to pause (about 0.6 s of 1 ms RK4 steps): events of stage
+    'simulate' with done = t rising to total = t_end, the last one at t_end."""
+    solver = compiled("double_pendulum")
+    seen = []
+    solver.simulate(t_end=60.0, output_dt=1.0, progress=seen.append)
+    if len(seen) < 2:
+        pytest.skip("the run ended before its first pause (a very fast machine)")
+    assert all(isinstance(e, ProgressEvent) and e.stage == "simulate" for e in seen)
+    assert [e.total for e in seen] == [60.0] * len(seen)
+    done = [e.done for e in seen]
+    assert done == sorted(done) and done[-1] == 60.0 and seen[-1].fraction == 1.0
+    assert seen[-1].startswith("t = 60 of 60")
+    assert [e.elapsed for e in seen] == sorted(e.elapsed for e in seen)
+
+
+def events(stage, total, n):
+    return [ProgressEvent(f"{stage} {k}", stage, float(k), float(total), None, 0.1 * k)
+            for k in range(n)]
+
+
+def test_a_terminal_gets_a_bar_that_is_cleared():
+    screen = Terminal()
+    display = ProgressDisplay(quiet=False, stream=screen)
+    assert display.bars
+    for e in events("sweep", 20, 5):
+        display(e)
+    drawn = screen.getvalue()
+    assert "sweep:" in drawn and "/20" in drawn and "<" in drawn    # elapsed<remaining
+    display.close()
+    last = screen.getvalue().rsplit("\r", 1)[-1]
+    assert last.strip() == "" and "\n" not in screen.getvalue()     # nothing left
+
+
+def test_a_bar_ends_with_its_stage_and_before_stdout(monkeypatch):
+    screen, out = Terminal(), io.StringIO()
+    monkeypatch.setattr(sys, "stdout", out)
+    display = ProgressDisplay(quiet=False, stream=screen)
+    display(ProgressEvent("compiling m", "compile"))
+    assert display.bar is not None and "compiling m" in screen.getvalue()
+    print("result line")                     # what a command prints when it is done
+    assert display.bar is None and out.getvalue() == "result line\n"
+    display(ProgressEvent("t = 2 of 2", "simulate", 2.0, 2.0, 2.0, 1.0))
+    assert display.bar is None                 # done == total: the stage has ended
+    display.close()
+    assert sys.stdout is out
+
+
+def test_a_log_gets_lines_at_most_every_few_seconds(monkeypatch):
+    log = io.StringIO()
+    display = ProgressDisplay(quiet=False, stream=log)
+    assert not display.bars
+    clock = iter([0.0, 1.0, 2.0, LOG_INTERVAL + 1.0, LOG_INTERVAL + 2.0])
+    monkeypatch.setattr("fccgen.cli_progress.time.monotonic", lambda: next(clock))
+    display(ProgressEvent("compiling m", "compile"))          # a stage message: shown
+    for e in events("simulate", 10, 4):                       # first shown, then 5 s
+        display(e)
+    assert log.getvalue().splitlines() == ["fccgen: compiling m", "fccgen: simulate 0",
+                                           "fccgen: simulate 2"]
+
+
+def test_quiet_shows_nothing():
+    screen = Terminal()
+    display = ProgressDisplay(quiet=True, stream=screen)
+    for e in events("sweep", 3, 3):
+        display(e)
+    display.close()
+    assert screen.getvalue() == ""
+
+
+@pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs a pseudo-terminal")
+def test_the_command_draws_and_clears_a_bar_on_a_terminal(build_dir, tmp_path):
+    """fccgen simulate with stderr on a pseudo-terminal (100 columns): a bar with the
+    time left, then nothing of it on the last line; stdout unchanged."""
+    import fcntl
+    import struct
+    import subprocess
+    import termios
+    import threading
+    fccgen.load(DOUBLE, build_dir)                             # built: no compile here
+    master, slave = os.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 100, 0, 0))
+    chunks = []
+
+    def read_screen():
+        while True:
+            try:
+                data = os.read(master, 65536)
+            except OSError:                      # EIO: the terminal's last writer left
+                return
+            if not data:
+                return
+            chunks.append(data)
+    reader = threading.Thread(target=read_screen)
+    reader.start()
+    package_parent = os.path.dirname(os.path.dirname(fccgen.__file__))
+    env = {**os.environ, "PYTHONPATH": package_parent}
+    try:
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "fccgen", "simulate", str(DOUBLE), "--build-dir",
+             str(build_dir), "--t-end", "60", "--output-dt", "1"],
+            stdout=subprocess.PIPE, stderr=slave, cwd=tmp_path, env=env, text=True)
+    finally:
+        os.close(slave)
+    out, _ = proc.communicate(timeout=300)     # a guard against a hang, not a timing
+    reader.join(timeout=60)
+    os.close(master)
+    screen = b"".join(chunks).decode("utf-8", "replace")
+    assert proc.returncode == 0, screen
+    assert "rk4: 60000 steps" in out
+    assert "simulate:" in screen and "s/s]" in screen, screen
+    assert screen.rsplit("\r", 1)[-1].strip() == "", screen
