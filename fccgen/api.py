@@ -88,7 +88,7 @@ def simulate(path, *, t_end=None, dt=None, method=None, output_dt=None, project=
 
 
 def plot(result, columns=None, out=None, *, title=None):
-    """Plot result columns (a Result or a .csv/.npz file) against time and write the
+    """Plot result columns (a Result or a .csv/.npz/.h5 file) against time and write the
     figure to ``out`` (.png, .svg, .pdf; default: the result file's name with .png).
     Returns the figure's path."""
     from pathlib import Path
@@ -109,7 +109,7 @@ def plot(result, columns=None, out=None, *, title=None):
 def animate(path, out, *, result=None, t_end=None, max_frames=None,
             build_dir=DEFAULT_BUILD_DIR, progress: Progress = None):
     """Write a self-contained page (``out``, .html, plotly.js inlined) that plays the
-    model's motion in 3-D: ``result`` (a Result or a .csv/.npz file of this model), or
+    model's motion in 3-D: ``result`` (a Result or a .csv/.npz/.h5 file of this model), or
     else a run of the model's default simulation (its simulate settings; ``t_end``
     overrides the end time). At most ``max_frames`` frames (default 300), rows spread
     evenly. Returns ``(page path, number of frames, the result shown)``."""

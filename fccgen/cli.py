@@ -74,11 +74,12 @@ def _parser() -> argparse.ArgumentParser:
                    help="any option of the method (repeatable), e.g. penalty=1e8")
     s.add_argument("--output-dt", type=float,
                    help="output interval, a multiple of dt (default: every step)")
-    s.add_argument("--out", help="write results to FILE.csv or FILE.npz (checked "
-                   "before the run; written atomically)")
+    s.add_argument("--out", help="write results to FILE.csv, .npz or .h5 with how they "
+                   "were made (CSV: in FILE.meta.json); checked before the run, "
+                   "written atomically")
     s.add_argument("--keep-partial", action="store_true",
                    help="if the run stops early (Ctrl-C, a failure), write the rows "
-                        "recorded so far to FILE.partial.csv|.npz, marked as partial")
+                        "recorded so far to FILE.partial.csv|.npz|.h5, marked as partial")
     s.add_argument("--rank-tol", type=float, metavar="TOL",
                    help="QR pivot ratio at or below which a constraint row counts as "
                         "lost at a singular position (default: model's simulate.rank_tol, "
@@ -142,7 +143,7 @@ def _parser() -> argparse.ArgumentParser:
 def _viz_sweep_parsers(sub, common) -> None:
     """plot, animate (fccgen.viz) and sweep (fccgen.sweep): one call of the API each."""
     pl = sub.add_parser("plot", help="plot time histories of result columns")
-    pl.add_argument("result", help="a result file written by simulate (.csv or .npz)")
+    pl.add_argument("result", help="a result file written by simulate (.csv, .npz or .h5)")
     pl.add_argument("--columns", help="comma-separated column names, e.g. P.x,P.y,energy "
                     "(default: the first moving point's position)")
     pl.add_argument("--out", help="figure file, .png, .svg or .pdf (default: the "
@@ -152,7 +153,7 @@ def _viz_sweep_parsers(sub, common) -> None:
                         "in 3-D (bodies, mass centres, points; play button, time slider)")
     an.add_argument("model", help="model file (YAML)")
     an.add_argument("--out", required=True, help="the page to write (.html)")
-    an.add_argument("--result", help="a result of this model (.csv or .npz; default: "
+    an.add_argument("--result", help="a result of this model (.csv, .npz or .h5; default: "
                     "run the model's own simulate settings first)")
     an.add_argument("--t-end", type=float, help="without --result: end time of the run")
     an.add_argument("--frames", type=int, metavar="N", help="at most N frames, rows "

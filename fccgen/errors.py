@@ -121,6 +121,11 @@ class PartialResultWarning(UserWarning):
     """A result file loaded is the partial result of a run that did not finish."""
 
 
+class ResultMetadataWarning(UserWarning):
+    """A result file's metadata (a CSV's sidecar) are unreadable or describe another
+    version of the file; the result is loaded without them."""
+
+
 class RunWarning(UserWarning):
     """A run finished but something in it needs the user's attention (a change of the
     degrees of freedom, a start near a singular position, a model that cannot move).

@@ -1,40 +1,28 @@
-"""Simulation results (DESIGN section 4): time ``t`` and named columns, written as CSV
-(header = column names) or NPZ (one array per name, and the run's ``info`` as JSON).
+"""Simulation results (DESIGN section 4): time ``t`` and named columns, with
+``info``, how the run was made (:mod:`fccgen.provenance`), written as CSV (with a JSON
+sidecar ``<stem>.meta.json``), NPZ or HDF5 (:mod:`fccgen.result_files`).
 
 Files are written atomically: into a temporary file of the same folder, named
 ``.<name>.<pid>.<random>.tmp`` (a suffix :meth:`Result.load` refuses), then renamed
 over the target, with the permissions the user's umask gives. A result of a run that
 did not finish is written only when asked, under ``<stem>.partial<suffix>``, and says
-so inside: ``info["partial"]`` in NPZ, a last comment line in CSV. Loading flags it
+so inside: ``info["partial"]`` (and, in CSV, a last comment line). Loading flags it
 (``result.partial``, a :class:`~fccgen.errors.PartialResultWarning`) and refuses a CSV
 whose last line is cut.
 """
 from __future__ import annotations
 
 import errno
-import glob
-import json
 import os
-import uuid
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from . import result_files as files
 from .errors import HostError, PartialResultWarning, SimulationError
-
-SUFFIXES = (".csv", ".npz")
-INFO_ENTRY = "__fccgen_info__"          # NPZ entry holding result.info as JSON
-PARTIAL_LINE = "# fccgen: partial result"
-
-
-def _check_suffix(path: Path) -> str:
-    suffix = path.suffix.lower()
-    if suffix not in SUFFIXES:
-        raise ValueError(f"{path}: results are written as .csv or .npz (got "
-                         f"{suffix or 'no suffix'!r})")
-    return suffix
+from .result_files import INFO_ENTRY, PARTIAL_LINE, SUFFIXES  # noqa: F401 (re-exported)
 
 
 def partial_path(path) -> Path:
@@ -45,51 +33,26 @@ def partial_path(path) -> Path:
 
 
 def check_output(path, option: str = "--out") -> Path:
-    """Check, before a run, that results can be written to ``path``: a .csv or .npz
-    name, not a folder, in a folder that exists (created if missing) and takes a new
-    file. Raises ValueError for a bad name, HostError for a place that cannot be written.
+    """Check, before a run, that results can be written to ``path``: a .csv, .npz or
+    .h5 name (h5py installed for .h5), not a folder, in a folder that exists (created
+    if missing) and takes a new file. Raises ValueError for a bad name, HostError for
+    a place that cannot be written or a missing h5py.
     """
     path = Path(path)
-    _check_suffix(path)
+    files.check_suffix(path)
     if path.is_dir():
         raise HostError(f"cannot write the results to {path}: it is a folder. To fix it, "
                         f"give a file name with {option} (e.g. {path / 'result'}"
                         f"{path.suffix})", errno=errno.EISDIR)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        probe = _temp_name(path)
+        probe = files.temp_name(path)
         os.close(os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
         probe.unlink()
     except OSError as exc:
         raise HostError.from_os_error(exc, "write the results in", path.parent, option,
                                       name_file=False) from None
     return path
-
-
-def _temp_name(path: Path) -> Path:
-    return path.with_name(f".{path.name}.{os.getpid()}.{uuid.uuid4().hex[:12]}.tmp")
-
-
-def _clean_stale_temps(path: Path) -> None:
-    """Remove temporary files of earlier saves to ``path`` whose process is gone."""
-    for tmp in path.parent.glob(f".{glob.escape(path.name)}.*.tmp"):
-        pid = tmp.name[len(path.name) + 2:].partition(".")[0]
-        if pid.isdigit() and int(pid) != os.getpid():
-            try:
-                os.kill(int(pid), 0)
-            except ProcessLookupError:
-                tmp.unlink(missing_ok=True)
-            except (PermissionError, OverflowError):
-                pass
-
-
-def _json_value(value):
-    """A JSON-able form of an info value (NumPy numbers and arrays included)."""
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    return str(value)
 
 
 @dataclass
@@ -132,62 +95,34 @@ class Result:
         return bool(self.info.get("partial", False))
 
     def save(self, path, *, partial: bool | None = None) -> Path:
-        """Write CSV or NPZ, chosen by the file's suffix; written atomically, with the
-        permissions of the user's umask. ``partial``: mark the file as the result of
-        an unfinished run (default: ``self.partial``)."""
+        """Write CSV (and its sidecar ``<stem>.meta.json``), NPZ or HDF5 (.h5), chosen by
+        the file's suffix, ``info`` included; written atomically, with the permissions
+        of the user's umask. ``partial``: mark the file as the result of an unfinished
+        run (default: ``self.partial``)."""
         path = Path(path)
-        suffix = _check_suffix(path)
+        suffix = files.check_suffix(path)
         if partial is not None:
             self.info["partial"] = bool(partial)
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
-            _clean_stale_temps(path)
-            tmp = _temp_name(path)
-            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)  # umask applies
-            try:
-                with os.fdopen(fd, "wb") as f:
-                    self._write(f, suffix)
-                    f.flush()
-                    os.fsync(f.fileno())
-                os.replace(tmp, path)
-            except BaseException:
-                tmp.unlink(missing_ok=True)
-                raise
+            files.write(self, path, suffix)
         except OSError as exc:
             raise HostError.from_os_error(exc, "write the results to", path, "--out",
                                           name_file=False) from None
         return path
 
-    def _write(self, f, suffix: str) -> None:
-        if suffix == ".csv":
-            np.savetxt(f, self.table(), delimiter=",", header=",".join(self.names),
-                       comments="", fmt="%.17g")
-            if self.partial:
-                f.write(f"{PARTIAL_LINE}: {self.info.get('stopped_by', 'unfinished')}\n"
-                        .encode("utf-8"))
-        else:
-            info = json.dumps(self.info, default=_json_value, sort_keys=True)
-            np.savez(f, **{n: self[n] for n in self.names}, **{INFO_ENTRY: np.array(info)})
-
     @classmethod
     def load(cls, path) -> "Result":
-        """Read a file written by :meth:`save`. A partial result loads with
-        ``result.partial`` true and a PartialResultWarning; a temporary or cut file
-        is refused (ValueError)."""
+        """Read a file written by :meth:`save`, ``info`` included. A partial result
+        loads with ``result.partial`` true and a PartialResultWarning; a temporary or
+        cut file is refused (ValueError)."""
         path = Path(path)
         suffix = path.suffix.lower()
         if suffix not in SUFFIXES:
-            raise ValueError(f"{path}: not a result file (.csv or .npz)"
+            raise ValueError(f"{path}: not a result file (.csv, .npz or .h5)"
                              + ("; it is the temporary file of a save that did not end"
                                 if suffix == ".tmp" else ""))
-        info = {}
-        if suffix == ".npz":
-            with np.load(path) as data:
-                arrays = {n: data[n] for n in data.files}
-            if INFO_ENTRY in arrays:
-                info = json.loads(str(arrays.pop(INFO_ENTRY)))
-        else:
-            arrays, info = _read_csv(path)
+        arrays, info = files.read(path, suffix)
         if path.name.endswith(f".partial{path.suffix}"):
             info["partial"] = True
         t = arrays.pop("t")
@@ -197,24 +132,6 @@ class Result:
                 f"{path} holds a partial result: the run stopped at t = {t[-1]:.6g} "
                 f"({info.get('stopped_by', 'unfinished')})"), stacklevel=2)
         return result
-
-
-def _read_csv(path: Path) -> tuple[dict, dict]:
-    """(arrays by name, info) of a CSV result; refuses a file whose last line is cut."""
-    with open(path, "rb") as fh:
-        data = fh.read()
-    if data and not data.endswith(b"\n"):
-        raise ValueError(f"{path}: incomplete result file (its last line is cut)")
-    lines = data.decode("utf-8").splitlines()
-    info = {}
-    if lines and lines[-1].startswith(PARTIAL_LINE):
-        info = {"partial": True,
-                "stopped_by": lines[-1][len(PARTIAL_LINE):].lstrip(": ").strip()}
-    names = lines[0].strip().split(",") if lines else []
-    table = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2, comments="#")
-    if table.shape[1] != len(names):
-        raise ValueError(f"{path}: {len(names)} column names but {table.shape[1]} columns")
-    return {n: table[:, k] for k, n in enumerate(names)}, info
 
 
 @dataclass
@@ -257,22 +174,21 @@ def result_from_arrays(plan, t, q, v, body_out, energy, constraint_error, info=N
     return Result(np.array(t), cols, dict(info or {}))
 
 
-def timed_run(plan, method, sched, options, project, run) -> Result:
+def timed_run(plan, method, sched, options, project, run, settings=None) -> Result:
     """Call ``run()`` -> (arrays, stats) with single-threaded BLAS, time it, and name
-    the result's columns; ``result.info`` from :func:`fccgen.methods.run_info`."""
+    the result's columns; ``result.info`` from :func:`fccgen.methods.run_info` and
+    :func:`fccgen.provenance.provenance` (``settings``: the solver's tolerances)."""
     import time
 
-    from .methods import run_info
     from .threads import single_threaded_blas
     start = time.perf_counter()
     try:
         with single_threaded_blas():
             arrays, stats = run()
     except (KeyboardInterrupt, SimulationError) as exc:
-        _attach_partial(plan, method, sched, options, project, start, exc)
+        _attach_partial(plan, method, sched, options, project, start, exc, settings)
         raise
-    info = run_info(method, stats, arrays["energy"], time.perf_counter() - start,
-                    dt=sched.dt, output_dt=sched.output_dt, project=project, options=options)
+    info = _info(plan, method, sched, options, project, stats, arrays, start, settings)
     result = result_from_arrays(plan, arrays["t"], arrays["q"], arrays["v"],
                                 arrays["body"], arrays["energy"],
                                 arrays["constraint_error"], info)
@@ -294,24 +210,33 @@ def keep_rows(exc: BaseException, arrays: dict, n_rows: int, stats: dict) -> Non
     exc.partial = ({name: a[:n_rows].copy() for name, a in arrays.items()}, dict(stats))
 
 
-def _attach_partial(plan, method, sched, options, project, start, exc) -> None:
+def _info(plan, method, sched, options, project, stats, arrays, start, settings) -> dict:
+    """result.info of a run: how it was made, then the method's statistics."""
+    import time
+
+    from .methods import run_info
+    from .provenance import provenance
+    info = provenance(plan, settings)
+    info.update(run_info(method, stats, arrays["energy"], time.perf_counter() - start,
+                         dt=sched.dt, output_dt=sched.output_dt, t_end=sched.t_end,
+                         project=project, options=options))
+    return info
+
+
+def _attach_partial(plan, method, sched, options, project, start, exc, settings=None) -> None:
     """Name the rows an interrupted integrator handed back, if any.
 
     An integrator that stops early may set ``exc.partial = (arrays, stats)`` with
     arrays cut to the rows recorded; this sets ``exc.partial_result``, a Result with
     ``info["partial"]`` true and ``info["stopped_by"]`` saying why.
     """
-    import time
-
-    from .methods import run_info
     rows = getattr(exc, "partial", None)
     if rows is None:
         return
     arrays, stats = rows
     if len(arrays["t"]) == 0:
         return
-    info = run_info(method, stats, arrays["energy"], time.perf_counter() - start,
-                    dt=sched.dt, output_dt=sched.output_dt, project=project, options=options)
+    info = _info(plan, method, sched, options, project, stats, arrays, start, settings)
     why = "interrupted (Ctrl-C)" if isinstance(exc, KeyboardInterrupt) else str(exc)
     info.update(partial=True, stopped_by=why.splitlines()[0] if why else type(exc).__name__)
     exc.partial_result = _with_joint_columns(plan, result_from_arrays(

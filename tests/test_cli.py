@@ -38,7 +38,7 @@ def test_generate_then_cache_hit(cli_build_dir, capsys):
     assert manifest["model_name"] == "a01_pendulum"
 
 
-@pytest.mark.parametrize("suffix", [".csv", ".npz"])
+@pytest.mark.parametrize("suffix", [".csv", ".npz", ".h5"])
 def test_simulate_writes_results(cli_build_dir, tmp_path, capsys, suffix):
     out_file = tmp_path / f"run{suffix}"
     code, out, err = run(["simulate", PENDULUM, "--build-dir", cli_build_dir,
@@ -55,6 +55,9 @@ def test_simulate_writes_results(cli_build_dir, tmp_path, capsys, suffix):
     # the mass falls from rest: energy conserved, length kept
     assert np.allclose(np.hypot(r["P.x"], r["P.y"]), 1.0, atol=1e-12)
     assert r["P.y"][-1] < -0.5
+    # how it was made comes back from every format
+    assert r.info["method"] == "rk4" and r.info["dt"] == 1e-3 and r.info["t_end"] == 0.5
+    assert r.info["model"]["name"] == "a01_pendulum" and r.info["steps"] == 500
 
 
 def test_check_reports_dof_and_redundancy(capsys):
@@ -114,7 +117,7 @@ def test_unwritable_out_is_refused_before_anything_runs(tmp_path, capsys):
     (tmp_path / "file").write_text("")
     build = tmp_path / "gen"
     for out, says in ((tmp_path / "file" / "r.csv", "in the way"),
-                      (tmp_path / "r.txt", "results are written as .csv or .npz")):
+                      (tmp_path / "r.txt", "results are written as .csv, .npz or .h5")):
         code, _, err = run(["simulate", PENDULUM, "--build-dir", build, "--out", out],
                            capsys)
         assert code == 1 and err.startswith("fccgen: error: ") and says in err

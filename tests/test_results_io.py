@@ -29,18 +29,20 @@ def umask():
     os.umask(old)
 
 
-@pytest.mark.parametrize("suffix", [".csv", ".npz"])
+@pytest.mark.parametrize("suffix", [".csv", ".npz", ".h5"])
 @pytest.mark.parametrize("mask", [0o022, 0o077, 0o002])
 def test_save_uses_the_umask_and_leaves_no_temporary(umask, tmp_path, suffix, mask):
     umask(mask)
     path = small_result(method="rk4").save(tmp_path / f"r{suffix}")
-    assert stat.S_IMODE(path.stat().st_mode) == 0o666 & ~mask
-    assert sorted(p.name for p in tmp_path.iterdir()) == [path.name]
+    written = sorted(tmp_path.iterdir())
+    assert [p.name for p in written] == sorted(
+        [path.name, *(["r.meta.json"] if suffix == ".csv" else [])])
+    for p in written:                       # the CSV's sidecar too
+        assert stat.S_IMODE(p.stat().st_mode) == 0o666 & ~mask
     back = Result.load(path)
     assert back.names == ["t", "P.x", "energy"] and not back.partial
     np.testing.assert_array_equal(back["P.x"], small_result()["P.x"])   # %.17g: exact
-    if suffix == ".npz":
-        assert back.info["method"] == "rk4"
+    assert back.info == {"method": "rk4"}
 
 
 def test_a_failed_save_keeps_the_previous_file(tmp_path, monkeypatch):
@@ -53,7 +55,7 @@ def test_a_failed_save_keeps_the_previous_file(tmp_path, monkeypatch):
     with pytest.raises(HostError, match="no space left.*free some space.*--out"):
         small_result(n=9).save(path)
     assert path.read_bytes() == before
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["r.csv"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r.csv", "r.meta.json"]
 
 
 def test_temporary_and_cut_files_are_refused(tmp_path):
@@ -72,7 +74,7 @@ def test_temporary_and_cut_files_are_refused(tmp_path):
     assert not leftover.exists()
 
 
-@pytest.mark.parametrize("suffix", [".csv", ".npz"])
+@pytest.mark.parametrize("suffix", [".csv", ".npz", ".h5"])
 def test_partial_results_are_marked_and_flagged(tmp_path, suffix):
     result = small_result(stopped_by="interrupted (Ctrl-C)")
     path = result.save(partial_path(tmp_path / f"run{suffix}"), partial=True)
@@ -86,7 +88,7 @@ def test_partial_results_are_marked_and_flagged(tmp_path, suffix):
 
 
 def test_check_output_before_a_run(tmp_path):
-    with pytest.raises(ValueError, match=r"\.csv or \.npz \(got '\.txt'\)"):
+    with pytest.raises(ValueError, match=r"\.csv, \.npz or \.h5 \(got '\.txt'\)"):
         check_output(tmp_path / "r.txt")
     (tmp_path / "file").write_text("")
     with pytest.raises(HostError, match="in the way.*--out"):

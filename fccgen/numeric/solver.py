@@ -228,12 +228,18 @@ class NumericSolver:
             result = timed_run(self.plan, m, sched, opts, project,
                                lambda: INTEGRATORS[m.name](
                                    self, np.array(q0, float), np.array(v0, float), sched,
-                                   opts, project, report))
+                                   opts, project, report),
+                               settings=self.settings())
         except SimulationError as exc:
             raise explained(exc, self, q0) from None
         if report is not None:
             report.finish(result.t[-1])          # the run's end: 100%
         return rank_rule.report_run(result, decision, self._rank.stats)
+
+    def settings(self) -> dict:
+        """The solver's tolerances, as result.info["solver"] records them."""
+        return {"rank_tol": self.rank_tol, "position_tol": self.position_tol,
+                "max_newton": self.max_newton}
 
     def decide_rank(self, q) -> rank_rule.RankDecision:
         """Decide the rank of B at q (fccgen.rank) and keep it until the next decision,

@@ -203,12 +203,18 @@ class CompiledSolver:
         decision = self.decide_rank(q0)
         try:
             result = timed_run(self.plan, m, sched, opts, project,
-                               lambda: self._run(m, sched, opts, project, q0, v0, report))
+                               lambda: self._run(m, sched, opts, project, q0, v0, report),
+                               settings=self.settings())
         except SimulationError as exc:
             raise explained(exc, self, q0) from None
         if report is not None:
             report.finish(result.t[-1])          # the run's end: 100%
         return rank_rule.report_run(result, decision, self._engine.rank_statistics())
+
+    def settings(self) -> dict:
+        """The solver's tolerances, as result.info["solver"] records them."""
+        return {"rank_tol": self.rank_tol, "position_tol": self.position_tol,
+                "max_newton": self.max_newton}
 
     def decide_rank(self, q) -> rank_rule.RankDecision:
         """Decide the rank of B at q by the SVD gap test (fccgen.rank) and keep it in
