@@ -106,17 +106,21 @@ def plot(result, columns=None, out=None, *, title=None):
     return save_plot(result, columns, out, title=title)
 
 
-def animate(path, out, *, result=None, t_end=None, max_frames=None,
+def animate(path, out, *, result=None, mode=None, t_end=None, max_frames=None,
             build_dir=DEFAULT_BUILD_DIR, progress: Progress = None):
     """Write a self-contained page (``out``, .html, plotly.js inlined) that plays the
     model's motion in 3-D: ``result`` (a Result or a .csv/.npz/.h5 file of this model), or
     else a run of the model's default simulation (its simulate settings; ``t_end``
-    overrides the end time). At most ``max_frames`` frames (default 300), rows spread
-    evenly. Returns ``(page path, number of frames, the result shown)``."""
+    overrides the end time). ``mode``: play mode k of the shapes written by
+    :func:`modes` with ``shapes=result``. At most ``max_frames`` frames (default 300),
+    rows spread evenly. Returns ``(page path, number of frames, the result shown)``."""
     from .model import load_model
     from .results import Result
     from .viz.animate import DEFAULT_MAX_FRAMES, check_page_path, write_animation
     out = check_page_path(out)
+    if mode is not None:
+        from .viz.animate import mode_file
+        result = mode_file(result, mode)
     model = load_model(path)
     if result is None:
         result, _ = simulate(path, t_end=t_end, build_dir=build_dir, progress=progress)
@@ -151,12 +155,15 @@ def statics(path, *, numeric=False, build_dir=DEFAULT_BUILD_DIR, progress: Progr
     return solve_statics(solver)
 
 
-def modes(path, *, about="equilibrium", out=None, numeric=False,
-          build_dir=DEFAULT_BUILD_DIR, progress: Progress = None):
+def modes(path, *, about="equilibrium", out=None, shapes=None, amplitude=None,
+          numeric=False, build_dir=DEFAULT_BUILD_DIR, progress: Progress = None):
     """Natural frequencies and mode shapes about the static equilibrium
     (``about="equilibrium"``) or the model's initial state (``about="initial"``);
     writes the rows ``mode, frequency_hz, damping_ratio, rigid`` to ``out`` (CSV) if
-    given. Returns ``(modes, equilibrium or None)``."""
+    given, and each mode shape as a result the animation plays to
+    ``<stem>.mode<k><suffix>`` of ``shapes`` (e.g. modes.npz -> modes.mode1.npz; see
+    :mod:`fccgen.analysis.mode_shapes`; ``amplitude`` in length units). Both names are
+    checked before anything runs. Returns ``(modes, equilibrium or None)``."""
     from .analysis import linearize
     from .analysis import modes as solve_modes
     from .analysis import statics as solve_statics
@@ -167,13 +174,20 @@ def modes(path, *, about="equilibrium", out=None, numeric=False,
         if not str(out).endswith(".csv"):
             raise ValueError(f"modes are written as CSV: give --out a .csv name (got {out})")
         out = check_output(out)
+    if shapes is not None:
+        shapes = check_output(shapes, "--shapes")
     solver = load_numeric(path) if numeric else load(path, build_dir, progress=progress)
     if about == "equilibrium":
         equilibrium = solve_statics(solver)
-        result = solve_modes(linearize(solver, equilibrium.q))
+        lin = linearize(solver, equilibrium.q)
     else:
         equilibrium, init = None, solver.initial_state()
-        result = solve_modes(linearize(solver, init.q, init.v))
+        lin = linearize(solver, init.q, init.v)
+    result = solve_modes(lin)
     if out is not None:
         result.write_csv(out)
+    if shapes is not None:
+        from .analysis.mode_shapes import mode_shapes, write_mode_shapes
+        write_mode_shapes(mode_shapes(solver, lin, result, amplitude=amplitude,
+                                      about=about), shapes)
     return result, equilibrium

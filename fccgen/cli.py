@@ -137,7 +137,19 @@ def _parser() -> argparse.ArgumentParser:
                          "model's initial state")
     mo.add_argument("--out", help="write the rows mode, frequency_hz, damping_ratio, "
                                   "rigid to FILE.csv")
+    _mode_shape_options(mo)
     return p
+
+
+def _mode_shape_options(mo) -> None:
+    """fccgen modes --shapes: the mode shapes as results the animation plays."""
+    mo.add_argument("--shapes", metavar="FILE", help="write each mode shape as a result "
+                    "(one period of small motion, projected onto the constraints) to "
+                    "FILE.mode1.npz, FILE.mode2.npz, ... (.npz, .csv or .h5); play one "
+                    "with fccgen animate MODEL --result FILE --mode K")
+    mo.add_argument("--amplitude", type=float, metavar="A", help="--shapes: the largest "
+                    "coordinate's excursion, in the model's length unit (default: 0.1 x "
+                    "the largest body length)")
 
 
 def _viz_sweep_parsers(sub, common) -> None:
@@ -155,6 +167,8 @@ def _viz_sweep_parsers(sub, common) -> None:
     an.add_argument("--out", required=True, help="the page to write (.html)")
     an.add_argument("--result", help="a result of this model (.csv, .npz or .h5; default: "
                     "run the model's own simulate settings first)")
+    an.add_argument("--mode", type=int, metavar="K", help="with --result FILE: play "
+                    "mode K of the shapes written by fccgen modes --shapes FILE")
     an.add_argument("--t-end", type=float, help="without --result: end time of the run")
     an.add_argument("--frames", type=int, metavar="N", help="at most N frames, rows "
                     "spread evenly (default 300)")
@@ -350,7 +364,7 @@ def _run(args, progress) -> int:
         return 0
     if args.command == "animate":
         page, n_frames, result = api.animate(
-            args.model, args.out, result=args.result, t_end=args.t_end,
+            args.model, args.out, result=args.result, mode=args.mode, t_end=args.t_end,
             max_frames=args.frames, build_dir=args.build_dir, progress=progress)
         print(f"animation: {page} ({n_frames} frames of {len(result.t)} rows)")
         return 0
@@ -376,13 +390,25 @@ def _analysis(args, progress, api) -> int:
         print(api.statics(args.model, build_dir=args.build_dir, progress=progress).text())
         return 0
     result, equilibrium = api.modes(args.model, about=args.about, out=args.out,
+                                    shapes=args.shapes, amplitude=args.amplitude,
                                     build_dir=args.build_dir, progress=progress)
     if equilibrium is not None:
         print(equilibrium.summary())
     print(result.text())
     if args.out:
         print(f"modes: {args.out}")
+    _print_shape_files(args, len(result.frequency_hz))
     return 0
+
+
+def _print_shape_files(args, n_modes: int) -> None:
+    """Where fccgen modes --shapes wrote the shapes, and how to play one."""
+    if not args.shapes or not n_modes:
+        return
+    from .analysis.mode_shapes import mode_shape_path
+    names = [str(mode_shape_path(args.shapes, k)) for k in range(1, n_modes + 1)]
+    print(f"mode shapes: {', '.join(names)}\nplay one: fccgen animate {args.model} "
+          f"--result {args.shapes} --mode 1 --out mode1.html")
 
 
 def _accuracy(args, progress) -> int:

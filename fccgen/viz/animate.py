@@ -149,12 +149,46 @@ def animation_figure(model, result, max_frames: int = DEFAULT_MAX_FRAMES):
                dict(label="pause", method="animate", args=[[None], still])]
     fig = go.Figure(data=[*frames[0].data, static], frames=frames)
     fig.update_layout(
-        title=f"{model.name}: {len(rows)} frames of {len(result.t)} recorded rows",
+        title=_title(model, result, len(rows)),
         scene=_scene(tracks, result), sliders=[slider], margin=dict(l=0, r=0, t=50, b=0),
         updatemenus=[dict(type="buttons", buttons=buttons, x=0.02, y=0.02,
                           xanchor="left", yanchor="bottom", direction="left")],
         legend=dict(x=0.01, y=0.98))
     return fig
+
+
+def _title(model, result, n_frames: int) -> str:
+    """The page's title: the model and frames, or which mode shape it plays."""
+    info = result.info
+    if info.get("kind") == "mode shape":
+        what = ("a rigid-body mode" if info.get("rigid") else
+                f"{info.get('frequency_hz', float('nan')):.6g} Hz, one period")
+        return (f"{model.name}: mode {info.get('mode')} ({what}), amplitude "
+                f"{info.get('amplitude', float('nan')):.3g}")
+    return f"{model.name}: {n_frames} frames of {len(result.t)} recorded rows"
+
+
+def mode_file(result, mode: int) -> Path:
+    """The file of mode ``mode`` among the shapes that ``fccgen modes --shapes
+    RESULT`` wrote (RESULT.mode<k><suffix>); ValueError naming the ones there are."""
+    from ..analysis.mode_shapes import mode_shape_path
+    if result is None or not isinstance(result, (str, Path)):
+        raise ValueError("--mode needs --result NAME, the name given to fccgen modes "
+                         "--shapes (e.g. --result modes.npz --mode 1)")
+    if int(mode) < 1:
+        raise ValueError(f"--mode counts from 1 (got {mode})")
+    path = mode_shape_path(result, mode)
+    if path.exists():
+        return path
+    base = Path(result)
+    found = sorted(base.parent.glob(f"{base.stem}.mode*{base.suffix}"),
+                   key=lambda p: (len(p.name), p.name))
+    if not found:
+        raise ValueError(f"no mode shapes named {base.stem}.mode<k>{base.suffix} in "
+                         f"{base.parent}: write them first with fccgen modes MODEL "
+                         f"--shapes {base}")
+    raise ValueError(f"{path} does not exist; the shapes written as {base} are "
+                     + ", ".join(p.name for p in found))
 
 
 def write_animation(model, result, out, max_frames: int = DEFAULT_MAX_FRAMES):
