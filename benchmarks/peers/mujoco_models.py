@@ -7,9 +7,11 @@ hinged to rocker i at B_i" (2N + 1 hinges) whose N loops are closed by ``connect
 equality constraints (coupler i's far end to rocker i+1's top, 3 rows each). MuJoCo
 enforces equality constraints softly: a spring-damper of time constant ``solref[0]``
 (and damping ratio ``solref[1]``) pulls each violation back to zero, solved with the
-constraint forces by its Newton solver at every evaluation. ``SOLREF`` = (3e-3, 1) is
-the setting that meets A02's 1e-3 m level at RK4 dt = 2.5e-3 s (the accuracy
-comparison); the time constant must stay above about two steps for stability.
+constraint forces by its Newton solver at every evaluation; ``solimp`` (default
+0.9 0.95 0.001) sets how much of the constraint force it applies (its impedance).
+``SOLREF`` = (3e-3, 1) with the default impedance is used for the timing; the accuracy
+comparison (``accuracy_a02.py``) tightens both. The time constant must stay above
+about two steps for stability.
 No geometry, no contacts: the bodies carry explicit inertias.
 """
 from __future__ import annotations
@@ -39,7 +41,7 @@ def _header(name, g, dt):
             '    <flag contact="disable"/>', '  </option>', '  <worldbody>']
 
 
-def a02_mjcf(n: int, dt: float, solref=SOLREF) -> str:
+def a02_mjcf(n: int, dt: float, solref=SOLREF, solimp=None) -> str:
     """MJCF of the A02 chain of n loops (rocker hinges ``a<i>``, coupler hinges ``b<i>``)."""
     L, m = FOUR_BAR.LENGTH, FOUR_BAR.MASS
     out = _header(f"a02_{n}", FOUR_BAR.GRAVITY, dt)
@@ -54,9 +56,11 @@ def a02_mjcf(n: int, dt: float, solref=SOLREF) -> str:
             out.append('      </body>')
         out.append('    </body>')
     out += ['  </worldbody>', '  <equality>']
-    ref = f"{solref[0]!r} {solref[1]!r}"
+    soft = f'solref="{solref[0]!r} {solref[1]!r}"'
+    if solimp is not None:
+        soft += ' solimp="' + " ".join(repr(float(x)) for x in solimp) + '"'
     out += [f'    <connect body1="coupler{i}" body2="rocker{i + 1}" anchor="{L!r} 0 0" '
-            f'solref="{ref}"/>' for i in range(n)]
+            f'{soft}/>' for i in range(n)]
     out += ['  </equality>', '</mujoco>']
     return "\n".join(out)
 
@@ -89,9 +93,9 @@ class MujocoModel:
     """One system in MuJoCo: ``advance(n_steps)`` from the initial state each time,
     ``point()`` the tracked point's (x, y) now."""
 
-    def __init__(self, system: str, n: int, dt: float, solref=SOLREF):
+    def __init__(self, system: str, n: int, dt: float, solref=SOLREF, solimp=None):
         self.system, self.n = system, n
-        xml = a02_mjcf(n, dt, solref) if system == "a02" else cart_mjcf(n, dt)
+        xml = a02_mjcf(n, dt, solref, solimp) if system == "a02" else cart_mjcf(n, dt)
         self.model = mujoco.MjModel.from_xml_string(xml)
         self.data = mujoco.MjData(self.model)
         self.qvel0 = self._initial_speeds()
