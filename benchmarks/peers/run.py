@@ -1,0 +1,160 @@
+"""Time per step of fccgen, MuJoCo and Exudyn on the same systems, against size.
+
+    python benchmarks/peers/run.py [--system a02|cart] [--sizes N ...] [--reps R]
+                                   [--fccgen-solver auto|dense|sparse] [--dt 1e-3]
+
+Needs the ``peers`` extra (``pip install -e .[peers]``: mujoco, exudyn). Systems: the
+A02 N-four-bar chain (N loops) and the n-link pendulum on a cart (``systems.py``); the
+same geometry, masses, gravity and initial state in every tool, the same step dt.
+fccgen: RK4 with projection (its default); MuJoCo: its RK4, loops closed by soft
+``connect`` constraints; Exudyn: generalized-alpha with its sparse solver. Time per
+step as in ``timing.py`` (CPU, warm, medians of interleaved repetitions). Prints the
+table of times and ratios and the exponent p of time ~ N^p (least squares of log time
+on log N over the sizes >= --fit-from); writes ``peers_scaling.csv`` and
+``peers_scaling.png`` (log-log) into --out-dir. Run with single-threaded BLAS (set
+here before NumPy loads), as the other benchmarks.
+"""
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import argparse  # noqa: E402
+import csv  # noqa: E402
+import platform  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from systems import ROOT, SYSTEMS, TITLES, n_coordinates  # noqa: E402
+
+TOOLS = ("fccgen", "mujoco", "exudyn")
+DEFAULT_SIZES = {"a02": (5, 10, 20, 40, 80, 160, 320), "cart": (1, 2, 5, 10, 20, 50, 100, 200)}
+
+
+def make_models(system, n, dt, fccgen_solver):
+    import exudyn_models
+    import fccgen_models
+    import mujoco_models
+    return {"fccgen": fccgen_models.make(system, n, dt, linear_solver=fccgen_solver),
+            "mujoco": mujoco_models.make(system, n, dt),
+            "exudyn": exudyn_models.make(system, n, dt)}
+
+
+def measure(system, sizes, dt, reps, fccgen_solver, log):
+    from timing import time_interleaved
+    rows = []
+    for n in sizes:
+        timings = time_interleaved(make_models(system, n, dt, fccgen_solver), reps)
+        for t in timings.values():
+            rows.append(dict(system=system, n=n, n_q=n_coordinates(system, n), tool=t.tool,
+                             seconds_per_step=t.per_step, steps=t.steps, setup=t.setup,
+                             spread=t.spread))
+        log(f"{system} n={n}: " + ", ".join(
+            f"{t.tool} {t.per_step * 1e3:.4g} ms" for t in timings.values()))
+    return rows
+
+
+def exponent(rows, system, tool, fit_from):
+    pts = [(r["n"], r["seconds_per_step"]) for r in rows
+           if r["system"] == system and r["tool"] == tool and r["n"] >= fit_from]
+    if len(pts) < 2:
+        return float("nan")
+    n, t = np.log(np.array(pts, dtype=float)).T
+    return float(np.polyfit(n, t, 1)[0])
+
+
+def table(rows, system, fit_from) -> str:
+    """Markdown table: times per step, ratios, and the fitted exponents."""
+    by = {(r["n"], r["tool"]): r["seconds_per_step"] for r in rows if r["system"] == system}
+    sizes = sorted({n for n, _ in by})
+    head = ("| n | fccgen n_q | fccgen | MuJoCo | Exudyn | fccgen/MuJoCo | fccgen/Exudyn |\n"
+            "| ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
+    lines = [head]
+    for n in sizes:
+        f, m, e = (by[(n, tool)] for tool in TOOLS)
+        lines.append(f"| {n} | {n_coordinates(system, n)} | {_ms(f)} | {_ms(m)} | {_ms(e)} "
+                     f"| {f / m:.3g} | {f / e:.3g} |")
+    p = {tool: exponent(rows, system, tool, fit_from) for tool in TOOLS}
+    lines.append(f"| exponent (n >= {fit_from}) | | {p['fccgen']:.2f} | {p['mujoco']:.2f} "
+                 f"| {p['exudyn']:.2f} | | |")
+    return "\n".join(lines)
+
+
+def _ms(seconds: float) -> str:
+    return f"{seconds * 1e3:.3g} ms"
+
+
+def write_csv(rows, path: Path) -> None:
+    with path.open("w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+
+
+def plot(rows, systems, path: Path, note: str) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, axes = plt.subplots(1, len(systems), figsize=(5.5 * len(systems), 4.2),
+                             squeeze=False)
+    for ax, system in zip(axes[0], systems):
+        for tool, marker in zip(TOOLS, "os^"):
+            pts = sorted((r["n"], r["seconds_per_step"]) for r in rows
+                         if r["system"] == system and r["tool"] == tool)
+            if pts:
+                n, t = zip(*pts)
+                ax.loglog(n, np.array(t) * 1e3, marker=marker, label=tool)
+        ax.set_title(TITLES[system])
+        ax.set_xlabel("n")
+        ax.set_ylabel("CPU time per step (ms)")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend()
+    fig.suptitle(note, fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--system", choices=SYSTEMS, action="append",
+                    help="a system to measure (repeatable; default both)")
+    ap.add_argument("--sizes", type=int, nargs="+",
+                    help="sizes N (default: a02 5..320, cart 1..200)")
+    ap.add_argument("--reps", type=int, default=5, help="repetitions (medians of these)")
+    ap.add_argument("--dt", type=float, default=1e-3, help="step of every tool (s)")
+    ap.add_argument("--fccgen-solver", default="auto", choices=("auto", "dense", "sparse"),
+                    help="fccgen's linear_solver option (passed only when not auto)")
+    ap.add_argument("--fit-from", type=int, default=10,
+                    help="smallest size in the fit of the exponents")
+    ap.add_argument("--out-dir", type=Path, default=ROOT / "docs" / "performance")
+    args = ap.parse_args(argv)
+    systems = args.system or list(SYSTEMS)
+    start = time.perf_counter()
+
+    def log(message):
+        print(f"[{time.perf_counter() - start:7.1f} s] {message}", flush=True)
+    rows = []
+    for system in systems:
+        rows += measure(system, args.sizes or DEFAULT_SIZES[system], args.dt, args.reps,
+                        args.fccgen_solver, log)
+    note = (f"dt {args.dt:g} s, fccgen linear_solver {args.fccgen_solver}, "
+            f"{args.reps} reps; {platform.machine()} {platform.system()}, "
+            f"{os.cpu_count()} CPUs, Python {platform.python_version()}, "
+            f"{time.strftime('%Y-%m-%d')}")
+    for system in systems:
+        print(f"\n== {TITLES[system]}: CPU time per step ==\n{table(rows, system, args.fit_from)}")
+    print(note)
+    args.out_dir.mkdir(parents=True, exist_ok=True)
+    write_csv(rows, args.out_dir / "peers_scaling.csv")
+    plot(rows, systems, args.out_dir / "peers_scaling.png", note)
+    print(f"written: {args.out_dir / 'peers_scaling.csv'}, {args.out_dir / 'peers_scaling.png'}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,60 @@
+"""Time per step of the three tools, measured the same way for each.
+
+A run of k steps from the initial state costs c + k s: c the tool's set-up (fccgen's
+rank decision and result table, Exudyn's solver initialisation and initial
+accelerations, MuJoCo's reset) and s the time per step. Each repetition times runs of
+k and 2k steps; s = (median t(2k) - median t(k)) / k removes c. Times are CPU seconds
+of this process (``time.process_time``), so other work on the machine counts less.
+The tools take turns within every repetition (interleaved), so slow phases of the
+machine fall on all of them alike.
+"""
+from __future__ import annotations
+
+import statistics
+import time
+from dataclasses import dataclass
+
+TARGET_SECONDS = 0.05      # aimed CPU time of the k-step run
+MAX_STEPS = 2000
+MIN_STEPS = 5
+
+
+@dataclass
+class Timing:
+    tool: str
+    steps: int               # k
+    per_step: float          # s, seconds per step
+    setup: float             # c, seconds per run outside the steps
+    spread: float            # relative half-range of the k-step runs' times
+
+
+def cpu_time(run, *args) -> float:
+    start = time.process_time()
+    run(*args)
+    return time.process_time() - start
+
+
+def calibrate(model, probe: int = 10) -> int:
+    """k such that a k-step run takes about TARGET_SECONDS (after a warm-up run)."""
+    model.advance(probe)
+    per_step = max((cpu_time(model.advance, 2 * probe) - cpu_time(model.advance, probe))
+                   / probe, 1e-7)
+    return int(min(MAX_STEPS, max(MIN_STEPS, round(TARGET_SECONDS / per_step))))
+
+
+def time_interleaved(models: dict, reps: int) -> dict[str, Timing]:
+    """{tool: Timing} of models {tool: model with advance(n_steps)}."""
+    steps = {tool: calibrate(m) for tool, m in models.items()}
+    short = {tool: [] for tool in models}
+    long = {tool: [] for tool in models}
+    for _ in range(reps):
+        for tool, m in models.items():
+            short[tool].append(cpu_time(m.advance, steps[tool]))
+            long[tool].append(cpu_time(m.advance, 2 * steps[tool]))
+    out = {}
+    for tool in models:
+        k, t1, t2 = steps[tool], statistics.median(short[tool]), statistics.median(long[tool])
+        per_step = max(t2 - t1, 0.0) / k
+        spread = (max(short[tool]) - min(short[tool])) / (2 * t1) if t1 > 0 else 0.0
+        out[tool] = Timing(tool, k, per_step, max(t1 - k * per_step, 0.0), spread)
+    return out
