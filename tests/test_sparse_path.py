@@ -149,3 +149,32 @@ def test_a_chain_of_over_100_bodies_runs_on_the_sparse_path(tmp_path, build_dir)
             1.0, np.max(np.abs(rd[column]))), column
     energy = rs["energy"]            # RK4 at dt 1e-3 with projection: drift ~1e-10
     assert np.max(np.abs(energy - energy[0])) < 1e-7 * abs(energy[0])
+
+
+def _with_params(plan, element: int, **values):
+    import dataclasses
+    els = list(plan.elements)
+    params = els[element].params.copy()
+    for name, value in values.items():
+        params[els[element].cls.param_names.index(name)] = value
+    els[element] = dataclasses.replace(els[element], params=params)
+    return dataclasses.replace(plan, elements=els)
+
+
+def test_the_sparse_path_reports_a_singular_mass_matrix_and_non_finite_forces(compiled):
+    from fccgen.errors import SimulationError
+    pendulum = compiled("a01_pendulum")
+    plan, module = pendulum.plan, pendulum.module
+    body = next(e for _, e in plan.bodies)
+    massless = CompiledSolver(_with_params(plan, body, m=0.0, Ixx=0.0, Iyy=0.0, Izz=0.0),
+                              module, linear_solver="sparse")
+    q, v = plan.q0, np.zeros(plan.n_q)
+    with pytest.raises(SimulationError, match="singular on the constraint manifold"):
+        massless.accelerations(q, v)
+    with pytest.raises(SimulationError, match=r"stopped at t = 0: mass matrix singular.*"
+                                              r"RK4 stage 1"):
+        massless.simulate(t_end=0.01, q0=q, v0=v)
+    infinite = CompiledSolver(_with_params(plan, body, gy=np.inf), module,
+                              linear_solver="sparse")
+    with pytest.raises(SimulationError, match="non-finite applied forces f in RK4 stage 1"):
+        infinite.simulate(t_end=0.01, q0=q, v0=v)
