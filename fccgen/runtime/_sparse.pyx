@@ -17,7 +17,10 @@ iteration takes the residuals r1 = Q - M x - B^T lambda, r2 = b - B x and correc
 which zeroes r1 and multiplies the constraint part of the error by about
 1 / (1 + alpha sigma^2 / m) (sigma: a singular value of B, m a mass): with
 alpha_k = RHO m_ref / ||B_k||^2 three or four iterations reach rounding. It stops when
-the estimated remaining change, |dx| rate / (1 - rate), is below STOP |x|.
+the estimated remaining change, |dx| rate / (1 - rate), is below AL_STOP |x|. Near a
+singular position (sigma small) these steps slow down; the corrections are then
+conjugate-gradient solves of the multipliers' Schur system B A^{-1} B^T, preconditioned
+by diag(alpha), which take the few small singular values in a few extra steps.
 
 M and B are kept as element blocks (the kernels' outputs, never a dense n x n or
 m x n array); A is assembled from them through the scatter maps of
