@@ -39,7 +39,7 @@ def load(path, build_dir=DEFAULT_BUILD_DIR, *, force=False, progress: Progress =
     rebuilt with ``force``).
 
     ``solver_options`` go to :class:`fccgen.runtime.CompiledSolver` (rank_tol,
-    position_tol, max_newton).
+    position_tol, max_newton, linear_solver: "auto", "dense" or "sparse").
     """
     from .build import load_module
     from .runtime import CompiledSolver

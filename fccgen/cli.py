@@ -24,6 +24,7 @@ from .errors import (CacheRepairWarning, FccgenError, ModelError, PartialResultW
                      RunWarning)
 from .methods import describe as describe_methods
 from .methods import names as method_names
+from .run_settings import LINEAR_SOLVERS
 
 COMMANDS = ("simulate", "bench", "check", "generate", "plot", "animate", "sweep",
             "statics", "modes")
@@ -88,6 +89,11 @@ def _parser() -> argparse.ArgumentParser:
                    help="Newton position projection tolerance on max |g_k| / ||B_k|| "
                         "(default: model's simulate.position_tol, else 1e-11 x the "
                         "largest body length)")
+    s.add_argument("--linear-solver", choices=LINEAR_SOLVERS,
+                   help="the compiled runtime's constrained solve: dense (pivoted QR), "
+                        "sparse (LDL^T over a pattern fixed at load, linear in the size) "
+                        "or auto (by size; default: model's simulate.linear_solver, "
+                        "else auto; see docs/performance.md)")
     s.add_argument("--max-newton", type=int, metavar="N",
                    help="Newton iteration limit of the position projection (default: "
                         "model's simulate.max_newton, else 20)")
@@ -223,6 +229,8 @@ def _solver_options(args) -> dict:
             raise ValueError(f"--max-newton must be a whole number in [1, 1000] "
                              f"(got {args.max_newton!r})")
         out["max_newton"] = args.max_newton
+    if getattr(args, "linear_solver", None) is not None:
+        out["linear_solver"] = args.linear_solver
     return out
 
 

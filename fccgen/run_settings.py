@@ -297,3 +297,20 @@ def solver_tolerances(defaults, length_scale: float, rank_tol=None, position_tol
     return (RANK_TOL if rank_tol is None else float(rank_tol),
             POSITION_TOL * length_scale if position_tol is None else float(position_tol),
             MAX_NEWTON if max_newton is None else int(max_newton))
+
+
+# The compiled runtime's linear solver (fccgen.runtime.paths): "dense" (pivoted QR of B
+# and a null-space basis), "sparse" (LDL^T of M + B^T alpha B over a pattern fixed at
+# load time), or "auto": sparse from fccgen.runtime.paths.SPARSE_MIN_COORDINATES on.
+LINEAR_SOLVERS = ("auto", "dense", "sparse")
+
+
+def linear_solver_choice(defaults, given=None) -> str:
+    """The linear solver from the argument, else the model's ``simulate`` section
+    (``defaults``), else "auto"; ValueError for a name not in LINEAR_SOLVERS."""
+    name = given if given is not None else getattr(defaults, "linear_solver", None)
+    name = "auto" if name is None else name
+    if name not in LINEAR_SOLVERS:
+        raise ValueError(f"linear_solver must be one of {', '.join(LINEAR_SOLVERS)} "
+                         f"(got {name!r})")
+    return name

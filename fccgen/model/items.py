@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 
 from ..methods import METHODS as REGISTRY
-from ..run_settings import RunSettingError, schedule
+from ..run_settings import LINEAR_SOLVERS, RunSettingError, schedule
 from .fields import Reader, child, listing
 from .types import (Angle, AngularVelocity, Body, BodyPoint, Constraint, Distance, Force,
                     Initial, Load, Point, PointOnLine, PointOnPlane, PointRef,
@@ -33,7 +33,7 @@ JOINT_SPEED_TYPES = {"rate": ("revolute", "cylindrical"),
                      "speed": ("prismatic", "cylindrical")}
 INITIAL_BODY_KEYS = (("angular_velocity",), ("frame",))
 SIMULATE_KEYS = ((), ("t_end", "dt", "method", "output_dt", "rank_tol", "position_tol",
-                      "max_newton"))
+                      "max_newton", "linear_solver"))
 FRAMES = ("global", "body")
 
 
@@ -273,6 +273,9 @@ class ItemReader(Reader):
                     raise self.bad(e[key], f"simulate.{key}",
                                    "must be a number in (0, 1): a relative tolerance")
                 setattr(out, key, value)
+        if "linear_solver" in e:
+            out.linear_solver = self.choice(e["linear_solver"], "simulate.linear_solver",
+                                            LINEAR_SOLVERS, "linear solver")
         if "max_newton" in e:
             value = self.number(e["max_newton"], "simulate.max_newton")
             if not (value == int(value) and 1 <= value <= 1000):

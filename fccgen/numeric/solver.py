@@ -15,7 +15,7 @@ from .. import methods as registry
 from .. import rank as rank_rule
 from ..diagnose import explained
 from ..mechanism.initial_speeds import initial_speeds
-from ..run_settings import solver_tolerances
+from ..run_settings import linear_solver_choice, solver_tolerances
 from ..errors import SimulationError
 from ..progress import run_reporter
 from ..plan import Plan
@@ -32,13 +32,17 @@ class NumericSolver:
     """Assembly, constrained solve, projections and integration in NumPy."""
 
     def __init__(self, plan: Plan, *, rank_tol: float | None = None,
-                 position_tol: float | None = None, max_newton: int | None = None):
+                 position_tol: float | None = None, max_newton: int | None = None,
+                 linear_solver: str | None = None):
         self.plan = plan
         self.n_q = plan.n_q
         self.n_g = plan.n_g
         self.length_scale = _length_scale(plan)
         self.rank_tol, self.position_tol, self.max_newton = solver_tolerances(
             plan.model.simulate, self.length_scale, rank_tol, position_tol, max_newton)
+        # checked and kept, for the same options as the compiled solver; the NumPy
+        # version has one (dense) constrained solve
+        self.linear_solver = linear_solver_choice(plan.model.simulate, linear_solver)
         self._index = [el.q_index() for el in plan.elements]
         offsets = np.cumsum([0] + [el.cls.n_g for el in plan.elements])
         self._rows = [np.arange(a, b) for a, b in zip(offsets[:-1], offsets[1:])]

@@ -251,6 +251,7 @@ def solver_options(solver) -> dict:
     max_newton of a solver."""
     default = 1e-11 * solver.length_scale
     return {"rank_tol": solver.rank_tol, "max_newton": solver.max_newton,
+            "linear_solver": solver.linear_solver,
             "position_tol": None if solver.position_tol == default else solver.position_tol}
 
 
@@ -277,6 +278,6 @@ def rebuild_solver(cls, plan, directory, options):
 def reduce_solver(solver):
     """``__reduce__`` of a compiled solver: its plan, module folder and tolerances."""
     options = {"rank_tol": solver.rank_tol, "position_tol": solver.position_tol,
-               "max_newton": solver.max_newton}
+               "max_newton": solver.max_newton, "linear_solver": solver.linear_solver}
     return (rebuild_solver, (type(solver), solver.plan,
                              str(module_directory(solver.module)), options))

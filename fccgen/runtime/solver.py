@@ -15,13 +15,13 @@ from .. import methods as registry
 from .. import rank as rank_rule
 from ..diagnose import explained
 from ..mechanism.initial_speeds import initial_speeds
-from ..run_settings import solver_tolerances
+from ..run_settings import linear_solver_choice, solver_tolerances
 from ..errors import BuildError, SimulationError
 from ..progress import run_reporter
 from ..results import InitialState, Result, timed_run
 from ._assemble import FLAGS, Assembler
 from ._dopri5 import simulate_dopri5
-from ._engine import Engine
+from .paths import make_engine, use_sparse
 from ._rk4 import simulate_baumgarte, simulate_rk4
 
 
@@ -80,10 +80,12 @@ class CompiledSolver:
     singular position (fccgen.rank); position_tol: Newton projection tolerance on
     max_k |g_k| / ||B_k||; max_newton: its iteration limit. Each defaults to the
     model's simulate section, else fccgen.run_settings (1e-10, 1e-11 times the largest
-    body length, 20).
+    body length, 20). linear_solver: "dense", "sparse" or "auto" (by size;
+    fccgen.runtime.paths), default the model's simulate.linear_solver, else "auto".
     """
 
-    def __init__(self, plan, module, *, rank_tol=None, position_tol=None, max_newton=None):
+    def __init__(self, plan, module, *, rank_tol=None, position_tol=None, max_newton=None,
+                 linear_solver=None):
         self.plan = plan
         self.module = module
         self.n_q = plan.n_q
@@ -93,7 +95,11 @@ class CompiledSolver:
             plan.model.simulate, self.length_scale, rank_tol, position_tol, max_newton)
         self._asm = make_assembler(plan, module)
         self.row_groups = plan.row_groups
-        self._engine = Engine(self._asm, self.rank_tol, self.position_tol, self.max_newton)
+        self.linear_solver = linear_solver_choice(plan.model.simulate, linear_solver)
+        self.sparse = use_sparse(self.linear_solver, self.n_q)
+        self._engine = make_engine(self._asm, self.rank_tol, self.position_tol,
+                                   self.max_newton, self.sparse)
+        self._dense_engine = None if self.sparse else self._engine
 
     # -- global quantities ------------------------------------------------------------
     def _get(self, name, q, v=None):
@@ -209,12 +215,22 @@ class CompiledSolver:
             raise explained(exc, self, q0) from None
         if report is not None:
             report.finish(result.t[-1])          # the run's end: 100%
-        return rank_rule.report_run(result, decision, self._engine.rank_statistics())
+        used = self.dense_engine() if m.name == "ali3p" else self._engine
+        return rank_rule.report_run(result, decision, used.rank_statistics())
+
+    def dense_engine(self):
+        """The dense path's engine (the solver's own unless it takes the sparse one)."""
+        if self._dense_engine is None:
+            self._dense_engine = make_engine(self._asm, self.rank_tol, self.position_tol,
+                                             self.max_newton, False)
+            self._dense_engine.decide_rank(None, self._engine.decided_rank)
+        return self._dense_engine
 
     def settings(self) -> dict:
         """The solver's tolerances, as result.info["solver"] records them."""
         return {"rank_tol": self.rank_tol, "position_tol": self.position_tol,
-                "max_newton": self.max_newton}
+                "max_newton": self.max_newton, "linear_solver": self.linear_solver,
+                "path": "sparse" if self.sparse else "dense"}
 
     def decide_rank(self, q) -> rank_rule.RankDecision:
         """Decide the rank of B at q by the SVD gap test (fccgen.rank) and keep it in
@@ -223,6 +239,8 @@ class CompiledSolver:
         count QR pivots above rank_tol."""
         decision = rank_rule.decide(self.constraint_jacobian(q), self.n_q, self.row_groups)
         self._engine.decide_rank(q, decision.rank)
+        if self._dense_engine is not None and self._dense_engine is not self._engine:
+            self._dense_engine.decide_rank(q, decision.rank)
         return decision
 
     def _start_state(self, q0, v0):
@@ -245,9 +263,9 @@ class CompiledSolver:
         if m.name == "dopri5":
             return simulate_dopri5(e, q0, v0, s.t_end, s.output_dt, opts["rtol"],
                                    opts["atol"], s.dt or 0.0, project, report)
-        if m.name == "ali3p":
+        if m.name == "ali3p":                # assembles dense M and B itself
             from ._ali3p import simulate_ali3p
-            return simulate_ali3p(e, q0, v0, s.t_end, s.dt, s.n_steps, s.every, opts,
+            return simulate_ali3p(self.dense_engine(), q0, v0, s.t_end, s.dt, s.n_steps, s.every, opts,
                                   report, length_scale=self.length_scale)
         if m.name.startswith("scipy-"):
             from . import scipy_ivp              # imports scipy.integrate: only when used

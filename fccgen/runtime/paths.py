@@ -1,0 +1,35 @@
+"""The dense or the sparse path of the compiled engine, chosen by the model's size.
+
+Dense (runtime/_engine.pyx with _solve.pyx): a pivoted QR of B and a null-space basis
+per factorisation, O(n^3); fastest for small models. Sparse (runtime/_sparse.pyx): an
+LDL^T of M + B^T alpha B over a pattern fixed at load time (runtime/sparsity.py), linear
+in the size for chains and trees. "auto" takes the sparse path from
+SPARSE_MIN_COORDINATES moving coordinates on (measured by benchmarks/scaling.py: see
+docs/performance.md, "Dense and sparse paths").
+"""
+from __future__ import annotations
+
+from ._engine import Engine
+from ._sparse import SparseEngine, element_structure
+from .sparsity import structure
+
+SPARSE_MIN_COORDINATES = 40
+
+
+def use_sparse(linear_solver: str, n_q: int) -> bool:
+    """Whether the linear solver name ("auto", "dense", "sparse") means the sparse path
+    for a model of n_q coordinates."""
+    if linear_solver == "auto":
+        return n_q >= SPARSE_MIN_COORDINATES
+    return linear_solver == "sparse"
+
+
+def make_engine(asm, rank_tol, position_tol, max_newton, sparse: bool,
+                order: str = "minimum_degree"):
+    """An Engine (dense) or a SparseEngine with its structure analysed and set."""
+    if not sparse:
+        return Engine(asm, rank_tol, position_tol, max_newton)
+    engine = SparseEngine(asm, rank_tol, position_tol, max_newton)
+    st = structure(asm.n_q, *element_structure(asm), order=order)
+    engine.set_structure(st.perm, st.Ap, st.Ai, st.emap_ptr, st.emap)
+    return engine

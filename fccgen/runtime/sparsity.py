@@ -1,0 +1,139 @@
+"""Load-time analysis of the sparse path (runtime/_sparse.pyx): ordering, pattern and
+scatter maps of the matrix it factors.
+
+The sparse path factors A = M + B^T diag(alpha) B (n x n). Every element couples only
+its own coordinates: its mass block and its constraint rows add a dense block on the
+element's local coordinates (a clique of the coordinate graph) to A. So the pattern of
+A is the union of these cliques, known from the elements' local -> global coordinate
+maps before any number is computed. Here, once per solver:
+
+1. a fill-reducing order of the coordinate graph (:func:`fill_reducing_order`:
+   minimum degree, ties by index; reverse Cuthill-McKee as the alternative);
+2. the upper triangle of the permuted A in compressed sparse columns (Ap, Ai);
+3. for each element, where each of its local entries (a, b) goes: the index in A's
+   value array of (perm(i), perm(j)), i = idx[a], j = idx[b], when perm(i) <= perm(j),
+   else -1 (the symmetric entry is added by the pair (b, a) instead).
+
+The symbolic factorisation (elimination tree, column counts) is done in C from (Ap, Ai)
+when the structure is handed to the engine.
+"""
+from __future__ import annotations
+
+import heapq
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import reverse_cuthill_mckee
+
+
+@dataclass(frozen=True)
+class Structure:
+    """The pattern of A and the scatter maps (see the module docstring)."""
+    n: int
+    perm: np.ndarray          # new index -> coordinate
+    Ap: np.ndarray            # n + 1 column starts of upper(P A P^T)
+    Ai: np.ndarray            # row indices (each column sorted, diagonal last)
+    emap_ptr: np.ndarray      # per element: start in emap (n_el + 1)
+    emap: np.ndarray          # per element local pair (a, b), row-major: value index or -1
+
+
+def cliques(q_ptr, q_idx, couples) -> list[np.ndarray]:
+    """The distinct global coordinates of each element that adds to A (couples[e]:
+    it has a mass matrix or constraint rows), an empty array for the others."""
+    return [np.unique(q_idx[q_ptr[e]:q_ptr[e + 1]]) if couples[e] else
+            np.zeros(0, dtype=np.intc) for e in range(len(couples))]
+
+
+def adjacency(n: int, groups) -> list[set]:
+    """The coordinate graph: i and j adjacent when an element couples both."""
+    adj = [set() for _ in range(n)]
+    for g in groups:
+        for i in g:
+            adj[i].update(g)
+    for i in range(n):
+        adj[i].discard(i)
+    return adj
+
+
+def minimum_degree(n: int, groups) -> np.ndarray:
+    """Minimum-degree elimination order of the coordinate graph (eliminating a node
+    joins its neighbours into a clique; the lowest current degree goes first, ties by
+    index). Exact degrees, a heap with lazy deletion: fine for the few thousand
+    coordinates of a model, run once per solver."""
+    adj = adjacency(n, groups)
+    heap = [(len(adj[i]), i) for i in range(n)]
+    heapq.heapify(heap)
+    done = np.zeros(n, dtype=bool)
+    order = []
+    while heap:
+        d, i = heapq.heappop(heap)
+        if done[i] or d != len(adj[i]):
+            continue
+        done[i] = True
+        order.append(i)
+        nbrs = adj[i]
+        for j in nbrs:
+            adj[j].discard(i)
+            adj[j].update(nbrs)
+            adj[j].discard(j)
+            heapq.heappush(heap, (len(adj[j]), j))
+        adj[i] = set()
+    return np.asarray(order, dtype=np.intc)
+
+
+def rcm(n: int, groups) -> np.ndarray:
+    """Reverse Cuthill-McKee order of the coordinate graph (SciPy)."""
+    rows, cols = [], []
+    for g in groups:
+        rows.append(np.repeat(g, len(g)))
+        cols.append(np.tile(g, len(g)))
+    r = np.concatenate(rows + [np.arange(n)])
+    c = np.concatenate(cols + [np.arange(n)])
+    graph = coo_matrix((np.ones(len(r)), (r, c)), shape=(n, n)).tocsr()
+    return np.asarray(reverse_cuthill_mckee(graph, symmetric_mode=True), dtype=np.intc)
+
+
+ORDERS = {"minimum_degree": minimum_degree, "rcm": rcm}
+
+
+def structure(n: int, q_ptr, q_idx, couples, order: str = "minimum_degree") -> Structure:
+    """The :class:`Structure` of A for elements with local -> global maps (q_ptr,
+    q_idx) (CSR style), of which those with couples[e] add to A."""
+    q_ptr = np.asarray(q_ptr, dtype=np.intp)
+    q_idx = np.asarray(q_idx, dtype=np.intp)
+    groups = cliques(q_ptr, q_idx, couples)
+    perm = ORDERS[order](n, [g for g in groups if len(g)])
+    pinv = np.empty(n, dtype=np.intp)
+    pinv[perm] = np.arange(n)
+    entries = set((k, k) for k in range(n))          # the diagonal is always there
+    for g in groups:
+        p = pinv[g]
+        for a in p:
+            for b in p:
+                if a <= b:
+                    entries.add((int(a), int(b)))
+    cols = [[] for _ in range(n)]
+    for a, b in entries:
+        cols[b].append(a)
+    Ap = np.zeros(n + 1, dtype=np.intc)
+    Ai = []
+    where = {}
+    for b in range(n):
+        rows = sorted(cols[b])
+        for a in rows:
+            where[(a, b)] = len(Ai)
+            Ai.append(a)
+        Ap[b + 1] = len(Ai)
+    emap_ptr = np.zeros(len(couples) + 1, dtype=np.intc)
+    emap = []
+    for e in range(len(couples)):
+        local = q_idx[q_ptr[e]:q_ptr[e + 1]]
+        if couples[e]:
+            p = pinv[local]
+            for a in p:
+                for b in p:
+                    emap.append(where[(a, b)] if a <= b else -1)
+        emap_ptr[e + 1] = len(emap)
+    return Structure(n, perm, Ap, np.asarray(Ai, dtype=np.intc), emap_ptr,
+                     np.asarray(emap, dtype=np.intc))
