@@ -186,7 +186,7 @@ ERRORS = [
      "Q"),
     ("no such freedom", ("type: cylindrical", "type: revolute"), "drivers[0].position",
      "without that freedom", "S"),
-    ("angle of a prismatic", ("type: cylindrical", "type: prismatic"), None, None, None),
+    ("angle of a prismatic", ("type: cylindrical", "type: prismatic"), None, "angle", None),
     ("bad expression", ('"0.1*sin(2*t)"', '"__import__(1)"'), "drivers[0].position",
      "calls only", "__import__(1)"),
     ("unknown name", ('"0.1*sin(2*t)"', '"0.1*sin(2*s)"'), "drivers[0].position",
@@ -195,6 +195,9 @@ ERRORS = [
      "unknown name 't.real'", "t.real"),
     ("two quantities", ('position: "0.1*sin(2*t)"', 'position: "t", angle: "t"'),
      "drivers[0]", "needs exactly one of", "angle, position"),
+    ("no closed-form integral", ('position: "0.1*sin(2*t)"', 'speed: "sin(t)/t"'),
+     "drivers[0].speed", "no integral from 0 to t in closed form", "sin(t)/t"),
+    ("rate of a prismatic", ("type: cylindrical", "type: prismatic"), None, "rate", None),
     ("no quantity", (', position: "0.1*sin(2*t)"', ""), "drivers[0]",
      "needs exactly one of", None),
     ("name clash", ("name: push,", "name: slider,"), "drivers[0].name",
@@ -211,8 +214,9 @@ def test_driver_errors(edit, item, rule, value):
     assert edit[0] in GOOD
     text = GOOD.replace(edit[0], edit[1])
     if item is None:                 # a position driver on a prismatic joint is fine,
-        text = text.replace("position:", "angle:")   # its angle is not
-        item, rule, value = "drivers[0].angle", "a prismatic joint without that", "S"
+        key = rule                   # its angle (rate) is not
+        text = text.replace("position:", f"{key}:")
+        item, rule, value = f"drivers[0].{key}", "a prismatic joint without that", "S"
     with pytest.raises(ModelError) as info:
         load_model_text(text, "m.yaml")
     err = info.value
@@ -237,3 +241,22 @@ def test_time_jets_match_sympy(text):
         want = [float(f.diff(t, k).subs(t, time)) for k in range(3)]
         got = time_function(text)(time)
         assert np.allclose(got, want, rtol=1e-12, atol=1e-12), (got, want)
+
+
+@pytest.mark.parametrize("rate, key", [("10", "rate"), ("0.2*cos(2*t) + 0.3*t", "speed"),
+                                       ("exp(-t)*sin(3*t)", "speed")])
+def test_rate_drivers_integrate_in_closed_form(rate, key):
+    """rate: / speed: give f = integral of the rate from 0 (SymPy, decimals made exact
+    rationals first): f(0) = 0 and f' = the rate, to rounding (1e-12)."""
+    from fccgen.mechanism.expressions import parse_expression
+    text = GOOD.replace('position: "0.1*sin(2*t)"', f'{key}: "{rate}"')
+    if key == "rate":
+        text = text.replace("type: cylindrical", "type: revolute")
+    driver = load_model_text(text, "m.yaml").drivers[0]
+    assert driver.quantity == ("angle" if key == "rate" else "position")
+    t = sympy.Symbol("t", real=True)
+    f = parse_expression(driver.function, {"t": t}, source="-", line=None, item="-")
+    r = parse_expression(rate, {"t": t}, source="-", line=None, item="-")
+    assert abs(float(f.subs(t, 0))) <= 1e-12
+    for time in (0.3, 1.7):
+        assert abs(float((f.diff(t) - r).subs(t, time))) <= 1e-12

@@ -12,6 +12,7 @@ derived.
 """
 from __future__ import annotations
 
+from ..errors import ModelError
 from .fields import Reader, child, listing
 from .types import Driver, Joint, Where
 from .yamlnodes import YNode, YScalar
@@ -19,6 +20,9 @@ from .yamlnodes import YNode, YScalar
 # quantity key -> joint types that have that freedom
 DRIVEN_QUANTITIES = {"angle": ("revolute", "cylindrical"),
                      "position": ("prismatic", "cylindrical")}
+# Rates: the driven quantity is their integral from 0 (closed form by SymPy).
+RATES = {"rate": "angle", "speed": "position"}
+FUNCTION_KEYS = (*DRIVEN_QUANTITIES, *RATES)
 DRIVER_KEYS = ("name", "joint")
 
 
@@ -43,7 +47,7 @@ class DriverReader(Reader):
         return out
 
     def driver(self, node: YNode, item: str, joints: dict[str, Joint]) -> Driver:
-        m = self.mapping(node, item, DRIVER_KEYS, tuple(DRIVEN_QUANTITIES))
+        m = self.mapping(node, item, DRIVER_KEYS, FUNCTION_KEYS)
         e = m.entries
         name = self.identifier(e["name"], child(item, "name"))
         self.claim(name, "driver", e["name"].line, child(item, "name"))
@@ -51,12 +55,13 @@ class DriverReader(Reader):
         if joint_name not in joints:
             raise self.fail(e["joint"].line, child(item, "joint"), "names no joint; joints "
                             "are: " + (listing(joints) if joints else "none"), joint_name)
-        given = [k for k in DRIVEN_QUANTITIES if k in e]
+        given = [k for k in FUNCTION_KEYS if k in e]
         if len(given) != 1:
             raise self.fail(m.line, item, "needs exactly one of "
-                            + listing(DRIVEN_QUANTITIES), ", ".join(given) or "none",
+                            + listing(FUNCTION_KEYS), ", ".join(given) or "none",
                             show_value=bool(given))
-        quantity = given[0]
+        key = given[0]
+        quantity = RATES.get(key, key)
         joint = joints[joint_name]
         if joint.type not in DRIVEN_QUANTITIES[quantity]:
             have = [q for q, types in DRIVEN_QUANTITIES.items() if joint.type in types]
@@ -64,13 +69,14 @@ class DriverReader(Reader):
                     f"without that freedom (a {quantity} driver needs a "
                     f"{' or '.join(DRIVEN_QUANTITIES[quantity])} joint"
                     + (f"; this joint has {listing(have)})" if have else ")"))
-            raise self.fail(e[quantity].line, child(item, quantity), rule, joint_name)
-        text = self.function(e[quantity], child(item, quantity))
+            raise self.fail(e[key].line, child(item, key), rule, joint_name)
+        text = self.function(e[key], child(item, key), integrate=key in RATES)
         return Driver(name, joint_name, quantity, text, Where(self.source, m.line))
 
-    def function(self, node: YNode, item: str) -> str:
+    def function(self, node: YNode, item: str, integrate: bool = False) -> str:
         """The expression's text, checked by the restricted grammar over t alone
-        (SymPy is imported here, by models with drivers only)."""
+        (SymPy is imported here, by models with drivers only); integrate: the text of
+        its integral from 0 to t instead (:func:`integral_text`)."""
         import sympy
 
         from ..mechanism.expressions import parse_expression
@@ -79,6 +85,50 @@ class DriverReader(Reader):
             text = value if isinstance(value, (bool, int, float)) else node.text
         else:
             text = node.plain()
-        parse_expression(text, {"t": sympy.Symbol("t", real=True)}, source=self.source,
-                         line=node.line, item=item)
-        return " ".join((text if isinstance(text, str) else repr(text)).split())
+        t = sympy.Symbol("t", real=True)
+        expr = parse_expression(text, {"t": t}, source=self.source, line=node.line,
+                                item=item)
+        text = " ".join((text if isinstance(text, str) else repr(text)).split())
+        if not integrate:
+            return text
+        out = integral_text(expr, t)
+        try:
+            parse_expression(out or "", {"t": t}, source=self.source, line=node.line,
+                             item=item)
+        except ModelError:
+            out = None
+        if out is None:
+            raise self.fail(node.line, item, "has no integral from 0 to t in closed form "
+                            "within the expression grammar (SymPy found none); give the "
+                            "angle or position itself", text)
+        return out
+
+
+def integral_text(rate, t) -> str | None:
+    """The text of f(t) = integral of ``rate`` from 0 to t, with the rate's decimal
+    numbers made exact rationals first (so that the text holds them exactly), or
+    None when SymPy leaves an unevaluated integral or needs a case split."""
+    import sympy
+    from sympy.printing.str import StrPrinter
+
+    class GrammarPrinter(StrPrinter):
+        """SymPy's text in the names of the expression grammar (abs, min, max)."""
+
+        def _print_Abs(self, e):
+            return f"abs({self._print(e.args[0])})"
+
+        def _print_Min(self, e):
+            return f"min({', '.join(self._print(a) for a in e.args)})"
+
+        def _print_Max(self, e):
+            return f"max({', '.join(self._print(a) for a in e.args)})"
+
+    tau = sympy.Dummy("tau", real=True)
+    exact = sympy.nsimplify(rate, rational=True).subs(t, tau)
+    try:
+        f = sympy.integrate(exact, (tau, 0, t))
+    except (ValueError, NotImplementedError, TypeError):
+        return None
+    if f.has(sympy.Integral, sympy.Piecewise):
+        return None
+    return GrammarPrinter().doprint(f)

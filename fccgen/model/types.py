@@ -242,7 +242,8 @@ class Driver:
     name: str
     joint: str
     quantity: str
-    function: str             # expression text, whitespace normalised
+    function: str             # expression text, whitespace normalised (rate: and speed:
+                              # give the text of their integral)
     where: Where
 
 
