@@ -58,7 +58,17 @@ def driver_position(s: ClassSymbols) -> Outputs:
     return _rheonomic(s, dot(u, rb - ra) - f, t)
 
 
-BUILDERS.update({"driver_angle": driver_angle, "driver_position": driver_position})
+def driver_distance(s: ClassSymbols) -> Outputs:
+    """Distance of a distance joint driven to f(t) > 0: g = d.d - f^2, d = r_b - r_a
+    (quadratic, like the joint's own row)."""
+    t, f = _time_function(s)
+    ra, rb = (s.triple(n).pos for n in ("ra", "rb"))
+    d = rb - ra
+    return _rheonomic(s, dot(d, d) - f ** 2, t)
+
+
+BUILDERS.update({"driver_angle": driver_angle, "driver_position": driver_position,
+                 "driver_distance": driver_distance})
 
 
 # -- loads given as expressions of time (kinds force_t, torque_t) ----------------------

@@ -11,7 +11,9 @@ component of a driver row is, since no dependency among the rows involves it). A
 driver row is g = sin(theta - f) (angle) or s - f (position), whose derivative along
 the driven joint coordinate is 1 on the constraint (theta = f), so the torque (force)
 the driver applies on the joint's second body about (along) the axis is the
-generalized force of that row on the joint coordinate: -lambda_row.
+generalized force of that row on the joint coordinate: -lambda_row. A distance
+driver's row d.d - f^2 has the derivative 2 s = 2 f along the distance s, so its force
+(positive: pushing the bodies apart) is -2 f(t) lambda_row.
 """
 from __future__ import annotations
 
@@ -24,8 +26,9 @@ from .lowering import driver_column, driver_label
 RCOND = 1e-10
 
 
-def driver_rows(plan) -> dict[str, int]:
-    """{result column: constraint row} of the plan's drivers."""
+def driver_rows(plan) -> dict[str, tuple[int, object]]:
+    """{result column: (constraint row, dg/ds as a function of t)} of the plan's
+    drivers (s the driven joint quantity)."""
     lowering = getattr(plan.model, "mechanism", None)
     drivers = getattr(lowering, "drivers", None) or []
     if not drivers:
@@ -35,8 +38,11 @@ def driver_rows(plan) -> dict[str, int]:
     for el in plan.elements:
         by_label[el.label] = start
         start += el.cls.n_g
+    from ..numeric.time_jets import time_function     # numeric imports this module
     for d in drivers:
-        rows[driver_column(d)] = by_label[driver_label(d)]
+        slope = (lambda t: 1.0) if d.quantity != "distance" else (
+            lambda t, f=time_function(d.function): 2.0 * f(t)[0])
+        rows[driver_column(d)] = (by_label[driver_label(d)], slope)
     return rows
 
 
@@ -61,6 +67,6 @@ def add_driver_columns(solver, result) -> None:
     values = {col: np.empty(len(result.t)) for col in rows}
     for k, t in enumerate(result.t):
         lam = multipliers(solver, float(t), q[k], v[k])
-        for col, row in rows.items():
-            values[col][k] = -lam[row]
+        for col, (row, slope) in rows.items():
+            values[col][k] = -slope(float(t)) * lam[row]
     result.columns.update(values)

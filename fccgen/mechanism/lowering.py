@@ -81,7 +81,7 @@ class Lowering:
 
 def driver_column(driver) -> str:
     """The result column of a driver's generalized force: ``D.torque`` for an angle,
-    ``D.force`` for a position."""
+    ``D.force`` for a position or a distance."""
     return f"{driver.name}.{'torque' if driver.quantity == 'angle' else 'force'}"
 
 
@@ -162,6 +162,9 @@ class _Lowerer:
         name = jl.joint.name
         if d.quantity == "position":
             return (f"{name}_axis", f"{name}_a", f"{name}_b")
+        if d.quantity == "distance":                 # replaces the joint's own row
+            jl.relations = [r for r in jl.relations if r[0] != "distance"]
+            return (f"{name}_a", f"{name}_b")
         A, B = jl.joint.bodies
         n1 = perpendiculars(jl.joint.axes[0])[0]
         return (f"{name}_axis", jl.add("_drive_a", "vector", n1, (A,)),

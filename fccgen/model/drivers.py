@@ -19,7 +19,8 @@ from .yamlnodes import YNode, YScalar
 
 # quantity key -> joint types that have that freedom
 DRIVEN_QUANTITIES = {"angle": ("revolute", "cylindrical"),
-                     "position": ("prismatic", "cylindrical")}
+                     "position": ("prismatic", "cylindrical"),
+                     "distance": ("distance",)}
 # Rates: the driven quantity is their integral from 0 (closed form by SymPy).
 RATES = {"rate": "angle", "speed": "position"}
 FUNCTION_KEYS = (*DRIVEN_QUANTITIES, *RATES)

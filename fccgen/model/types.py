@@ -249,10 +249,10 @@ class Driver:
 
 @dataclass
 class DriverRow:
-    """The lowered row of a driver: kind "angle" (triples u, a, b) or "position"
-    (triples u, ra, rb); see fccgen.plan.classes.DRIVER_KINDS."""
+    """The lowered row of a driver: kind "angle" (triples u, a, b), "position"
+    (triples u, ra, rb) or "distance" (ra, rb); see fccgen.plan.classes.DRIVER_KINDS."""
     kind: str
-    triples: tuple[str, str, str]
+    triples: tuple[str, ...]
     function: str
     where: Where
     label: str | None = None

@@ -76,8 +76,21 @@ class DriverPositionKernels(DriverKernels):
         return (u @ d - f, {"u": d, "rb": u, "ra": -u}, 2.0 * x.vel["u"] @ dd, -fd, -fdd)
 
 
+class DriverDistanceKernels(DriverKernels):
+    """g = d.d - f^2 (d = r_b - r_a): dg/dt = -2 f f', bias 2 d'.d' - 2 (f'^2 + f f'')."""
+
+    @cached_property
+    def _driven(self):
+        x = self.x
+        d, dd = x.pos["rb"] - x.pos["ra"], x.vel["rb"] - x.vel["ra"]
+        f, fd, fdd = self.f
+        return (d @ d - f * f, {"rb": 2.0 * d, "ra": -2.0 * d}, 2.0 * dd @ dd,
+                -2.0 * f * fd, -2.0 * (fd * fd + f * fdd))
+
+
 KIND_KERNELS.update({"driver_angle": DriverAngleKernels,
-                     "driver_position": DriverPositionKernels})
+                     "driver_position": DriverPositionKernels,
+                     "driver_distance": DriverDistanceKernels})
 
 
 

@@ -196,7 +196,8 @@ def _mechanism_element(b: _Builder, c, label: str) -> Element:
         return b.element(f"attached_{c.kind}", label, c.where, scalars,
                          [("ri", body.i), ("rj", body.j), ("u", body.u), (target, c.target)])
     if isinstance(c, DriverRow):
-        names = ("u", "a", "b") if c.kind == "angle" else ("u", "ra", "rb")
+        names = {"angle": ("u", "a", "b"), "position": ("u", "ra", "rb"),
+                 "distance": ("ra", "rb")}[c.kind]
         return b.element(f"driver_{c.kind}", label, c.where, {"t": 0.0},
                          list(zip(names, c.triples)), function=c.function)
     if isinstance(c, PointOnPlane):
