@@ -27,15 +27,20 @@ CLASSES = [
     ElementClass("driver_position", (), (T, T, F), frozenset(), "2*t"),
     ElementClass("driver_distance", (), (F, F), frozenset(), FUNCTION),
     ElementClass("driver_distance", (), (T, F), frozenset(), "1 + exp(-t)"),
+    ElementClass("driver_coordinate", (), (F,), frozenset(), FUNCTION),
+    ElementClass("driver_coordinate", (), (F,), frozenset({"ey"}), "t**3"),
 ]
 IDS = [f"{c.kind}-{''.join('F' if f else 'm' for f in c.fixed)}" for c in CLASSES]
 
 
 def random_case(cls, seed):
-    """Random q, v, p (p: t, then the fixed triples' coordinates)."""
+    """Random q, v, p (p: t first, then the other scalars and the fixed triples'
+    coordinates)."""
     rng = np.random.default_rng(seed)
-    return (rng.normal(size=cls.n_q), rng.normal(size=cls.n_q),
-            np.concatenate([[rng.uniform(0.0, 2.0)], rng.normal(size=cls.n_p - 1)]))
+    p = np.concatenate([[rng.uniform(0.0, 2.0)], rng.normal(size=cls.n_p - 1)])
+    for name in cls.zeros:                      # structural zeros are zero
+        p[cls.param_names.index(name)] = 0.0
+    return rng.normal(size=cls.n_q), rng.normal(size=cls.n_q), p
 
 
 @pytest.mark.parametrize("cls", CLASSES, ids=IDS)
@@ -209,6 +214,39 @@ def test_distance_driver_force(tmp_path, build_dir):
     assert np.max(np.abs(r["winch.force"] - want)) <= 1e-9
 
 
+POINT = """\
+name: driven_point
+gravity: [0, 0, -9.81]
+points:
+  O: {at: [0, 0, 0], fixed: true}
+  P: [1, 0, 0]
+vectors:
+  z: {along: [0, 0, 1], fixed: true}
+bodies:
+  arm: {points: [O, P], vector: z, mass: 2.0, center: [0.5, 0, 0],
+        inertia: [0.01, 0.1, 0.1]}
+drivers:
+  - {name: lift, point: P, direction: [0, 1, 0], value: "0.5*sin(t)"}
+simulate: {t_end: 1.0, dt: 1.0e-3, output_dt: 0.01}
+"""
+
+
+def test_coordinate_driver_on_a_section2_model(tmp_path, build_dir):
+    """A bar hinged at O about z (a section-2 model) whose end P is driven to
+    y = 0.5 sin t: theta = asin(0.5 sin t), and the driving force along y at P
+    balances I_O theta'' = x_P F (gravity acts along the hinge axis: no torque about
+    it), I_O = I_yy + m (l/2)^2 = 0.6. Prescribed in full: 1e-9 N."""
+    path = tmp_path / "driven_point.yaml"
+    path.write_text(POINT)
+    r = fccgen.load(path, build_dir).simulate()
+    assert np.max(np.abs(r["P.y"] - 0.5 * np.sin(r.t))) <= 1e-10
+    t = sympy.Symbol("t")
+    theta = sympy.asin(sympy.sin(t) / 2)
+    force = sympy.lambdify(t, 0.6 * theta.diff(t, 2) / sympy.cos(theta), "numpy")(r.t)
+    assert np.max(np.abs(force)) > 0.1
+    assert np.max(np.abs(r["lift.force"] - force)) <= 1e-9
+
+
 # -- the model file's rules -----------------------------------------------------------
 
 GOOD = SLIDER.replace("type: prismatic", "type: cylindrical")
@@ -239,6 +277,31 @@ ERRORS = [
                       '  - {name: pull, joint: S, position: "t"}'), "drivers",
      "twice", "pull"),
 ]
+
+
+POINT_ERRORS = [
+    ("fixed point", ("point: P,", "point: O,"), "drivers[0].point", "is a fixed point",
+     "O"),
+    ("unknown point", ("point: P,", "point: Q,"), "drivers[0].point",
+     "names no moving point", "Q"),
+    ("zero direction", ("direction: [0, 1, 0]", "direction: [0, 0, 0]"),
+     "drivers[0].direction", "its length is zero", None),
+    ("bad value", ('"0.5*sin(t)"', '"0.5*sin(t"'), "drivers[0].value",
+     "is not an expression", "0.5*sin(t"),
+]
+
+
+@pytest.mark.parametrize("edit, item, rule, value", [c[1:] for c in POINT_ERRORS],
+                         ids=[c[0] for c in POINT_ERRORS])
+def test_coordinate_driver_errors(edit, item, rule, value):
+    assert edit[0] in POINT
+    with pytest.raises(ModelError) as info:
+        load_model_text(POINT.replace(edit[0], edit[1]), "m.yaml")
+    err = info.value
+    assert err.item == item and rule in err.rule, str(err)
+    assert err.line is not None and err.file == "m.yaml"
+    if value is not None:
+        assert err.value == value
 
 
 @pytest.mark.parametrize("edit, item, rule, value", [c[1:] for c in ERRORS],

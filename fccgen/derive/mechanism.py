@@ -67,8 +67,17 @@ def driver_distance(s: ClassSymbols) -> Outputs:
     return _rheonomic(s, dot(d, d) - f ** 2, t)
 
 
+def driver_coordinate(s: ClassSymbols) -> Outputs:
+    """Coordinate of a point along a fixed unit direction e driven to f(t), from its
+    initial value c0 = e.r(0): g = e.r - c0 - f (linear in q)."""
+    t, f = _time_function(s)
+    e = sympy.Matrix([s.scalar(n) for n in ("ex", "ey", "ez")])
+    return _rheonomic(s, dot(e, s.triple("r").pos) - s.scalar("c0") - f, t)
+
+
 BUILDERS.update({"driver_angle": driver_angle, "driver_position": driver_position,
-                 "driver_distance": driver_distance})
+                 "driver_distance": driver_distance,
+                 "driver_coordinate": driver_coordinate})
 
 
 # -- loads given as expressions of time (kinds force_t, torque_t) ----------------------

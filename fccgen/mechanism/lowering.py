@@ -86,6 +86,9 @@ def driver_column(driver) -> str:
 
 
 def driver_label(driver) -> str:
+    if driver.quantity == "coordinate":
+        along = ", ".join(f"{x:.6g}" for x in driver.direction)
+        return f"driver {driver.name} (coordinate of point {driver.point} along [{along}])"
     return f"driver {driver.name} ({driver.quantity} of joint {driver.joint})"
 
 
@@ -96,7 +99,7 @@ def _label(jl: JointLowering, what: str) -> str:
 def lower(model: Model) -> Model:
     """The section-2 model of ``model`` (itself when it has no mechanism level), with
     ``model.mechanism`` the :class:`Lowering`."""
-    if not model.pose_bodies and not model.joints:
+    if not model.pose_bodies and not model.joints and not model.drivers:
         return model
     return _Lowerer(model).run()
 
@@ -120,7 +123,8 @@ class _Lowerer:
         frames = {GROUND: np.eye(3), **{n: b.frame for n, b in model.pose_bodies.items()}}
         self.lowered = [lower_joint(j, frames) for j in model.joints]
         self.by_joint = {jl.joint.name: jl for jl in self.lowered}
-        self.driver_triples = {d.name: self.driver_vectors(d) for d in model.drivers}
+        self.driver_triples = {d.name: self.driver_vectors(d) for d in model.drivers
+                               if d.quantity != "coordinate"}
         self.taken = (set(model.points) | set(model.vectors) | set(model.bodies)
                       | set(model.pose_bodies) | set(self.by_joint))
         self.triples: dict[str, CarriedTriple] = {}
@@ -202,9 +206,24 @@ class _Lowerer:
     def driver_rows(self):
         for d in self.model.drivers:
             label = driver_label(d)
+            if d.quantity == "coordinate":
+                self.constraints.append(self.coordinate_row(d, label))
+                continue
             self.constraints.append(DriverRow(d.quantity, self.driver_triples[d.name],
                                               d.function, d.where, label))
             self.labels[d.joint].append(label)
+
+    def coordinate_row(self, d, label: str) -> DriverRow:
+        """e.(r - r0) - f for the point (a joint's shared point: its triple, which may
+        be a section-2 point it coincides with) and the unit direction e."""
+        name = d.point
+        if name in self.by_joint:
+            name = next(t.name for t in self.by_joint[name].triples if t.kind == "point")
+        e = np.asarray(d.direction, float)
+        c0 = float(e @ np.asarray(self.points[name].at, float))
+        return DriverRow("coordinate", (name,), d.function, d.where, label,
+                         scalars={"ex": float(e[0]), "ey": float(e[1]), "ez": float(e[2]),
+                                  "c0": c0})
 
     def clash(self, line, item: str, name: str, what: str) -> ModelError:
         return ModelError(self.model.source, line, item, f"the name {name}, which {what} "

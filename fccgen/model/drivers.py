@@ -12,10 +12,12 @@ derived.
 """
 from __future__ import annotations
 
+import numpy as np
+
 from ..errors import ModelError
 from .fields import Reader, child, listing
-from .types import Driver, Joint, Where
-from .yamlnodes import YNode, YScalar
+from .types import GROUND, Driver, Joint, Where
+from .yamlnodes import YMap, YNode, YScalar
 
 # quantity key -> joint types that have that freedom
 DRIVEN_QUANTITIES = {"angle": ("revolute", "cylindrical"),
@@ -25,6 +27,8 @@ DRIVEN_QUANTITIES = {"angle": ("revolute", "cylindrical"),
 RATES = {"rate": "angle", "speed": "position"}
 FUNCTION_KEYS = (*DRIVEN_QUANTITIES, *RATES)
 DRIVER_KEYS = ("name", "joint")
+# joint types whose lowering has a shared point named after the joint
+SHARED_POINT_TYPES = ("spherical", "revolute", "universal", "weld")
 
 
 class DriverReader(Reader):
@@ -34,12 +38,19 @@ class DriverReader(Reader):
         super().__init__(source)
         self.claim = claim
 
-    def drivers(self, node: YNode, joints: list[Joint]) -> list[Driver]:
+    def drivers(self, node: YNode, joints: list[Joint], points=None) -> list[Driver]:
+        """points: {name: Point} of the model (a coordinate driver names one, or the
+        shared point of a spherical, revolute, universal or weld joint)."""
         seq = self.sequence(node, "drivers")
         by_name = {j.name: j for j in joints}
-        out = [self.driver(n, f"drivers[{k}]", by_name) for k, n in enumerate(seq.items)]
+        self.points = dict(points or {})
+        out = [self.coordinate(n, f"drivers[{k}]", by_name) if self.is_coordinate(n)
+               else self.driver(n, f"drivers[{k}]", by_name)
+               for k, n in enumerate(seq.items)]
         seen: dict[str, str] = {}
         for d in out:
+            if d.quantity == "coordinate":
+                continue
             key = f"{d.joint}.{d.quantity}"
             if key in seen:
                 raise self.fail(d.where.line, "drivers", f"drive {key} twice (also "
@@ -73,6 +84,37 @@ class DriverReader(Reader):
             raise self.fail(e[key].line, child(item, key), rule, joint_name)
         text = self.function(e[key], child(item, key), integrate=key in RATES)
         return Driver(name, joint_name, quantity, text, Where(self.source, m.line))
+
+    @staticmethod
+    def is_coordinate(node: YNode) -> bool:
+        return isinstance(node, YMap) and "point" in node.entries
+
+    def coordinate(self, node: YNode, item: str, joints: dict[str, Joint]) -> Driver:
+        """``{name, point: P, direction: [x, y, z], value: f(t)}``: the coordinate of a
+        moving point along a fixed direction, from its initial position."""
+        m = self.mapping(node, item, ("name", "point", "direction", "value"))
+        e = m.entries
+        name = self.identifier(e["name"], child(item, "name"))
+        self.claim(name, "driver", e["name"].line, child(item, "name"))
+        point = self.text(e["point"], child(item, "point"))
+        shared = {j for j, joint in joints.items()
+                  if joint.type in SHARED_POINT_TYPES and GROUND not in joint.bodies}
+        if point in self.points and self.points[point].fixed:
+            raise self.fail(e["point"].line, child(item, "point"), "is a fixed point; a "
+                            "coordinate driver moves a moving point", point)
+        if point not in self.points and point not in shared:
+            known = [p for p, x in self.points.items() if not x.fixed] + sorted(shared)
+            raise self.fail(e["point"].line, child(item, "point"), "names no moving point "
+                            "(a point of the model or the point of a joint between two "
+                            "moving bodies); they are: " + (listing(known) or "none"), point)
+        direction = self.vec3(e["direction"], child(item, "direction"))
+        norm = float(np.linalg.norm(direction))
+        if not norm > 1e-12:
+            raise self.bad(e["direction"], child(item, "direction"),
+                           "must be a direction (its length is zero)")
+        text = self.function(e["value"], child(item, "value"))
+        return Driver(name, "", "coordinate", text, Where(self.source, m.line),
+                      point=point, direction=direction / norm)
 
     def function(self, node: YNode, item: str, integrate: bool = False) -> str:
         """The expression's text, checked by the restricted grammar over t alone

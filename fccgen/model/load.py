@@ -105,7 +105,7 @@ class _ModelReader(Reader):
             joints = self.mechanism.joints(e["joints"], [*self.bodies, *self.pose_bodies])
         drivers = []
         if "drivers" in e:
-            drivers = self.driver_reader.drivers(e["drivers"], joints)
+            drivers = self.driver_reader.drivers(e["drivers"], joints, self.points)
         items = ItemReader(self.source, self.points, {**self.bodies, **self.pose_bodies},
                            self.vectors)
         items.joints = {j.name: j for j in joints}

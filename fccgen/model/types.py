@@ -245,6 +245,8 @@ class Driver:
     function: str             # expression text, whitespace normalised (rate: and speed:
                               # give the text of their integral)
     where: Where
+    point: str = ""           # quantity "coordinate": the point and the unit direction
+    direction: np.ndarray | None = None
 
 
 @dataclass
@@ -257,6 +259,7 @@ class DriverRow:
     where: Where
     label: str | None = None
     type: str = "driver"
+    scalars: dict = field(default_factory=dict)   # coordinate: ex, ey, ez, c0
 
 
 @dataclass

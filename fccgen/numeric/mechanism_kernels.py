@@ -88,6 +88,18 @@ class DriverDistanceKernels(DriverKernels):
                 -2.0 * f * fd, -2.0 * (fd * fd + f * fdd))
 
 
+class DriverCoordinateKernels(DriverKernels):
+    """g = e.r - c0 - f: B = e on r, dg/dt = -f', bias -f''."""
+
+    @cached_property
+    def _driven(self):
+        x, s = self.x, self.x.s
+        e = np.array([s["ex"], s["ey"], s["ez"]])
+        f, fd, fdd = self.f
+        return e @ x.pos["r"] - s["c0"] - f, {"r": e}, 0.0, -fd, -fdd
+
+
+KIND_KERNELS.update({"driver_coordinate": DriverCoordinateKernels})
 KIND_KERNELS.update({"driver_angle": DriverAngleKernels,
                      "driver_position": DriverPositionKernels,
                      "driver_distance": DriverDistanceKernels})

@@ -197,8 +197,8 @@ def _mechanism_element(b: _Builder, c, label: str) -> Element:
                          [("ri", body.i), ("rj", body.j), ("u", body.u), (target, c.target)])
     if isinstance(c, DriverRow):
         names = {"angle": ("u", "a", "b"), "position": ("u", "ra", "rb"),
-                 "distance": ("ra", "rb")}[c.kind]
-        return b.element(f"driver_{c.kind}", label, c.where, {"t": 0.0},
+                 "distance": ("ra", "rb"), "coordinate": ("r",)}[c.kind]
+        return b.element(f"driver_{c.kind}", label, c.where, {"t": 0.0, **c.scalars},
                          list(zip(names, c.triples)), function=c.function)
     if isinstance(c, PointOnPlane):
         return b.element("point_on_plane", label, c.where, {},

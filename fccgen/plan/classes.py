@@ -101,11 +101,14 @@ for _kind, _rows in ALIGNED_ROWS.items():
 # of the time t (the class's ``function``, part of its key), t a parameter the runtime
 # writes. driver_angle: b.(-sin f a + cos f (u x a)) with a, b unit vectors of the
 # joint's two bodies perpendicular to the axis u; driver_position: u.(r_b - r_a) - f;
-# driver_distance: (r_b - r_a).(r_b - r_a) - f^2.
+# driver_distance: (r_b - r_a).(r_b - r_a) - f^2; driver_coordinate: e.r - c0 - f (e a
+# unit direction, c0 = e.r at the start).
 DRIVER_KINDS = {
     "driver_angle": (("t",), (), ("u", "a", "b"), set(), ("driver",)),
     "driver_position": (("t",), (), ("u", "ra", "rb"), set(), ("driver",)),
     "driver_distance": (("t",), (), ("ra", "rb"), set(), ("driver",)),
+    "driver_coordinate": (("t", "ex", "ey", "ez", "c0"), (), ("r",), {"ex", "ey", "ez"},
+                          ("driver",)),
 }
 MECHANISM_KINDS.update(DRIVER_KINDS)
 # Loads given as expressions of t (docs/elements.md): three components, ``function``
