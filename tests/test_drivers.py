@@ -156,7 +156,7 @@ def test_four_bar_numeric_and_compiled_agree(compiled, numeric):
     assert np.max(np.abs(rn["motor.torque"] - rc["motor.torque"])) <= 1e-10
 
 
-# -- a slider driven along a prismatic joint ------------------------------------------
+# -- a slider, a winch and a driven point: one model, one build -----------------------
 
 SLIDER = """\
 name: driven_slider
@@ -170,53 +170,60 @@ drivers:
   - {name: push, joint: S, position: "0.1*sin(2*t)"}
 simulate: {t_end: 1.0, dt: 1.0e-3, output_dt: 0.01}
 """
-
-
-def test_prismatic_driver_force(tmp_path, build_dir):
-    """x = 0.1 sin 2t along the axis, gravity -9.81 along it: the push on the slider is
-    m (x'' + 9.81) = 2 (-0.4 sin 2t + 9.81); the motion is prescribed in full, so both
-    agree to rounding (1e-9 N on forces of ~20 N)."""
-    path = tmp_path / "driven_slider.yaml"
-    path.write_text(SLIDER)
-    r = fccgen.load(path, build_dir).simulate()
-    assert np.max(np.abs(r["S.position"] - 0.1 * np.sin(2 * r.t))) <= 1e-10
-    assert np.max(np.abs(r["S.speed"] - 0.2 * np.cos(2 * r.t))) <= 1e-10
-    want = 2.0 * (-0.4 * np.sin(2 * r.t) + 9.81)
-    assert np.max(np.abs(r["push.force"] - want)) <= 1e-9
-
-
-WINCH = """\
-name: driven_distance
-gravity: [0, -9.81, 0]
+# Without gravity: the slider of SLIDER; a bob hanging from (5, 0, 0) on a distance
+# joint whose length a winch drives (a vertical prismatic joint keeps it below); a bar
+# given by points, hinged at O about z, its end P driven along y.
+DRIVEN = """\
+name: driven_three
+points:
+  O: {at: [10, 0, 0], fixed: true}
+  P: [11, 0, 0]
+vectors:
+  z: {along: [0, 0, 1], fixed: true}
 bodies:
-  bob: {mass: 2.0, center: [0, -1, 0], inertia: [0.01, 0.02, 0.03]}
+  slider: {mass: 2.0, center: [0.5, 0, 0], inertia: [0.01, 0.02, 0.03]}
+  bob: {mass: 2.0, center: [5, -1, 0], inertia: [0.01, 0.02, 0.03]}
+  arm: {points: [O, P], vector: z, mass: 2.0, center: [0.5, 0, 0],
+        inertia: [0.01, 0.1, 0.1]}
 joints:
-  - {name: D, type: distance, bodies: [ground, bob], at: [[0, 0, 0], [0, -1, 0]]}
-  - {name: P, type: prismatic, bodies: [ground, bob], at: [0, -1, 0], axis: [0, 1, 0]}
+  - {name: S, type: prismatic, bodies: [ground, slider], at: [0.5, 0, 0],
+     axis: [1, 0, 0]}
+  - {name: D, type: distance, bodies: [ground, bob], at: [[5, 0, 0], [5, -1, 0]]}
+  - {name: V, type: prismatic, bodies: [ground, bob], at: [5, -1, 0], axis: [0, 1, 0]}
 drivers:
+  - {name: push, joint: S, position: "0.1*sin(2*t)"}
   - {name: winch, joint: D, distance: "1 + 0.1*sin(2*t)"}
+  - {name: lift, point: P, direction: [0, 1, 0], value: "0.5*sin(t)"}
 simulate: {t_end: 1.0, dt: 1.0e-3, output_dt: 0.01}
 """
 
 
-def test_distance_driver_force(tmp_path, build_dir):
-    """A bob hanging from O on a distance joint whose length a winch drives to
-    s = 1 + 0.1 sin 2t (a vertical prismatic joint keeps it below O): the driver
-    replaces the joint's own length row; its force along the distance (positive
-    apart) is m s'' - m g = 2 (-0.4 sin 2t) - 2 * 9.81, prescribed in full, so exact
-    to rounding (1e-9 N on ~20 N)."""
-    path = tmp_path / "driven_distance.yaml"
-    path.write_text(WINCH)
+def test_position_distance_and_coordinate_drivers(tmp_path, build_dir):
+    """Every motion prescribed in full, so the forces are exact to rounding (1e-9 N on
+    forces up to ~1 N, positions 1e-10):
+    - push: x = 0.1 sin 2t along the prismatic joint, force m x'' = -0.8 sin 2t;
+    - winch: the distance s = 1 + 0.1 sin 2t replaces the joint's own length row; the
+      force along it (positive apart) is m s'' = -0.8 sin 2t;
+    - lift: the bar's end at y = 0.5 sin t, theta = asin(0.5 sin t); the force along y
+      at P balances I_O theta'' = x_P F, I_O = I_yy + m (l/2)^2 = 0.6."""
+    path = tmp_path / "driven_three.yaml"
+    path.write_text(DRIVEN)
     r = fccgen.load(path, build_dir).simulate()
-    s = 1 + 0.1 * np.sin(2 * r.t)
-    assert np.max(np.abs(-r["P.position"] - (s - 1))) <= 1e-10
-    want = 2.0 * (-0.4 * np.sin(2 * r.t)) - 2.0 * 9.81
-    assert np.max(np.abs(r["winch.force"] - want)) <= 1e-9
+    assert np.max(np.abs(r["S.position"] - 0.1 * np.sin(2 * r.t))) <= 1e-10
+    assert np.max(np.abs(r["S.speed"] - 0.2 * np.cos(2 * r.t))) <= 1e-10
+    assert np.max(np.abs(r["push.force"] + 0.8 * np.sin(2 * r.t))) <= 1e-9
+    assert np.max(np.abs(-r["V.position"] - 0.1 * np.sin(2 * r.t))) <= 1e-10
+    assert np.max(np.abs(r["winch.force"] + 0.8 * np.sin(2 * r.t))) <= 1e-9
+    assert np.max(np.abs(r["P.y"] - 0.5 * np.sin(r.t))) <= 1e-10
+    t = sympy.Symbol("t")
+    theta = sympy.asin(sympy.sin(t) / 2)
+    force = sympy.lambdify(t, 0.6 * theta.diff(t, 2) / sympy.cos(theta), "numpy")(r.t)
+    assert np.max(np.abs(force)) > 0.1
+    assert np.max(np.abs(r["lift.force"] - force)) <= 1e-9
 
 
 POINT = """\
 name: driven_point
-gravity: [0, 0, -9.81]
 points:
   O: {at: [0, 0, 0], fixed: true}
   P: [1, 0, 0]
@@ -227,24 +234,7 @@ bodies:
         inertia: [0.01, 0.1, 0.1]}
 drivers:
   - {name: lift, point: P, direction: [0, 1, 0], value: "0.5*sin(t)"}
-simulate: {t_end: 1.0, dt: 1.0e-3, output_dt: 0.01}
 """
-
-
-def test_coordinate_driver_on_a_section2_model(tmp_path, build_dir):
-    """A bar hinged at O about z (a section-2 model) whose end P is driven to
-    y = 0.5 sin t: theta = asin(0.5 sin t), and the driving force along y at P
-    balances I_O theta'' = x_P F (gravity acts along the hinge axis: no torque about
-    it), I_O = I_yy + m (l/2)^2 = 0.6. Prescribed in full: 1e-9 N."""
-    path = tmp_path / "driven_point.yaml"
-    path.write_text(POINT)
-    r = fccgen.load(path, build_dir).simulate()
-    assert np.max(np.abs(r["P.y"] - 0.5 * np.sin(r.t))) <= 1e-10
-    t = sympy.Symbol("t")
-    theta = sympy.asin(sympy.sin(t) / 2)
-    force = sympy.lambdify(t, 0.6 * theta.diff(t, 2) / sympy.cos(theta), "numpy")(r.t)
-    assert np.max(np.abs(force)) > 0.1
-    assert np.max(np.abs(r["lift.force"] - force)) <= 1e-9
 
 
 # -- the model file's rules -----------------------------------------------------------
