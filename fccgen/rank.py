@@ -117,10 +117,12 @@ def decide(B: np.ndarray, n_q: int | None = None, groups=None) -> RankDecision:
     return RankDecision(rank, n_q, tuple(float(s) for s in sigma))
 
 
-def run_findings(decision: RankDecision, stats: dict) -> tuple[dict, list[str]]:
+def run_findings(decision: RankDecision, stats: dict,
+                 driven: bool = False) -> tuple[dict, list[str]]:
     """(info entries, warning texts) of a run from its start decision and the rank
     statistics its factorisations gathered (Engine.rank_statistics or the numeric
-    solver's equivalent)."""
+    solver's equivalent); driven: the model has drivers (0 degrees of freedom is
+    then a motion prescribed in full, not a mistake)."""
     increases = [tuple(x) for x in stats.get("increases", [])]
     final_rank = increases[-1][2] if increases else decision.rank
     info = dict(rank=decision.rank, dof=decision.dof,
@@ -134,7 +136,7 @@ def run_findings(decision: RankDecision, stats: dict) -> tuple[dict, list[str]]:
                                   dof_after=decision.n_q - b) for t, a, b in increases],
                 projection_energy_cut=float(stats.get("kinetic_energy_cut", 0.0)))
     warnings = []
-    if decision.dof == 0 and final_rank == decision.rank:
+    if decision.dof == 0 and final_rank == decision.rank and not driven:
         warnings.append(
             "the model has 0 degrees of freedom by rank (every coordinate is fixed by "
             "the constraints): nothing can move; if it should, a constraint is doubled "
@@ -163,10 +165,10 @@ def run_findings(decision: RankDecision, stats: dict) -> tuple[dict, list[str]]:
     return info, warnings
 
 
-def report_run(result, decision: RankDecision, stats: dict):
+def report_run(result, decision: RankDecision, stats: dict, driven: bool = False):
     """Add the rank findings of a run to ``result.info`` (and its ``warnings`` list)
     and issue each warning as a :class:`~fccgen.errors.RunWarning`; returns result."""
-    info, texts = run_findings(decision, stats)
+    info, texts = run_findings(decision, stats, driven)
     result.info.update(info)
     result.info.setdefault("warnings", []).extend(texts)
     for text in texts:

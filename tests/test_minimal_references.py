@@ -324,6 +324,8 @@ def _element_constraints(el, q):
         return [tr["n"] @ (tr["K.r"] - tr["A.r"])]
     if cls.kind == "dot":
         return [tr["a"] @ tr["b"] - scal["c"]]
+    if cls.kind.startswith("driver_"):
+        return [_driver_constraint(cls, tr, scal)]
     end_names = ("K", "A", "B") if cls.kind == "point_on_line" else ("A", "B")
     ends = {e: _end_position(tr, scal, e, k) for e, k in zip(end_names, cls.ends)}
     if cls.kind == "distance":
@@ -332,6 +334,25 @@ def _element_constraints(el, q):
     if cls.kind == "point_on_line":
         return list(np.cross(ends["K"] - ends["A"], ends["B"] - ends["A"]))
     return []
+
+
+def _driver_constraint(cls, tr, scal):
+    """A driver's row (docs/joints.md, Drivers) at the time of its parameter t."""
+    from fccgen.mechanism.expressions import parse_expression
+    import sympy
+    t = sympy.Symbol("t", real=True)
+    f = float(parse_expression(cls.function, {"t": t}, source="-", line=None,
+                               item="-").subs(t, scal["t"]))
+    if cls.kind == "driver_angle":
+        a, b, u = tr["a"], tr["b"], tr["u"]
+        return b @ (-np.sin(f) * a + np.cos(f) * np.cross(u, a))
+    if cls.kind == "driver_position":
+        return tr["u"] @ (tr["rb"] - tr["ra"]) - f
+    if cls.kind == "driver_distance":
+        d = tr["rb"] - tr["ra"]
+        return d @ d - f * f
+    e = np.array([scal["ex"], scal["ey"], scal["ez"]])
+    return e @ tr["r"] - scal["c0"] - f
 
 
 def _attached_constraints(cls, tr, scal):

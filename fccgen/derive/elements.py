@@ -137,19 +137,23 @@ def point_on_line(s: ClassSymbols) -> Outputs:
 
 # -- loads ------------------------------------------------------------------------
 
-def force(s: ClassSymbols) -> Outputs:
-    """f = Dhat^T F at the body point (b1, b2, b3); potential -F.r."""
+def force(s: ClassSymbols, F: sympy.Matrix | None = None) -> Outputs:
+    """f = Dhat^T F at the body point (b1, b2, b3); potential -F.r (a constant F;
+    F given: a force of time, kind force_t, without potential)."""
     f = body_frame(s)
     pt = f.point(s.scalar("b1"), s.scalar("b2"), s.scalar("b3"))
+    if F is not None:
+        return {"applied_forces": _generalized(s, pt.dhat, F)}
     F = _vec(s, "Fx", "Fy", "Fz")
     return {"applied_forces": _generalized(s, pt.dhat, F),
             "energy": [sympy.S.Zero, -dot(F, pt.pos)]}
 
 
-def torque(s: ClassSymbols) -> Outputs:
-    """f = Phi_b^T (R^T T); a constant torque has no potential (energy [0, 0])."""
+def torque(s: ClassSymbols, T: sympy.Matrix | None = None) -> Outputs:
+    """f = Phi_b^T (R^T T); a constant torque has no potential (energy [0, 0]);
+    T given: a torque of time (kind torque_t)."""
     f = body_frame(s)
-    T = _vec(s, "Tx", "Ty", "Tz")
+    T = _vec(s, "Tx", "Ty", "Tz") if T is None else T
     t_body = sympy.Matrix([dot(f.e1, T), dot(f.e2, T), dot(f.e3, T)])
     return {"applied_forces": _generalized(s, f.phi_b, t_body),
             "energy": [sympy.S.Zero, sympy.S.Zero]}
@@ -361,3 +365,4 @@ BUILDERS: dict[str, Callable[[ClassSymbols], Outputs]] = {
     "torsion_spring": torsion_spring,
 }
 BUILDERS.update(MECHANISM_BUILDERS)
+

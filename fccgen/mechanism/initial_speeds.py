@@ -4,12 +4,13 @@ A joint rate (revolute, cylindrical: ``rate``) or slide speed (prismatic, cylind
 ``speed``) is linear in the speeds v at fixed positions q: row c_J with c_J v = d_J.
 The initial speeds are then
 
-    v = argmin (v - v_t)^T M (v - v_t) / 2   subject to   B v = 0,  C v = d,
+    v = argmin (v - v_t)^T M (v - v_t) / 2   subject to   B v = -dg/dt,  C v = d,
 
 the speeds nearest to the model's other initial speeds v_t in the kinetic-energy metric
 that keep every given joint speed *exactly* (the velocity projection alone would move
 them: a crank given 6 rad/s came out at 1.66 rad/s). With N a basis of the null space
-of B, v = N z and the reduced problem is a small KKT system in z; given speeds that the
+of B, v = v_p + N z (v_p: the minimum-norm solution of B v = -dg/dt, zero without
+drivers) and the reduced problem is a small KKT system in z; given speeds that the
 constraints do not allow together (two rates on one degree of freedom that disagree, a
 rate on a joint the mechanism cannot move) leave a residual C v - d and are refused.
 """
@@ -55,11 +56,15 @@ def speeds_with_joints(solver, q: np.ndarray, v_target: np.ndarray, wanted: dict
     C, d, items = speed_rows(solver, q, wanted)
     import scipy.linalg                  # only on this (rare) path
     N = scipy.linalg.null_space(B) if B.size else np.eye(len(q))
+    # drivers: B v = -dg/dt, v = v_p + N z with v_p its minimum-norm solution
+    rate = solver.constraint_rate(q) if hasattr(solver, "constraint_rate") else None
+    v_p = (np.linalg.lstsq(B, -rate, rcond=1e-10)[0] if rate is not None and B.size
+           and np.any(rate) else np.zeros(len(q)))
     CN = C @ N
     K = np.block([[N.T @ M @ N, CN.T], [CN, np.zeros((len(d), len(d)))]])
-    rhs = np.concatenate([N.T @ M @ v_target, d])
+    rhs = np.concatenate([N.T @ M @ (v_target - v_p), d - C @ v_p])
     sol = np.linalg.lstsq(K, rhs, rcond=None)[0]
-    v = N @ sol[:N.shape[1]]
+    v = v_p + N @ sol[:N.shape[1]]
     residual = C @ v - d
     scale = max(1.0, float(np.max(np.abs(d))))
     bad = np.flatnonzero(np.abs(residual) > 1e-9 * scale)

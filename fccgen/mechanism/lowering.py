@@ -25,8 +25,9 @@ import numpy as np
 
 from ..errors import ModelError
 from ..model import checks
-from ..model.types import (GROUND, Angle, Attached, BodyPoint, Distance, Force, Initial,
-                           Model, Point, PointOnPlane, Vector)
+from ..model.types import (GROUND, Angle, Attached, BodyPoint, Distance, DriverRow, Force,
+                           Initial, JointSpring, LinearSpring, Model, Point, PointOnPlane,
+                           TorsionSpring, Vector)
 from ..plan.geometry import body_rotation
 from .bodies import choose_frame, typical_body
 
@@ -35,7 +36,8 @@ from .bodies import choose_frame, typical_body
 # the e1-e2 plane, where the sign of nu3 is no longer held. 0.5: within 60 degrees
 # of e3, a condition number of at most 2.
 ALIGN_MIN = 0.5
-from .joints import CarriedTriple, JointLowering, lower_joint, output_columns
+from .joints import (CarriedTriple, JointLowering, lower_joint, output_columns,
+                     perpendiculars)
 
 
 @dataclass
@@ -51,10 +53,13 @@ class Lowering:
     joints: list[JointLowering]
     frames: dict[str, tuple[str, str, str]]           # body -> (i, j, u)
     labels: dict[str, list[str]] = field(default_factory=dict)   # joint -> labels
+    drivers: list = field(default_factory=list)       # fccgen.model.types.Driver
 
     def columns(self) -> list[str]:
-        """The joint result columns (J.angle, J.rate, J.position, J.speed)."""
-        return [c for jl in self.joints for c in output_columns(jl.joint)]
+        """The joint result columns (J.angle, J.rate, J.position, J.speed) and the
+        drivers' generalized forces (D.torque, D.force)."""
+        return ([c for jl in self.joints for c in output_columns(jl.joint)]
+                + [driver_column(d) for d in self.drivers])
 
     def describe(self) -> list[str]:
         """One line per joint and per body, for ``fccgen check``."""
@@ -74,6 +79,19 @@ class Lowering:
         return lines
 
 
+def driver_column(driver) -> str:
+    """The result column of a driver's generalized force: ``D.torque`` for an angle,
+    ``D.force`` for a position or a distance."""
+    return f"{driver.name}.{'torque' if driver.quantity == 'angle' else 'force'}"
+
+
+def driver_label(driver) -> str:
+    if driver.quantity == "coordinate":
+        along = ", ".join(f"{x:.6g}" for x in driver.direction)
+        return f"driver {driver.name} (coordinate of point {driver.point} along [{along}])"
+    return f"driver {driver.name} ({driver.quantity} of joint {driver.joint})"
+
+
 def _label(jl: JointLowering, what: str) -> str:
     return f"joint {jl.joint.name} ({jl.joint.type}): {what}"
 
@@ -81,7 +99,7 @@ def _label(jl: JointLowering, what: str) -> str:
 def lower(model: Model) -> Model:
     """The section-2 model of ``model`` (itself when it has no mechanism level), with
     ``model.mechanism`` the :class:`Lowering`."""
-    if not model.pose_bodies and not model.joints:
+    if not model.pose_bodies and not model.joints and not model.drivers:
         return model
     return _Lowerer(model).run()
 
@@ -105,6 +123,8 @@ class _Lowerer:
         frames = {GROUND: np.eye(3), **{n: b.frame for n, b in model.pose_bodies.items()}}
         self.lowered = [lower_joint(j, frames) for j in model.joints]
         self.by_joint = {jl.joint.name: jl for jl in self.lowered}
+        self.driver_triples = {d.name: self.driver_vectors(d) for d in model.drivers
+                               if d.quantity != "coordinate"}
         self.taken = (set(model.points) | set(model.vectors) | set(model.bodies)
                       | set(model.pose_bodies) | set(self.by_joint))
         self.triples: dict[str, CarriedTriple] = {}
@@ -125,14 +145,85 @@ class _Lowerer:
             self.section2_body(name, body)
         self.vector_rows()
         self.relation_rows()
+        self.driver_rows()
         m = self.model
         pose = {n: (*self.rotations[n], b.center, b.frame) for n, b in m.pose_bodies.items()}
+        loads = [self.joint_load(ld) if isinstance(ld, JointSpring) else ld
+                 for ld in m.loads]
         out = replace(m, points=self.points, vectors=self.vectors, bodies=self.bodies,
                       constraints=[*_converted(m.constraints, pose), *self.constraints],
-                      loads=_converted(m.loads, pose),
+                      loads=_converted(loads, pose),
                       initial=_initial(m.initial, m.pose_bodies), pose_bodies={}, joints=[])
-        out.mechanism = Lowering(self.lowered, self.frames, self.labels)
+        out.mechanism = Lowering(self.lowered, self.frames, self.labels,
+                                 list(m.drivers))
         return out
+
+    def driver_vectors(self, d) -> tuple[str, str, str]:
+        """The triples (u, a, b) of an angle driver -- the joint axis and two new unit
+        vectors, one on each body, perpendicular to it and equal at the start -- or
+        (u, r_a, r_b) of a position driver (the joint's own triples)."""
+        jl = self.by_joint[d.joint]
+        name = jl.joint.name
+        if d.quantity == "position":
+            return (f"{name}_axis", f"{name}_a", f"{name}_b")
+        if d.quantity == "distance":                 # replaces the joint's own row
+            jl.relations = [r for r in jl.relations if r[0] != "distance"]
+            return (f"{name}_a", f"{name}_b")
+        A, B = jl.joint.bodies
+        n1 = perpendiculars(jl.joint.axes[0])[0]
+        return (f"{name}_axis", jl.add("_drive_a", "vector", n1, (A,)),
+                jl.add("_drive_b", "vector", n1, (B,)))
+
+    def joint_load(self, ld: JointSpring):
+        """A torsion spring on a joint: the torsion_spring element about the joint's
+        axis vector, each side's frame given by two of its body's points (ground: two
+        new fixed points, the joint's location and one off the axis). A linear spring:
+        the linear_spring element on the joint's axis and points J_a, J_b."""
+        jl = self.by_joint[ld.joint]
+        j = jl.joint
+        if ld.kind == "linear":
+            return LinearSpring((f"{j.name}_axis", f"{j.name}_a", f"{j.name}_b"),
+                                ld.stiffness, ld.free, ld.damping, ld.where)
+        sides = []
+        for body in j.bodies:
+            if body == GROUND:
+                names = (f"{j.name}_spring0", f"{j.name}_spring1")
+                at = (j.at[0], j.at[0] + perpendiculars(j.axes[0])[0])
+                for name, value in zip(names, at):
+                    if name in self.taken or name in self.points:
+                        raise self.clash(j.where.line, f"joints.{j.name}", name,
+                                         "this joint's torsion spring")
+                    self.points[name] = Point(name, np.asarray(value, float), True,
+                                              ld.where)
+                sides.append(names)
+            elif body in self.frames:
+                sides.append(self.frames[body][:2])
+            else:
+                sides.append((self.bodies[body].i, self.bodies[body].j))
+        return TorsionSpring(j.bodies, f"{j.name}_axis", ld.stiffness, ld.free,
+                             ld.damping, ld.where, sides=tuple(sides))
+
+    def driver_rows(self):
+        for d in self.model.drivers:
+            label = driver_label(d)
+            if d.quantity == "coordinate":
+                self.constraints.append(self.coordinate_row(d, label))
+                continue
+            self.constraints.append(DriverRow(d.quantity, self.driver_triples[d.name],
+                                              d.function, d.where, label))
+            self.labels[d.joint].append(label)
+
+    def coordinate_row(self, d, label: str) -> DriverRow:
+        """e.(r - r0) - f for the point (a joint's shared point: its triple, which may
+        be a section-2 point it coincides with) and the unit direction e."""
+        name = d.point
+        if name in self.by_joint:
+            name = next(t.name for t in self.by_joint[name].triples if t.kind == "point")
+        e = np.asarray(d.direction, float)
+        c0 = float(e @ np.asarray(self.points[name].at, float))
+        return DriverRow("coordinate", (name,), d.function, d.where, label,
+                         scalars={"ex": float(e[0]), "ey": float(e[1]), "ez": float(e[2]),
+                                  "c0": c0})
 
     def clash(self, line, item: str, name: str, what: str) -> ModelError:
         return ModelError(self.model.source, line, item, f"the name {name}, which {what} "

@@ -4,13 +4,16 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from ..methods import METHODS as REGISTRY
 from ..run_settings import LINEAR_SOLVERS, RunSettingError, schedule
 from .fields import Reader, child, listing
 from .types import (Angle, AngularVelocity, Body, BodyPoint, Constraint, Distance, Force,
-                    Initial, Load, Point, PointOnLine, PointOnPlane, PointRef,
+                    Initial, JointSpring, Load, Point, PointOnLine, PointOnPlane,
+                    PointRef,
                     SimulateDefaults, Spring, Torque, TorsionSpring, Where)
-from .yamlnodes import YMap, YNode
+from .yamlnodes import YMap, YNode, YScalar, YSeq
 
 # Keys of each item type: (required, optional).
 CONSTRAINT_KEYS = {
@@ -26,6 +29,14 @@ LOAD_KEYS = {
     "spring": (("type", "ends", "stiffness"), ("length", "damping")),
     "torsion_spring": (("type", "bodies", "axis", "stiffness"), ("angle", "damping")),
 }
+# Spring-dampers on a joint's freedom (mechanism level): keys of the ``joint:`` form.
+JOINT_LOAD_KEYS = {
+    "torsion_spring": (("type", "joint", "stiffness"), ("angle", "damping")),
+    "linear_spring": (("type", "joint", "stiffness"), ("length", "damping")),
+}
+# joint types with the freedom each joint spring acts on
+JOINT_SPRING_TYPES = {"torsion_spring": ("revolute", "cylindrical"),
+                      "linear_spring": ("prismatic", "cylindrical")}
 BODY_POINT_KEYS = (("body", "at"), ())
 INITIAL_KEYS = ((), ("points", "bodies", "joints"))
 # Joint speeds an initial state may fix: quantity -> joint types that have it.
@@ -46,6 +57,7 @@ class ItemReader(Reader):
         self.points = points
         self.bodies = bodies
         self.vectors = vectors or {}
+        self.joints: dict = {}             # name -> Joint (set by the loader)
 
     # -- point references --------------------------------------------------------------
     def ref(self, node: YNode, item: str) -> PointRef:
@@ -132,17 +144,19 @@ class ItemReader(Reader):
         return [self.load(n, f"loads[{k}]") for k, n in enumerate(seq.items)]
 
     def load(self, node: YNode, item: str) -> Load:
+        if self.joint_form(node):
+            return self.joint_spring(self.typed(node, item, JOINT_LOAD_KEYS), item)
         m = self.typed(node, item, LOAD_KEYS)
         e, where, kind = m.entries, Where(self.source, m.line), m.entries["type"].text
         if kind in ("force", "torque"):
             body = self.body_name(e["body"], child(item, "body"))
-            value = self.vec3(e["value"], child(item, "value"))
+            value, function = self.load_value(e["value"], child(item, "value"))
             if kind == "torque":
-                return Torque(body, value, where)
+                return Torque(body, value, where, function=function)
             at = None
             if "at" in e:
                 at = tuple(float(x) for x in self.vec3(e["at"], child(item, "at")))
-            return Force(body, value, at, where)
+            return Force(body, value, at, where, function=function)
         if kind == "torsion_spring":
             return self.torsion_spring(e, item, where)
         ends_item = child(item, "ends")
@@ -153,6 +167,61 @@ class ItemReader(Reader):
         damping = (self.nonnegative(e["damping"], child(item, "damping"))
                    if "damping" in e else 0.0)
         return Spring(ends, stiffness, length, damping, where)
+
+    def load_value(self, node: YNode, item: str) -> tuple[np.ndarray, str]:
+        """(value, "") for three numbers; (zeros, "ex;ex;ex") when a component is
+        text: expressions of the time t (restricted grammar, docs/expressions.md)."""
+        if not (isinstance(node, YSeq) and any(
+                isinstance(n, YScalar) and isinstance(n.value, str) for n in node.items)):
+            return self.vec3(node, item), ""
+        import sympy                       # only for models with such loads
+
+        from ..mechanism.expressions import parse_expression
+        seq = self.sequence(node, item, 3)
+        t = {"t": sympy.Symbol("t", real=True)}
+        parts = []
+        for k, n in enumerate(seq.items):
+            text = n.value if isinstance(n, YScalar) and isinstance(
+                n.value, (bool, int, float)) else (n.text if isinstance(n, YScalar)
+                                                   else n.plain())
+            parse_expression(text, t, source=self.source, line=n.line,
+                             item=child(item, k))
+            parts.append(" ".join((text if isinstance(text, str) else repr(text)).split()))
+        return np.zeros(3), ";".join(parts)
+
+    @staticmethod
+    def joint_form(node: YNode) -> bool:
+        """A torsion spring with ``joint:``, or a linear spring (always on a joint)."""
+        if not isinstance(node, YMap) or not isinstance(node.entries.get("type"), YScalar):
+            return False
+        kind = node.entries["type"].text
+        return kind == "linear_spring" or (kind == "torsion_spring"
+                                           and "joint" in node.entries)
+
+    def joint_spring(self, m: YMap, item: str) -> JointSpring:
+        """``{type: torsion_spring | linear_spring, joint: J, stiffness, angle | length,
+        damping}`` on a joint that has that freedom."""
+        e, kind = m.entries, m.entries["type"].text
+        joints = getattr(self, "joints", {})
+        name = self.text(e["joint"], child(item, "joint"))
+        if name not in joints:
+            raise self.fail(e["joint"].line, child(item, "joint"), "names no joint; joints "
+                            "are: " + (listing(joints) if joints else "none"), name)
+        if joints[name].type not in JOINT_SPRING_TYPES[kind]:
+            raise self.fail(e["joint"].line, child(item, "joint"),
+                            f"is a {joints[name].type} joint; a {kind} acts on the "
+                            f"freedom of a {' or '.join(JOINT_SPRING_TYPES[kind])} joint",
+                            name)
+        free_key = "angle" if kind == "torsion_spring" else "length"
+        free = self.number(e[free_key], child(item, free_key)) if free_key in e else 0.0
+        if kind == "torsion_spring" and not abs(free) < math.pi:
+            raise self.bad(e[free_key], child(item, free_key),
+                           "must be a free angle in radians within (-pi, pi)")
+        stiffness = self.nonnegative(e["stiffness"], child(item, "stiffness"))
+        damping = (self.nonnegative(e["damping"], child(item, "damping"))
+                   if "damping" in e else 0.0)
+        return JointSpring("torsion" if kind == "torsion_spring" else "linear", name,
+                           stiffness, free, damping, Where(self.source, m.line))
 
     def torsion_spring(self, e: dict, item: str, where: Where) -> TorsionSpring:
         """``{type: torsion_spring, bodies: [A, B], axis: u, stiffness: k, angle: theta0,

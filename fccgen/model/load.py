@@ -15,6 +15,7 @@ from ..methods import names as _method_names
 from . import checks
 from .fields import IDENTIFIER, IDENTIFIER_RULE, Reader, child, listing
 from .items import ItemReader
+from .drivers import DriverReader
 from .joints import MechanismReader
 from .names import reserved_model_name
 from .types import GROUND, Body, Initial, Model, Point, PoseBody, Vector, Where
@@ -28,7 +29,8 @@ MAX_NAME_LENGTH = 64          # the model name becomes a module name and a C sym
 
 # Keys of each kind of mapping: (required, optional).
 TOP_KEYS = (("name", "points", "bodies"),
-            ("gravity", "vectors", "constraints", "loads", "initial", "simulate", "joints"))
+            ("gravity", "vectors", "constraints", "loads", "initial", "simulate", "joints",
+             "drivers"))
 POINT_KEYS = (("at",), ("fixed",))
 VECTOR_KEYS = (("along",), ("fixed",))
 BODY_KEYS = (("points", "vector", "mass", "inertia"), ("center",))
@@ -73,6 +75,7 @@ class _ModelReader(Reader):
         self.bodies: dict[str, Body] = {}
         self.pose_bodies: dict[str, PoseBody] = {}
         self.mechanism = MechanismReader(source, self.claim)
+        self.driver_reader = DriverReader(source, self.claim)
 
     def where(self, line: int | None) -> Where:
         return Where(self.source, line)
@@ -100,8 +103,12 @@ class _ModelReader(Reader):
         joints = []
         if "joints" in e:
             joints = self.mechanism.joints(e["joints"], [*self.bodies, *self.pose_bodies])
+        drivers = []
+        if "drivers" in e:
+            drivers = self.driver_reader.drivers(e["drivers"], joints, self.points)
         items = ItemReader(self.source, self.points, {**self.bodies, **self.pose_bodies},
                            self.vectors)
+        items.joints = {j.name: j for j in joints}
         constraints = items.constraints(e["constraints"]) if "constraints" in e else []
         loads = items.loads(e["loads"]) if "loads" in e else []
         initial = items.initial(e["initial"], joints) if "initial" in e else Initial()
@@ -110,7 +117,7 @@ class _ModelReader(Reader):
                      vectors=self.vectors, bodies=self.bodies, constraints=constraints,
                      loads=loads, initial=initial, simulate=simulate,
                      where={k: self.where(line) for k, line in top.key_lines.items()},
-                     pose_bodies=self.pose_bodies, joints=joints)
+                     pose_bodies=self.pose_bodies, joints=joints, drivers=drivers)
 
     def values_per_output(self) -> int:
         """Numbers one output row of a run records (DESIGN section 4): t, 6 per moving

@@ -118,6 +118,7 @@ class Force:
     at: tuple[float, float, float] | None   # body frame from point i; None: mass centre
     where: Where
     type: str = "force"
+    function: str = ""        # "ex;ex;ex": components as expressions of t (value unused)
 
 
 @dataclass
@@ -126,6 +127,7 @@ class Torque:
     value: np.ndarray         # (3,) global frame
     where: Where
     type: str = "torque"
+    function: str = ""        # "ex;ex;ex": components as expressions of t (value unused)
 
 
 @dataclass
@@ -150,9 +152,38 @@ class TorsionSpring:
     damping: float
     where: Where
     type: str = "torsion_spring"
+    # points (i, j) standing for each side's body frame; None: the bodies' own i, j
+    sides: tuple[tuple[str, str], tuple[str, str]] | None = None
 
 
-Load = Union[Force, Torque, Spring, TorsionSpring]
+@dataclass
+class JointSpring:
+    """A spring-damper on a joint's freedom (lowered by fccgen.mechanism): kind
+    "torsion" (``torsion_spring`` with ``joint:``; revolute, cylindrical) with torque
+    k (angle - free) + c rate, or "linear" (``linear_spring``; prismatic, cylindrical)
+    with force k (position - free) + c speed, on the joint's second body."""
+    kind: str
+    joint: str
+    stiffness: float
+    free: float               # free angle (radians) or free position, from the start
+    damping: float
+    where: Where
+    type: str = "joint_spring"
+
+
+@dataclass
+class LinearSpring:
+    """The lowered linear spring-damper along an axis u between points ra, rb:
+    s = u.(r_b - r_a), force k (s - free) + c s' (fccgen.plan.classes)."""
+    triples: tuple[str, str, str]
+    stiffness: float
+    free: float
+    damping: float
+    where: Where
+    type: str = "linear_spring"
+
+
+Load = Union[Force, Torque, Spring, TorsionSpring, JointSpring, LinearSpring]
 
 
 @dataclass
@@ -202,6 +233,36 @@ class Joint:
 
 
 @dataclass
+class Driver:
+    """A rheonomic constraint: the joint's ``quantity`` ("angle": revolute and
+    cylindrical; "position": prismatic and cylindrical) follows ``function``, an
+    expression of t (measured, like the joint outputs, from the initial
+    configuration). Its generalized force is the result column ``name.torque``
+    (angle) or ``name.force`` (position)."""
+    name: str
+    joint: str
+    quantity: str
+    function: str             # expression text, whitespace normalised (rate: and speed:
+                              # give the text of their integral)
+    where: Where
+    point: str = ""           # quantity "coordinate": the point and the unit direction
+    direction: np.ndarray | None = None
+
+
+@dataclass
+class DriverRow:
+    """The lowered row of a driver: kind "angle" (triples u, a, b), "position"
+    (triples u, ra, rb) or "distance" (ra, rb); see fccgen.plan.classes.DRIVER_KINDS."""
+    kind: str
+    triples: tuple[str, ...]
+    function: str
+    where: Where
+    label: str | None = None
+    type: str = "driver"
+    scalars: dict = field(default_factory=dict)   # coordinate: ex, ey, ez, c0
+
+
+@dataclass
 class SimulateDefaults:
     t_end: float = 1.0
     dt: float = 1.0e-3
@@ -232,6 +293,7 @@ class Model:
     where: dict[str, Where] = field(default_factory=dict)   # top-level keys
     pose_bodies: dict[str, PoseBody] = field(default_factory=dict)
     joints: list[Joint] = field(default_factory=list)
+    drivers: list[Driver] = field(default_factory=list)
     mechanism: object = None          # fccgen.mechanism.Lowering, once lowered
 
     @property

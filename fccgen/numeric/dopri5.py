@@ -23,6 +23,7 @@ A = [[],
      [19372 / 6561, -25360 / 2187, 64448 / 6561, -212 / 729],
      [9017 / 3168, -355 / 33, 46732 / 5247, 49 / 176, -5103 / 18656],
      [35 / 384, 0.0, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84]]
+C = [0.0, 1 / 5, 3 / 10, 4 / 5, 8 / 9, 1.0, 1.0]       # stage times (fractions of h)
 E = np.array([71 / 57600, 0.0, -71 / 16695, 71 / 1920, -17253 / 339200, 22 / 525, -1 / 40])
 D = np.array([-12715105075 / 11282082432, 0.0, 87487479700 / 32700410799,
               -10690763975 / 1880347072, 701980252875 / 199316789632,
@@ -37,16 +38,16 @@ def _initial_step(f, y, k1, t_end, rtol, atol):
     d0, d1 = np.sqrt(np.mean((y / sk) ** 2)), np.sqrt(np.mean((k1 / sk) ** 2))
     h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
     h0 = min(h0, t_end)
-    d2 = np.sqrt(np.mean(((f(y + h0 * k1) - k1) / sk) ** 2)) / h0
+    d2 = np.sqrt(np.mean(((f(y + h0 * k1, h0) - k1) / sk) ** 2)) / h0
     h1 = max(1e-6, h0 * 1e-3) if max(d1, d2) <= 1e-15 else (0.01 / max(d1, d2)) ** 0.2
     return min(100.0 * h0, h1, t_end)
 
 
-def _stages(f, y, k1, h):
-    """Stages K1..K7 and the 5th-order solution y1."""
+def _stages(f, y, k1, h, t=0.0):
+    """Stages K1..K7 (at the times t + c_i h) and the 5th-order solution y1."""
     k = [k1]
-    for row in A[1:]:
-        k.append(f(y + h * sum(a * kj for a, kj in zip(row, k) if a != 0.0)))
+    for row, c in zip(A[1:], C[1:]):
+        k.append(f(y + h * sum(a * kj for a, kj in zip(row, k) if a != 0.0), t + c * h))
     y1 = y + h * sum(a * kj for a, kj in zip(A[6], k) if a != 0.0)
     return k, y1
 
@@ -61,8 +62,11 @@ def simulate_dopri5(solver, q, v, sched, opts, project, progress=None):
                  max_newton_iterations=0)
     constraint_max = [0.0]
 
-    def f(y):
+    set_time = getattr(solver, "set_time", lambda _t: None)   # models with drivers
+
+    def f(y, t):
         stats["rhs_evaluations"] += 1
+        set_time(t)
         return np.concatenate([y[n:], solver.accelerations(y[:n], y[n:])])
 
     t_req = _output_times(t_end, sched.output_dt)
@@ -71,7 +75,7 @@ def simulate_dopri5(solver, q, v, sched, opts, project, progress=None):
     y, t, last_rejected = np.concatenate([q, v]), 0.0, False
     deadline = time.monotonic() + 0.5
     try:
-        k1 = f(y)
+        k1 = f(y, 0.0)
         h = sched.dt if sched.dt else _initial_step(f, y, k1, t_end, rtol, atol)
         j = 1
         while t < t_end:
@@ -80,7 +84,7 @@ def simulate_dopri5(solver, q, v, sched, opts, project, progress=None):
                 raise SimulationError(f"DOPRI5 step size underflow (h = {h:.3g})")
             if hasattr(solver, "_rank"):       # step start, for the rank log
                 solver._rank.t = t
-            k, y1 = _stages(f, y, k1, h)
+            k, y1 = _stages(f, y, k1, h, t)
             d = h * sum(e * kj for e, kj in zip(E, k) if e != 0.0)
             err = np.sqrt(np.mean((d / (atol + rtol * np.maximum(abs(y), abs(y1)))) ** 2))
             if not err <= 1.0:
@@ -97,16 +101,18 @@ def simulate_dopri5(solver, q, v, sched, opts, project, progress=None):
             while j < len(t_req) and t_req[j] <= t * (1 + 4 * UROUND):
                 yo = _interpolate(rc, (t_req[j] - t_old) / h)
                 qo, vo = yo[:n], yo[n:]
+                set_time(t_req[j])
                 if project:
                     qo, vo = _project(solver, qo, vo, stats)
                 record(t_req[j], qo, vo)
                 j += 1
             y = y1
             _check_finite(y[:n], y[n:])
+            set_time(t)
             if project:
                 qp, vp = _project(solver, y[:n], y[n:], stats)
                 y = np.concatenate([qp, vp])
-                k1 = f(y)
+                k1 = f(y, t)
             else:
                 k1 = k[6]
                 constraint_max[0] = max(constraint_max[0],

@@ -521,3 +521,4 @@ def element_kernel(cls: ElementClass, name: str, q, v, p) -> np.ndarray | None:
     """Flattened row-major output of kernel ``name`` (same length as
     ``KernelSpec.size(cls)``), or None if the kernel does not apply to the class."""
     return element_kernels(cls, q, v, p).evaluate(name)
+

@@ -14,6 +14,7 @@ import numpy as np
 from .. import methods as registry
 from .. import rank as rank_rule
 from ..diagnose import explained
+from ..mechanism.driver_forces import add_driver_columns, driver_rows
 from ..mechanism.initial_speeds import initial_speeds
 from ..run_settings import linear_solver_choice, solver_tolerances
 from ..errors import SimulationError
@@ -48,15 +49,28 @@ class NumericSolver:
         self._rows = [np.arange(a, b) for a, b in zip(offsets[:-1], offsets[1:])]
         self.row_groups = plan.row_groups
         self._rank = RankKeeper(groups=self.row_groups)
+        # parameters per element; set_time writes t into the slots named "t"
+        self._params = [np.array(el.params, float) for el in plan.elements]
+        self._time_slots = [(k, el.cls.param_names.index("t"))
+                            for k, el in enumerate(plan.elements)
+                            if "t" in el.cls.param_names]
+        self.t = 0.0
+
+    def set_time(self, t) -> None:
+        """Evaluate the kernels at the time t from now on (models with drivers)."""
+        self.t = float(t)
+        for k, slot in self._time_slots:
+            self._params[k][slot] = self.t
 
     # -- element evaluation ------------------------------------------------------------
     def _kernels(self, q, v):
         """(element, local index, row indices, kernels object) for every element."""
         q = np.asarray(q, float)
         v = None if v is None else np.asarray(v, float)
-        for el, idx, rows in zip(self.plan.elements, self._index, self._rows):
+        for el, idx, rows, p in zip(self.plan.elements, self._index, self._rows,
+                                    self._params):
             yield el, idx, rows, element_kernels(el.cls, q[idx],
-                                                 None if v is None else v[idx], el.params)
+                                                 None if v is None else v[idx], p)
 
     def _assemble(self, q, v, names: tuple[str, ...]) -> dict[str, np.ndarray]:
         """Global arrays of the named kernels at (q, v), in one pass over the elements."""
@@ -65,6 +79,7 @@ class NumericSolver:
                "constraints": np.zeros(self.n_g),
                "constraint_jacobian": np.zeros((self.n_g, self.n_q)),
                "constraint_bias": np.zeros(self.n_g),
+               "constraint_rate": np.zeros(self.n_g),
                "force_jacobian_q": np.zeros((self.n_q, self.n_q)),
                "force_jacobian_v": np.zeros((self.n_q, self.n_q))}
         out = {n: out[n] for n in names}
@@ -79,7 +94,7 @@ class NumericSolver:
                 elif name == "constraint_jacobian":
                     np.add.at(out[name], (rows[:, None], idx[None, :]),
                               value.reshape(len(rows), len(idx)))
-                elif name in ("constraints", "constraint_bias"):
+                elif name in ("constraints", "constraint_bias", "constraint_rate"):
                     out[name][rows] = value
                 else:
                     np.add.at(out[name], idx, value)
@@ -103,6 +118,10 @@ class NumericSolver:
 
     def constraint_bias(self, q, v) -> np.ndarray:
         return self._assemble(q, v, ("constraint_bias",))["constraint_bias"]
+
+    def constraint_rate(self, q) -> np.ndarray:
+        """Partial dg/dt at the time of :meth:`set_time` (zero without drivers)."""
+        return self._assemble(q, None, ("constraint_rate",))["constraint_rate"]
 
     def force_jacobian_q(self, q, v) -> np.ndarray:
         """df/dq of the applied forces (the tangent's K is its negative)."""
@@ -141,13 +160,15 @@ class NumericSolver:
                                  -a["constraint_bias"], self.rank_tol, self._rank)
 
     def project_velocities(self, q, v) -> np.ndarray:
-        """The speeds nearest to v in the kinetic-energy metric with B v = 0."""
-        a = self._assemble(q, None, ("mass_matrix", "constraint_jacobian"))
+        """The speeds nearest to v in the kinetic-energy metric with B v = -dg/dt
+        (0 without drivers)."""
+        a = self._assemble(q, None, ("mass_matrix", "constraint_jacobian",
+                                     "constraint_rate"))
         M = a["mass_matrix"]
         self._rank.check_growth = True          # q is on the constraints (projected)
         try:
             return constrained_solve(M, a["constraint_jacobian"], M @ np.asarray(v, float),
-                                     np.zeros(self.n_g), self.rank_tol, self._rank)
+                                     -a["constraint_rate"], self.rank_tol, self._rank)
         finally:
             self._rank.check_growth = False
 
@@ -181,6 +202,7 @@ class NumericSolver:
 
     def initial_state(self) -> InitialState:
         """plan.q0 assembled onto the constraints and plan.v_target made consistent."""
+        self.set_time(0.0)
         q_given = np.array(self.plan.q0, float)
         q, iterations = self.project_positions(q_given)
         self.decide_rank(q)
@@ -195,15 +217,18 @@ class NumericSolver:
             position_residual=_amax(self.constraints(q)),
             newton_iterations=iterations,
             velocity_change=_amax(v - v_given),
-            velocity_residual=_amax(self.constraint_jacobian(q) @ v))
+            velocity_residual=_amax(self.constraint_jacobian(q) @ v
+                                    + self.constraint_rate(q)))
 
     def baumgarte_accelerations(self, q, v, alpha: float, beta: float) -> np.ndarray:
         """q'' of the index-1 equations with Baumgarte stabilisation:
         B q'' = -(dB/dt) q' - 2 alpha B q' - beta^2 g."""
         a = self._assemble(q, v, ("mass_matrix", "h_vector", "applied_forces",
-                                  "constraint_jacobian", "constraint_bias", "constraints"))
+                                  "constraint_jacobian", "constraint_bias", "constraints",
+                                  "constraint_rate"))
         B = a["constraint_jacobian"]
-        b = (-a["constraint_bias"] - 2.0 * alpha * (B @ np.asarray(v, float))
+        g_dot = B @ np.asarray(v, float) + a["constraint_rate"]
+        b = (-a["constraint_bias"] - 2.0 * alpha * g_dot
              - beta * beta * a["constraints"])
         return constrained_solve(a["mass_matrix"], B, a["applied_forces"] - a["h_vector"],
                                  b, self.rank_tol, self._rank)
@@ -220,6 +245,7 @@ class NumericSolver:
         m = registry.get(d.method if method is None else method, tuple(INTEGRATORS))
         opts = registry.options_for(m, rtol, atol, method_options)
         sched = registry.schedule(m, d, t_end, dt, output_dt, opts)
+        self.set_time(0.0)
         if q0 is None:
             init = self.initial_state()
             q0, v0 = init.q, (init.v if v0 is None else v0)
@@ -238,7 +264,9 @@ class NumericSolver:
             raise explained(exc, self, q0) from None
         if report is not None:
             report.finish(result.t[-1])          # the run's end: 100%
-        return rank_rule.report_run(result, decision, self._rank.stats)
+        add_driver_columns(self, result)
+        return rank_rule.report_run(result, decision, self._rank.stats,
+                                    driven=bool(driver_rows(self.plan)))
 
     def settings(self) -> dict:
         """The solver's tolerances, as result.info["solver"] records them."""
@@ -276,14 +304,19 @@ class _Recorder:
         return a
 
 
-def _rk4_step(accelerations, q, v, h):
-    """One classical Runge-Kutta step of q' = v, v' = accelerations(q, v)."""
+def _rk4_step(accelerations, q, v, h, t=0.0, set_time=None):
+    """One classical Runge-Kutta step of q' = v, v' = accelerations(q, v) from t;
+    set_time(t) (if given) before each stage, leaving it at t + h."""
+    set_time = set_time or (lambda _t: None)
+    set_time(t)
     a1 = accelerations(q, v)
     v2 = v + 0.5 * h * a1
+    set_time(t + 0.5 * h)
     a2 = accelerations(q + 0.5 * h * v, v2)
     v3 = v + 0.5 * h * a2
     a3 = accelerations(q + 0.5 * h * v2, v3)
     v4 = v + h * a3
+    set_time(t + h)
     a4 = accelerations(q + h * v3, v4)
     return (q + h / 6.0 * (v + 2.0 * v2 + 2.0 * v3 + v4),
             v + h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4))
@@ -318,7 +351,8 @@ def simulate_rk4(solver: NumericSolver, q, v, sched, opts, project, progress=Non
         t = k * dt if k < n_steps else t_end
         solver._rank.t = (k - 1) * dt          # step start, as the compiled loop logs it
         try:
-            q, v = _rk4_step(accelerations, q, v, dt if k < n_steps else t_end - (k - 1) * dt)
+            q, v = _rk4_step(accelerations, q, v, dt if k < n_steps else t_end - (k - 1) * dt,
+                             (k - 1) * dt, getattr(solver, "set_time", None))
             _check_finite(q, v)
             solver._rank.t = t                 # the projected state is at the step's end
             if project:

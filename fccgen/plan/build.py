@@ -7,7 +7,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ModelError
-from ..model.types import (Angle, Attached, BodyPoint, Distance, Force, Model,
+from ..model.types import (Angle, Attached, BodyPoint, Distance, DriverRow, Force,
+                           LinearSpring, Model,
                            PointOnLine, PointOnPlane, PointRef, Spring, Torque,
                            TorsionSpring, Where)
 from .classes import END_FOLDABLE, FOLDABLE, ElementClass
@@ -109,7 +110,8 @@ class _Builder:
                     [(f"{prefix}.ri", body.i), (f"{prefix}.rj", body.j), (f"{prefix}.u", body.u)])
         return "point", {}, [(f"{prefix}.r", ref)]
 
-    def element(self, kind, label, where, scalars: dict, triples: list, ends=()):
+    def element(self, kind, label, where, scalars: dict, triples: list, ends=(),
+                function: str = ""):
         fixed, slots, fixed_vals = [], [], []
         for _, model_name in triples:
             moving, val = self.triple(model_name)
@@ -121,7 +123,7 @@ class _Builder:
         foldable = FOLDABLE[kind] | {n for n in scalars if n.split(".")[-1] in END_FOLDABLE
                                      and "." in n}
         zeros = frozenset(n for n, v in scalars.items() if n in foldable and v == 0.0)
-        cls = ElementClass(kind, tuple(ends), tuple(fixed), zeros)
+        cls = ElementClass(kind, tuple(ends), tuple(fixed), zeros, function)
         params = np.array([scalars[n] for n in cls.scalar_names] + fixed_vals, float)
         return Element(cls, label, tuple(slots), params, where)
 
@@ -148,12 +150,13 @@ class _Builder:
             triples += t
         return self.element(kind, label, where, scalars, triples, ends)
 
-    def body_load(self, kind, label, where, body_name, own: dict):
+    def body_load(self, kind, label, where, body_name, own: dict, function: str = ""):
         body = self.model.bodies[body_name]
         l, alpha, beta = self.frames[body_name]
         scalars = {"l": l, "alpha": alpha, "beta": beta, **own}
         return self.element(kind, label, where, scalars,
-                            [("ri", body.i), ("rj", body.j), ("u", body.u)])
+                            [("ri", body.i), ("rj", body.j), ("u", body.u)],
+                            function=function)
 
     def point_position(self, ref: PointRef) -> np.ndarray:
         if isinstance(ref, BodyPoint):
@@ -192,6 +195,11 @@ def _mechanism_element(b: _Builder, c, label: str) -> Element:
         target = "k" if c.kind == "point" else "w"
         return b.element(f"attached_{c.kind}", label, c.where, scalars,
                          [("ri", body.i), ("rj", body.j), ("u", body.u), (target, c.target)])
+    if isinstance(c, DriverRow):
+        names = {"angle": ("u", "a", "b"), "position": ("u", "ra", "rb"),
+                 "distance": ("ra", "rb"), "coordinate": ("r",)}[c.kind]
+        return b.element(f"driver_{c.kind}", label, c.where, {"t": 0.0, **c.scalars},
+                         list(zip(names, c.triples)), function=c.function)
     if isinstance(c, PointOnPlane):
         return b.element("point_on_plane", label, c.where, {},
                          [("n", c.normal), ("K.r", c.point), ("A.r", c.origin)],
@@ -223,7 +231,7 @@ def make_plan(model: Model) -> Plan:
                                       [("u", name)]))
     for k, c in enumerate(model.constraints):
         label = getattr(c, "label", None) or f"constraints[{k}]"
-        if isinstance(c, (Attached, PointOnPlane, Angle)):
+        if isinstance(c, (Attached, PointOnPlane, Angle, DriverRow)):
             el = _mechanism_element(b, c, label)
         elif isinstance(c, PointOnLine):
             el = b.with_ends("point_on_line", label, c.where, {},
@@ -242,14 +250,18 @@ def make_plan(model: Model) -> Plan:
             l, alpha, beta = b.frames[ld.body]
             rho = body.center if ld.at is None else ld.at
             c = point_coefficients(rho, l, alpha, beta)
-            own = {"b1": c[0], "b2": c[1], "b3": c[2],
-                   "Fx": ld.value[0], "Fy": ld.value[1], "Fz": ld.value[2]}
-            el = b.body_load("force", label, ld.where, ld.body,
-                             {k2: float(v) for k2, v in own.items()})
+            own = {"b1": c[0], "b2": c[1], "b3": c[2]}
+            own.update({"t": 0.0} if ld.function else
+                       {"Fx": ld.value[0], "Fy": ld.value[1], "Fz": ld.value[2]})
+            el = b.body_load("force_t" if ld.function else "force", label, ld.where,
+                             ld.body, {k2: float(v) for k2, v in own.items()},
+                             ld.function)
         elif isinstance(ld, Torque):
-            own = {"Tx": ld.value[0], "Ty": ld.value[1], "Tz": ld.value[2]}
-            el = b.body_load("torque", label, ld.where, ld.body,
-                             {k2: float(v) for k2, v in own.items()})
+            own = ({"t": 0.0} if ld.function else
+                   {"Tx": ld.value[0], "Ty": ld.value[1], "Tz": ld.value[2]})
+            el = b.body_load("torque_t" if ld.function else "torque", label, ld.where,
+                             ld.body, {k2: float(v) for k2, v in own.items()},
+                             ld.function)
         elif isinstance(ld, Spring):
             length = ld.length
             if length is None:
@@ -260,6 +272,11 @@ def make_plan(model: Model) -> Plan:
                               "c": float(ld.damping)}, ld.ends, ("A", "B"))
         elif isinstance(ld, TorsionSpring):
             el = _torsion_spring(b, ld, label)
+        elif isinstance(ld, LinearSpring):
+            el = b.element("linear_spring", label, ld.where,
+                           {"k": float(ld.stiffness), "L": float(ld.free),
+                            "c": float(ld.damping)},
+                           list(zip(("u", "ra", "rb"), ld.triples)))
         else:  # pragma: no cover
             raise TypeError(type(ld))
         _require_moving(el, model, f"this {ld.type} load")
@@ -287,19 +304,19 @@ def _torsion_spring(b: _Builder, ld: TorsionSpring, label: str) -> Element:
     initial positions, and the free position is theta_init + angle, whose cosine and
     sine are the parameters cos0, sin0."""
     m = b.model
-    body_a, body_b = (m.bodies[n] for n in ld.bodies)
+    sides = ld.sides or tuple((m.bodies[n].i, m.bodies[n].j) for n in ld.bodies)
     u = np.asarray(m.vectors[ld.axis].along, float)
     ref, lam = [], []
-    for body in (body_a, body_b):
-        rij = np.asarray(m.points[body.j].at, float) - np.asarray(m.points[body.i].at, float)
+    for i, j in sides:
+        rij = np.asarray(m.points[j].at, float) - np.asarray(m.points[i].at, float)
         lam.append(float(rij @ u))                   # l beta
         ref.append(rij - lam[-1] * u)
     theta_init = float(np.arctan2(u @ np.cross(ref[0], ref[1]), ref[0] @ ref[1]))
     free = theta_init + ld.angle
     scalars = {"k": float(ld.stiffness), "c": float(ld.damping), "lA": lam[0],
                "lB": lam[1], "cos0": float(np.cos(free)), "sin0": float(np.sin(free))}
-    triples = [("A.ri", body_a.i), ("A.rj", body_a.j), ("B.ri", body_b.i),
-               ("B.rj", body_b.j), ("u", ld.axis)]
+    (a_i, a_j), (b_i, b_j) = sides
+    triples = [("A.ri", a_i), ("A.rj", a_j), ("B.ri", b_i), ("B.rj", b_j), ("u", ld.axis)]
     return b.element("torsion_spring", label, ld.where, scalars, triples)
 
 

@@ -97,6 +97,32 @@ ALIGNED_ROWS = {"aligned_vector_12": ("e1", "e2"), "aligned_vector_13": ("e1", "
 for _kind, _rows in ALIGNED_ROWS.items():
     _c = tuple(f"c{r[1]}" for r in _rows)
     MECHANISM_KINDS[_kind] = (_c, (), (*BODY_TRIPLES, "w"), set(_c), _rows)
+# Drivers (docs/joints.md, "Drivers"): rheonomic rows g(q) - f(t) with f an expression
+# of the time t (the class's ``function``, part of its key), t a parameter the runtime
+# writes. driver_angle: b.(-sin f a + cos f (u x a)) with a, b unit vectors of the
+# joint's two bodies perpendicular to the axis u; driver_position: u.(r_b - r_a) - f;
+# driver_distance: (r_b - r_a).(r_b - r_a) - f^2; driver_coordinate: e.r - c0 - f (e a
+# unit direction, c0 = e.r at the start).
+DRIVER_KINDS = {
+    "driver_angle": (("t",), (), ("u", "a", "b"), set(), ("driver",)),
+    "driver_position": (("t",), (), ("u", "ra", "rb"), set(), ("driver",)),
+    "driver_distance": (("t",), (), ("ra", "rb"), set(), ("driver",)),
+    "driver_coordinate": (("t", "ex", "ey", "ez", "c0"), (), ("r",), {"ex", "ey", "ez"},
+                          ("driver",)),
+}
+MECHANISM_KINDS.update(DRIVER_KINDS)
+# Loads given as expressions of t (docs/elements.md): three components, ``function``
+# "Fx;Fy;Fz" (or "Tx;Ty;Tz"), the time t a parameter the runtime writes.
+TIMED_LOAD_KINDS = {
+    "force_t": (("l", "alpha", "beta", "b1", "b2", "b3", "t"), (), BODY_TRIPLES,
+                {"beta", "b1", "b2", "b3"}, ()),
+    "torque_t": (("l", "alpha", "beta", "t"), (), BODY_TRIPLES, {"beta"}, ()),
+}
+MECHANISM_KINDS.update(TIMED_LOAD_KINDS)
+# A linear spring-damper along a prismatic or cylindrical joint: s = u.(r_b - r_a) with
+# u the joint axis, force k (s - L) + c s' (docs/elements.md).
+MECHANISM_KINDS["linear_spring"] = (("k", "L", "c"), (), ("u", "ra", "rb"), {"L", "c"}, ())
+FUNCTION_KINDS = (*DRIVER_KINDS, *TIMED_LOAD_KINDS)
 for _kind, (_scalars, _ends, _triples, _foldable, _rows) in MECHANISM_KINDS.items():
     KIND_SCALARS[_kind] = _scalars
     KIND_ENDS[_kind] = _ends
@@ -113,6 +139,8 @@ class ElementClass:
     ends: tuple[str, ...]          # per end of KIND_ENDS[kind]: "point" | "body_point"
     fixed: tuple[bool, ...]        # per triple of triple_names
     zeros: frozenset[str]          # scalar names folded to zero
+    function: str = ""             # drivers: f(t); timed loads: "ex;ex;ex" (grammar of
+                                   # fccgen.mechanism.expressions, in t)
 
     def __post_init__(self):
         if self.kind not in KIND_SCALARS:
@@ -124,6 +152,9 @@ class ElementClass:
         unknown = set(self.zeros) - set(self.scalar_names)
         if unknown:
             raise ValueError(f"{self.kind}: zeros name unknown scalars {sorted(unknown)}")
+        if bool(self.function) != (self.kind in FUNCTION_KINDS):
+            raise ValueError(f"{self.kind}: a function of time belongs to driver and "
+                             "timed-load classes only, and every one of them has one")
 
     @cached_property
     def scalar_names(self) -> tuple[str, ...]:
@@ -191,10 +222,11 @@ class ElementClass:
     @cached_property
     def key(self) -> str:
         """Canonical text of the structure (stable across runs and machines)."""
-        return json.dumps({"kind": self.kind, "ends": list(self.ends),
-                           "fixed": [int(f) for f in self.fixed],
-                           "zeros": sorted(self.zeros)}, sort_keys=True,
-                          separators=(",", ":"))
+        key = {"kind": self.kind, "ends": list(self.ends),
+               "fixed": [int(f) for f in self.fixed], "zeros": sorted(self.zeros)}
+        if self.function:
+            key["function"] = self.function
+        return json.dumps(key, sort_keys=True, separators=(",", ":"))
 
     @cached_property
     def name(self) -> str:
@@ -210,4 +242,6 @@ class ElementClass:
             parts.append("ends " + "/".join(self.ends))
         parts.append("fixed " + (",".join(fixed) if fixed else "none"))
         parts.append("zeros " + (",".join(sorted(self.zeros)) if self.zeros else "none"))
+        if self.function:
+            parts.append(f"f(t) = {self.function}")
         return "; ".join(parts)

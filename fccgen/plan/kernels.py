@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Callable
 
-from .classes import ElementClass
+from .classes import DRIVER_KINDS, ElementClass
 
 
 @dataclass(frozen=True)
@@ -26,8 +26,9 @@ class KernelSpec:
         return self.size(cls) > 0
 
 
-_LOADED = ("body", "force", "torque", "spring", "torsion_spring")   # applied forces
-_DAMPED = ("spring", "torsion_spring")              # forces that read speeds
+_LOADED = ("body", "force", "torque", "spring", "torsion_spring", "force_t",
+           "torque_t", "linear_spring")                               # applied forces
+_DAMPED = ("spring", "torsion_spring", "linear_spring")   # forces that read speeds
 
 
 def _body_only(n: int):
@@ -45,9 +46,11 @@ KERNELS: tuple[KernelSpec, ...] = (
                "f = sum Dhat^T F + Phi^T T"),
     KernelSpec("constraints", False, lambda c: c.n_g, "g(q)"),
     KernelSpec("constraint_jacobian", False, lambda c: c.n_g * c.n_q, "B = dg/dq"),
-    KernelSpec("constraint_bias", True, lambda c: c.n_g, "(dB/dt) q' = q'^T (d2g/dq2) q'"),
+    KernelSpec("constraint_bias", True, lambda c: c.n_g,
+               "g'' - B q'' = q'^T (d2g/dq2) q' (+ 2 (d2g/dq dt) q' + d2g/dt2)"),
     KernelSpec("energy", True,
-               lambda c: 2 if c.kind in ("body", "force", "spring", "torsion_spring") else 0,
+               lambda c: 2 if c.kind in ("body", "force", "spring", "torsion_spring",
+                                         "linear_spring") else 0,
                "[kinetic, potential]"),
     KernelSpec("body_outputs", True, _body_only(6), "[r_G, w] (global frame)"),
     # f of a spring-damper depends on q' only linearly, so df/dq' needs no speeds;
@@ -58,6 +61,9 @@ KERNELS: tuple[KernelSpec, ...] = (
     KernelSpec("force_jacobian_v", False,
                lambda c: c.n_q * c.n_q if c.kind in _DAMPED else 0,
                "df/dq' of the applied forces (tangent damping C = -df/dq')"),
+    KernelSpec("constraint_rate", False,
+               lambda c: c.n_g if c.kind in DRIVER_KINDS else 0,
+               "partial dg/dt (rheonomic rows)"),
 )
 
 KERNEL_NAMES = tuple(k.name for k in KERNELS)

@@ -70,7 +70,7 @@ from fccgen.errors import SimulationError
 from fccgen.results import keep_rows
 
 from ._assemble cimport (ASM_B, ASM_C, ASM_F, ASM_G, ASM_H, ASM_KQ,
-                         ASM_KV, ASM_M)
+                         ASM_KV, ASM_M, ASM_T)
 from ._engine cimport Engine, finite
 from ._runloop cimport RUN_DONE, RUN_ERROR, RUN_PAUSE, now, write_record
 
@@ -286,10 +286,12 @@ cdef int _project(Engine e, Run *r, double h) noexcept nogil:
     cdef int i, j, k, n = r.n
     cdef double h4 = 0.25 * h * h, x
     for k in range(2):
+        if k == 0 and e.asm.n_time and _assemble(e, r, r.q, r.v, ASM_T) < 0:
+            return -1
         if k == 1 and _assemble(e, r, r.q, r.v, ASM_C) < 0:
             return -1
-        for i in range(r.m):                   # B x (+ (dB/dt) q' for accelerations)
-            x = e.asm.c[i] if k == 1 else 0.0
+        for i in range(r.m):       # B x + dg/dt for speeds, B x + bias for accelerations
+            x = e.asm.c[i] if k == 1 else (e.asm.gt[i] if e.asm.n_time else 0.0)
             for j in range(n):
                 x += e.asm.B[i * n + j] * (r.a[j] if k == 1 else r.v[j])
             r.w[i] = x
@@ -330,6 +332,7 @@ cdef int _run(Engine e, Run *r, double deadline) noexcept nogil:
         memcpy(r.q0, r.q, n * sizeof(double))
         memcpy(r.v0, r.v, n * sizeof(double))
         memcpy(r.a0, r.a, n * sizeof(double))
+        e.asm.put_time(t + h)
         if _newton(e, r, h, &it) < 0 or _project(e, r, h) < 0:
             return RUN_ERROR
         r.newton_total += it
@@ -391,6 +394,7 @@ def simulate_ali3p(Engine engine, q0, v0, double t_end, double dt, long n_steps,
     if not length_scale > 0:
         raise ValueError("length_scale must be positive")
     opts = run_options(options, length_scale)
+    engine.set_time(0.0)
     a0, lam, alpha, hint = initial_state(engine, q0, v0, opts["penalty"])
     n_out = 1 + n_steps // output_every + (1 if n_steps % output_every else 0)
     arrays = dict(t=np.zeros(n_out), q=np.zeros((n_out, n)), v=np.zeros((n_out, n)),

@@ -13,6 +13,7 @@ cdef enum:
     ASM_BODY = 128     # body outputs, 6 per body
     ASM_KQ = 256       # df/dq of the applied forces (n_q x n_q); stiffness K = -df/dq
     ASM_KV = 512       # df/dq' of the applied forces (n_q x n_q); damping C = -df/dq'
+    ASM_T = 1024       # partial dg/dt of the constraints (rheonomic rows, else 0)
 
 
 cdef class Assembler:
@@ -41,6 +42,11 @@ cdef class Assembler:
     cdef double *body
     cdef double *fq                      # df/dq
     cdef double *fv                      # df/dq'
+    cdef double *gt                      # partial dg/dt
+    # time: the parameter slots named "t" (set_time writes t into each)
+    cdef readonly double t
+    cdef readonly int n_time
+    cdef int *time_slot
 
     cdef _check_classes(self, list names, object sizes)
     cdef _copy_instance(self, int[::1] cof, int[::1] qp, int[::1] qi, int[::1] pp,
@@ -50,3 +56,4 @@ cdef class Assembler:
     cdef void assemble(self, const double *q, const double *v, int flags) noexcept nogil
     cdef double scaled_residual(self) noexcept nogil
     cdef double max_abs_g(self) noexcept nogil
+    cdef void put_time(self, double t) noexcept nogil

@@ -165,13 +165,15 @@ cdef class Assembler:
         self.body = <double *>_alloc(6 * self.n_bodies, sizeof(double))
         self.fq = <double *>_alloc(n * n, sizeof(double))
         self.fv = <double *>_alloc(n * n, sizeof(double))
+        self.gt = <double *>_alloc(self.n_g, sizeof(double))
+        self.time_slot = <int *>_alloc(1, sizeof(int))
 
     def __dealloc__(self):
         free(self.cls); free(self.qptr); free(self.qidx); free(self.pptr)
         free(self.params); free(self.gptr); free(self.body_of); free(self.out)
         free(self.lq); free(self.lv); free(self.zeros); free(self.M); free(self.h)
         free(self.f); free(self.g); free(self.B); free(self.c); free(self.body)
-        free(self.fq); free(self.fv)
+        free(self.fq); free(self.fv); free(self.gt); free(self.time_slot)
 
     cdef void assemble(self, const double *q, const double *v, int flags) noexcept nogil:
         """Assemble the quantities named by ``flags`` (ASM_*) at (q, v); v may be NULL
@@ -193,6 +195,7 @@ cdef class Assembler:
         if flags & ASM_BODY: memset(self.body, 0, <size_t>self.n_bodies * 6 * sizeof(double))
         if flags & ASM_KQ: memset(self.fq, 0, <size_t>N * N * sizeof(double))
         if flags & ASM_KV: memset(self.fv, 0, <size_t>N * N * sizeof(double))
+        if flags & ASM_T: memset(self.gt, 0, <size_t>self.n_g * sizeof(double))
         for e in range(self.n_el):
             k = self.cls[e]
             n = k.n_q
@@ -247,6 +250,37 @@ cdef class Assembler:
                 for i in range(n):
                     for j in range(n):
                         self.fv[idx[i] * N + idx[j]] += o[i * n + j]
+            if flags & ASM_T and k.constraint_rate != NULL:
+                k.constraint_rate(self.lq, p, o)
+                for r in range(n_g):
+                    self.gt[row + r] = o[r]
+
+    # -- time ----------------------------------------------------------------------
+    def set_time_slots(self, slots):
+        """The indices into the concatenated parameters of every parameter named "t"
+        (classes whose equations depend on the time); set_time writes t there."""
+        cdef int[::1] s = np.ascontiguousarray(slots, dtype=np.intc)
+        cdef int j, n_p = self.pptr[self.n_el]
+        for j in range(s.shape[0]):
+            if s[j] < 0 or s[j] >= n_p:
+                raise ValueError(f"time slot {s[j]} out of range (parameters {n_p})")
+        free(self.time_slot)
+        self.time_slot = <int *>_alloc(s.shape[0], sizeof(int))
+        for j in range(s.shape[0]):
+            self.time_slot[j] = s[j]
+        self.n_time = s.shape[0]
+        self.put_time(self.t)
+
+    cdef void put_time(self, double t) noexcept nogil:
+        """Write the time t into every time slot (the kernels then evaluate at t)."""
+        cdef int j
+        self.t = t
+        for j in range(self.n_time):
+            self.params[self.time_slot[j]] = t
+
+    def set_time(self, double t):
+        """Evaluate every later assembly at the time t (see set_time_slots)."""
+        self.put_time(t)
 
     cdef double scaled_residual(self) noexcept nogil:
         """max_k |g_k| / ||B_k|| of the assembled g and B (|g_k| for a zero row);
@@ -296,6 +330,7 @@ cdef class Assembler:
         if flag == ASM_BODY: return _copy(self.body, 6 * self.n_bodies, (self.n_bodies, 6))
         if flag == ASM_KQ: return _copy(self.fq, N * N, (N, N))
         if flag == ASM_KV: return _copy(self.fv, N * N, (N, N))
+        if flag == ASM_T: return _copy(self.gt, self.n_g, (self.n_g,))
         raise ValueError(f"flag {flag} names no single quantity")
 
     cdef double[::1] _state(self, object x, str name):
@@ -338,7 +373,8 @@ cdef class Assembler:
                         | (ASM_BODY if k.body_outputs != NULL and self.body_of[e] >= 0
                            else 0)
                         | (ASM_KQ if k.force_jacobian_q != NULL else 0)
-                        | (ASM_KV if k.force_jacobian_v != NULL else 0))
+                        | (ASM_KV if k.force_jacobian_v != NULL else 0)
+                        | (ASM_T if k.constraint_rate != NULL else 0))
         return {name: flag for name, flag in FLAGS.items() if present & flag}
 
 
@@ -354,4 +390,4 @@ cdef object _copy(const double *src, Py_ssize_t n, tuple shape):
 FLAGS = {"mass_matrix": ASM_M, "h_vector": ASM_H, "applied_forces": ASM_F,
          "constraints": ASM_G, "constraint_jacobian": ASM_B, "constraint_bias": ASM_C,
          "energy": ASM_E, "body_outputs": ASM_BODY, "force_jacobian_q": ASM_KQ,
-         "force_jacobian_v": ASM_KV}
+         "force_jacobian_v": ASM_KV, "constraint_rate": ASM_T}

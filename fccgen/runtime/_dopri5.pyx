@@ -80,10 +80,11 @@ cdef struct Run:
     double *c_out
 
 
-cdef int _f(Engine e, Run *r, int stage, const double *y, double *k,
+cdef int _f(Engine e, Run *r, int stage, double t, const double *y, double *k,
             bint reuse) noexcept nogil:
-    """k = (v, a(q, v)) at y = (q, v)."""
+    """k = (v, a(t, q, v)) at y = (q, v)."""
     cdef int n = r.n2 // 2
+    e.asm.put_time(t)
     e.err_stage = stage
     r.n_rhs += 1
     memcpy(k, y + n, n * sizeof(double))
@@ -107,22 +108,22 @@ cdef int _stages(Engine e, Run *r, double h) noexcept nogil:
     cdef double w[6]
     w[0] = A21
     _combine(r, r.yt, h, 1, w)
-    if _f(e, r, 2, r.yt, r.k[1], False) < 0: return -1
+    if _f(e, r, 2, r.t + C2 * h, r.yt, r.k[1], False) < 0: return -1
     w[0] = A31; w[1] = A32
     _combine(r, r.yt, h, 2, w)
-    if _f(e, r, 3, r.yt, r.k[2], False) < 0: return -1
+    if _f(e, r, 3, r.t + C3 * h, r.yt, r.k[2], False) < 0: return -1
     w[0] = A41; w[1] = A42; w[2] = A43
     _combine(r, r.yt, h, 3, w)
-    if _f(e, r, 4, r.yt, r.k[3], False) < 0: return -1
+    if _f(e, r, 4, r.t + C4 * h, r.yt, r.k[3], False) < 0: return -1
     w[0] = A51; w[1] = A52; w[2] = A53; w[3] = A54
     _combine(r, r.yt, h, 4, w)
-    if _f(e, r, 5, r.yt, r.k[4], False) < 0: return -1
+    if _f(e, r, 5, r.t + C5 * h, r.yt, r.k[4], False) < 0: return -1
     w[0] = A61; w[1] = A62; w[2] = A63; w[3] = A64; w[4] = A65
     _combine(r, r.yt, h, 5, w)
-    if _f(e, r, 6, r.yt, r.k[5], False) < 0: return -1
+    if _f(e, r, 6, r.t + h, r.yt, r.k[5], False) < 0: return -1
     w[0] = A71; w[1] = 0.0; w[2] = A73; w[3] = A74; w[4] = A75; w[5] = A76
     _combine(r, r.y1, h, 6, w)
-    return _f(e, r, 7, r.y1, r.k[6], False)
+    return _f(e, r, 7, r.t + h, r.y1, r.k[6], False)
 
 
 cdef double _error_norm(Run *r, double h) noexcept nogil:
@@ -177,6 +178,7 @@ cdef int _record(Engine e, Run *r) noexcept nogil:
             r.yt[i] = r.rc[0][i] + th * (r.rc[1][i] + th1 * (
                 r.rc[2][i] + th * (r.rc[3][i] + th1 * r.rc[4][i])))
         if r.project:
+            e.asm.put_time(r.t_req[j])
             if _project(e, r, r.yt) < 0:
                 return -1
             e.factor_valid = False        # the factorisation is not the one at r.y
@@ -205,10 +207,11 @@ cdef int _accept(Engine e, Run *r, double h) noexcept nogil:
         e.err_where = AT_STEP
         return e.fail(ERR_NONFINITE_INPUT, 0, 1 if not finite(r.y, n) else 2)
     if r.project:
+        e.asm.put_time(r.t)
         if _project(e, r, r.y) < 0:
             return -1
         e.err_where = AT_STAGE
-        return _f(e, r, 1, r.y, r.k[0], e.factor_valid)
+        return _f(e, r, 1, r.t, r.y, r.k[0], e.factor_valid)
     memcpy(r.k[0], r.k[6], r.n2 * sizeof(double))        # FSAL
     e.asm.assemble(r.y, NULL, ASM_G)
     if not e.asm.max_abs_g() <= r.max_cerr:
@@ -262,7 +265,7 @@ cdef double _initial_step(Engine e, Run *r) noexcept nogil:
     h0 = fmin(h0, r.t_end)
     for i in range(r.n2):
         r.yt[i] = r.y[i] + h0 * r.k[0][i]
-    if _f(e, r, 2, r.yt, r.k[1], False) < 0:
+    if _f(e, r, 2, h0, r.yt, r.k[1], False) < 0:
         return -1.0
     for i in range(r.n2):
         sk = r.atol + r.rtol * fabs(r.y[i])
@@ -340,7 +343,7 @@ def simulate_dopri5(Engine engine, q0, v0, double t_end, double output_dt, doubl
         _record(engine, &r)
         engine.err_where, engine.err_t, engine.err_h = AT_STAGE, 0.0, h0
         with nogil:
-            status = _f(engine, &r, 1, r.y, r.k[0], False)
+            status = _f(engine, &r, 1, 0.0, r.y, r.k[0], False)
             if status == 0 and r.h == 0.0:
                 r.h = _initial_step(engine, &r)
                 status = -1 if r.h < 0 else 0

@@ -19,7 +19,7 @@ import numpy as np
 
 from fccgen.errors import SimulationError
 
-from ._assemble cimport ASM_B, ASM_C, ASM_F, ASM_G, ASM_H, ASM_M, Assembler
+from ._assemble cimport ASM_B, ASM_C, ASM_F, ASM_G, ASM_H, ASM_M, ASM_T, Assembler
 from ._solve cimport (CSolve, csolve_apply, csolve_factor, csolve_free, csolve_init,
                      csolve_reset_stats, csolve_svd_rank)
 
@@ -183,9 +183,12 @@ cdef class Engine:
     cdef int baumgarte_at(self, const double *q, const double *v, double *a,
                           double alpha, double beta) noexcept nogil:
         """a = q'' of the index-1 equations with Baumgarte stabilisation:
-        M a + B^T lambda = f - h, B a = -(dB/dt) v - 2 alpha B v - beta^2 g(q)."""
+        M a + B^T lambda = f - h, B a = -c - 2 alpha g' - beta^2 g(q), with
+        g' = B v + dg/dt and c the constraint bias (g'' - B a)."""
         cdef int i, j, n = self.n
         cdef int flags = ASM_M | ASM_B | ASM_H | ASM_F | ASM_C | ASM_G
+        if self.asm.n_time:
+            flags |= ASM_T
         cdef double bv
         cdef const double *row
         self.asm.assemble(q, v, flags)
@@ -195,7 +198,7 @@ cdef class Engine:
             self.rhs[i] = self.asm.f[i] - self.asm.h[i]
         for i in range(self.m):
             row = self.asm.B + i * n
-            bv = 0.0
+            bv = self.asm.gt[i] if self.asm.n_time else 0.0
             for j in range(n):
                 bv += row[j] * v[j]
             self.nb[i] = -self.asm.c[i] - 2.0 * alpha * bv - beta * beta * self.asm.g[i]
@@ -247,16 +250,24 @@ cdef class Engine:
 
     cdef int project_velocities_at(self, const double *q, double *v,
                                    bint have_B) noexcept nogil:
-        """v <- the M-orthogonal projection of v onto B v = 0, in place. Leaves the
-        factorisation of (M, B) at q in sol; have_B: B is already assembled at q."""
+        """v <- the M-orthogonal projection of v onto B v = -dg/dt (0 unless the model
+        has drivers: set_time first), in place. Leaves the factorisation of (M, B) at q
+        in sol; have_B: B is already assembled at q."""
         cdef int i
-        self.asm.assemble(q, NULL, ASM_M if have_B else ASM_M | ASM_B)
+        cdef int flags = ASM_M if have_B else ASM_M | ASM_B
+        if self.asm.n_time:
+            flags |= ASM_T
+        self.asm.assemble(q, NULL, flags)
         self.sol.check_growth = 1             # q has just been projected (or is given)
         i = self.factor(q)
         self.sol.check_growth = 0
         if i < 0:
             return -1
-        csolve_apply(&self.sol, NULL, v, NULL, self.vtmp)
+        if self.asm.n_time:
+            for i in range(self.m):
+                self.nb[i] = -self.asm.gt[i]
+        csolve_apply(&self.sol, NULL, v, self.nb if self.asm.n_time else NULL,
+                     self.vtmp)
         if not finite(self.vtmp, self.n):
             i = self.nonfinite_input(q, v, ASM_M | ASM_B)
             return self.fail(ERR_NONFINITE_INPUT if i else ERR_NONFINITE_RESULT, 0, i)
@@ -310,6 +321,10 @@ cdef class Engine:
                     h=self.err_h, value=self.err_value, bound=self.err_bound,
                     rank=self.sol.r, n_q=self.n, n_g=self.m,
                     nullity=self.sol.nr)
+
+    def set_time(self, double t):
+        """Evaluate later calls at the time t (models with drivers; Assembler.set_time)."""
+        self.asm.put_time(t)
 
     def accelerations(self, q, v):
         """q'' at (q, v): a fresh array."""

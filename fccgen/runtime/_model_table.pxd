@@ -25,6 +25,7 @@ cdef extern from "fccgen_model.h":
         fcc_kernel_qv body_outputs
         fcc_kernel_qv force_jacobian_q
         fcc_kernel_q force_jacobian_v
+        fcc_kernel_q constraint_rate
 
     ctypedef struct fcc_model_table:
         int abi_version

@@ -71,14 +71,17 @@ cdef int _stage(Engine e, Run *r, int stage, const double *q, const double *v, d
     return e.accelerations_at(q, v, a, reuse)
 
 
-cdef int _step(Engine e, Run *r, double h) noexcept nogil:
-    """One classical RK4 step of (q' = v, v' = a(q, v)) of size h, in place."""
+cdef int _step(Engine e, Run *r, double t, double h) noexcept nogil:
+    """One classical RK4 step of (q' = v, v' = a(t, q, v)) of size h from t, in
+    place; leaves the time at t + h."""
     cdef int i, n = e.n
     cdef double h2 = 0.5 * h, h6 = h / 6.0
+    e.asm.put_time(t)
     if _stage(e, r, 1, r.q, r.v, r.a1, e.factor_valid) < 0: return -1
     for i in range(n):
         r.qs[i] = r.q[i] + h2 * r.v[i]
         r.v2[i] = r.v[i] + h2 * r.a1[i]
+    e.asm.put_time(t + h2)
     if _stage(e, r, 2, r.qs, r.v2, r.a2, False) < 0: return -1
     for i in range(n):
         r.qs[i] = r.q[i] + h2 * r.v2[i]
@@ -87,6 +90,7 @@ cdef int _step(Engine e, Run *r, double h) noexcept nogil:
     for i in range(n):
         r.qs[i] = r.q[i] + h * r.v3[i]
         r.v4[i] = r.v[i] + h * r.a3[i]
+    e.asm.put_time(t + h)
     if _stage(e, r, 4, r.qs, r.v4, r.a4, False) < 0: return -1
     for i in range(n):
         r.q[i] += h6 * (r.v[i] + 2.0 * r.v2[i] + 2.0 * r.v3[i] + r.v4[i])
@@ -171,7 +175,7 @@ cdef int _run(Engine e, Run *r, double deadline) noexcept nogil:
         e.err_where = AT_STAGE
         e.err_t = t
         e.err_h = h
-        if _step(e, r, h) < 0:
+        if _step(e, r, t, h) < 0:
             return RUN_ERROR
         r.k += 1
         t = r.k * r.dt if r.k < r.n_steps else r.t_end
@@ -204,6 +208,7 @@ cdef void _start(Engine e, Run *r, double[::1] q0, double[::1] v0, dict arrays):
     r.c_out = _data(arrays["constraint_error"])
     e.factor_valid = False
     e.err = ERR_NONE
+    e.asm.put_time(0.0)
 
 
 def simulate_rk4(Engine engine, q0, v0, double t_end, double dt, long n_steps,

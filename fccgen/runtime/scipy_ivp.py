@@ -23,14 +23,17 @@ from ..errors import SimulationError
 SCIPY_METHODS = ("RK45", "DOP853", "Radau", "BDF", "LSODA")
 
 
-def make_rhs(accelerations, n: int, counter: list | None = None):
+def make_rhs(accelerations, n: int, counter: list | None = None, set_time=None):
     """fun(t, y) -> a fresh array (v, accelerations(q, v)) for y = (q, v) of length 2n.
 
-    counter: a one-element list incremented at every call (the evaluation count).
+    counter: a one-element list incremented at every call (the evaluation count);
+    set_time: called with t before every evaluation (models with drivers).
     """
     def fun(t, y):
         if counter is not None:
             counter[0] += 1
+        if set_time is not None:
+            set_time(t)
         out = np.empty(2 * n)
         out[:n] = y[n:]
         try:
@@ -50,7 +53,7 @@ def output_times(t_end: float, output_dt: float) -> np.ndarray:
 
 def integrate(accelerations, q0, v0, t_end: float, output_dt: float, method: str,
               rtol: float, atol: float, first_step=None, progress=None,
-              progress_interval: float = 0.5):
+              progress_interval: float = 0.5, set_time=None):
     """Integrate with SciPy's ``method`` (one of SCIPY_METHODS) from (q0, v0) to t_end.
 
     Returns (t, q, v, stats): outputs at :func:`output_times`, and stats steps,
@@ -64,7 +67,7 @@ def integrate(accelerations, q0, v0, t_end: float, output_dt: float, method: str
     q0, v0 = np.asarray(q0, float), np.asarray(v0, float)
     n = q0.shape[0]
     calls = [0]
-    fun = make_rhs(accelerations, n, calls)
+    fun = make_rhs(accelerations, n, calls, set_time)
     kwargs = {} if first_step is None else {"first_step": float(first_step)}
     ode = getattr(scipy.integrate, method)(fun, 0.0, np.concatenate([q0, v0]), t_end,
                                            rtol=rtol, atol=atol, **kwargs)
@@ -103,7 +106,8 @@ def run(solver, scipy_method: str, sched, opts: dict, q0, v0, progress=None):
     """(arrays, stats) of a run of SciPy's ``scipy_method`` on ``solver.accelerations``
     (a compiled or numeric solver); sched: a fccgen.methods.Schedule; opts: rtol, atol."""
     t, q, v, stats = integrate(solver.accelerations, q0, v0, sched.t_end, sched.output_dt,
-                               scipy_method, opts["rtol"], opts["atol"], sched.dt, progress)
+                               scipy_method, opts["rtol"], opts["atol"], sched.dt, progress,
+                               set_time=getattr(solver, "set_time", None))
     return record(solver, t, q, v, stats), stats
 
 
@@ -113,7 +117,13 @@ def record(solver, t, q, v, info: dict):
     body = np.array([solver.body_outputs(qi, vi) for qi, vi in zip(q, v)])
     body = body.reshape(len(t), len(solver.plan.bodies), 6)
     energy = np.array([solver.energy(qi, vi) for qi, vi in zip(q, v)])
-    cerr = np.array([_amax(solver.constraints(qi)) for qi in q])
+    set_time = getattr(solver, "set_time", None)
+    cerr = []
+    for ti, qi in zip(t, q):
+        if set_time is not None:
+            set_time(ti)
+        cerr.append(_amax(solver.constraints(qi)))
+    cerr = np.array(cerr)
     info["max_constraint_error"] = float(cerr.max()) if cerr.size else 0.0
     return dict(t=t, q=q, v=v, body=body, energy=energy, constraint_error=cerr)
 

@@ -14,6 +14,7 @@ import numpy as np
 from .. import methods as registry
 from .. import rank as rank_rule
 from ..diagnose import explained
+from ..mechanism.driver_forces import add_driver_columns, driver_rows
 from ..mechanism.initial_speeds import initial_speeds
 from ..run_settings import linear_solver_choice, solver_tolerances
 from ..errors import BuildError, SimulationError
@@ -61,7 +62,7 @@ def make_assembler(plan, module) -> Assembler:
     q_idx = [el.q_index() for el in els]
     q_ptr = np.concatenate([[0], np.cumsum([len(i) for i in q_idx])])
     p_ptr = np.concatenate([[0], np.cumsum([len(el.params) for el in els])])
-    return Assembler(
+    asm = Assembler(
         capsule, [c.name for c in plan.classes],
         np.array([(c.n_q, c.n_p, c.n_g) for c in plan.classes], dtype=np.intc).reshape(-1, 3),
         np.asarray(plan.class_of, dtype=np.intc), q_ptr,
@@ -69,6 +70,19 @@ def make_assembler(plan, module) -> Assembler:
         np.concatenate([el.params for el in els]) if els else np.zeros(0),
         plan.n_q, np.array([e for _, e in plan.bodies], dtype=np.intc),
         structure_hash=structure_hash, owner=module)
+    asm.set_time_slots(time_slots(plan))
+    return asm
+
+
+def time_slots(plan) -> np.ndarray:
+    """Indices into the concatenated element parameters of every parameter named "t"
+    (element classes whose equations depend on the time, such as drivers)."""
+    slots, start = [], 0
+    for el in plan.elements:
+        if "t" in el.cls.param_names:
+            slots.append(start + el.cls.param_names.index("t"))
+        start += len(el.params)
+    return np.array(slots, dtype=np.intc)
 
 
 class CompiledSolver:
@@ -97,6 +111,14 @@ class CompiledSolver:
         self.row_groups = plan.row_groups
         self.linear_solver = linear_solver_choice(plan.model.simulate, linear_solver)
         self.sparse = use_sparse(self.linear_solver, self.n_q)
+        if self.sparse and driver_rows(plan):
+            # The sparse engine's projections and Baumgarte terms hold B q' = 0; a
+            # driven (rheonomic) model needs B q' = -dg/dt, which only the dense path has.
+            if self.linear_solver == "sparse":
+                raise ValueError(f"{plan.model.name}: linear_solver='sparse' does not take "
+                                 "drivers (time-dependent constraints) yet; use 'dense' or "
+                                 "'auto' (auto takes the dense path for driven models)")
+            self.sparse = False
         self._engine = make_engine(self._asm, self.rank_tol, self.position_tol,
                                    self.max_newton, self.sparse)
         self._dense_engine = None if self.sparse else self._engine
@@ -140,6 +162,15 @@ class CompiledSolver:
         """(n_bodies, 6): mass centre and angular velocity (global frame) per body."""
         return self._get("body_outputs", q, v)
 
+    def constraint_rate(self, q) -> np.ndarray:
+        """Partial dg/dt at the time of :meth:`set_time` (zero without drivers)."""
+        return self._get("constraint_rate", q)
+
+    def set_time(self, t) -> None:
+        """Evaluate the kernels at the time t from now on (models with drivers; the
+        integrators set it at every stage)."""
+        self._asm.set_time(float(t))
+
     # -- solves -------------------------------------------------------------------------
     def accelerations(self, q, v) -> np.ndarray:
         """q'' from M q'' + B^T lambda = f - h, B q'' = -(dB/dt) v."""
@@ -163,6 +194,7 @@ class CompiledSolver:
         """The model's initial positions assembled onto the constraints and its initial
         speeds projected onto B q' = 0, with the residuals before and after."""
         plan = self.plan
+        self.set_time(0.0)
         q_given = np.array(plan.q0, dtype=float)
         given = _amax(self.constraints(q_given))
         try:
@@ -179,7 +211,8 @@ class CompiledSolver:
                             position_residual=_amax(self.constraints(q)),
                             newton_iterations=iterations,
                             velocity_change=_amax(v - plan.v_target),
-                            velocity_residual=_amax(self.constraint_jacobian(q) @ v))
+                            velocity_residual=_amax(self.constraint_jacobian(q) @ v
+                                                    + self.constraint_rate(q)))
 
     # -- simulation ---------------------------------------------------------------------
     def simulate(self, t_end=None, dt=None, method=None, output_dt=None, project=True,
@@ -203,6 +236,7 @@ class CompiledSolver:
         m = registry.get(d.method if method is None else method, METHODS)
         opts = registry.options_for(m, rtol, atol, method_options)
         sched = registry.schedule(m, d, t_end, dt, output_dt, opts)
+        self.set_time(0.0)
         q0, v0 = self._start_state(q0, v0)
         project = bool(project) and m.projects
         report = run_reporter(progress, sched.t_end)
@@ -215,8 +249,10 @@ class CompiledSolver:
             raise explained(exc, self, q0) from None
         if report is not None:
             report.finish(result.t[-1])          # the run's end: 100%
+        add_driver_columns(self, result)
         used = self.dense_engine() if m.name == "ali3p" else self._engine
-        return rank_rule.report_run(result, decision, used.rank_statistics())
+        return rank_rule.report_run(result, decision, used.rank_statistics(),
+                                    driven=bool(driver_rows(self.plan)))
 
     def dense_engine(self):
         """The dense path's engine (the solver's own unless it takes the sparse one)."""

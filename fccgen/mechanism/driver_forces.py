@@ -1,0 +1,72 @@
+"""The generalized force of every driver (result columns ``D.torque``, ``D.force``),
+computed after a run from the recorded states.
+
+At a recorded state (t, q, q') the engine's accelerations q'' satisfy
+M q'' + B^T lambda = f - h, so the multipliers solve
+
+    B^T lambda = f - h - M q''
+
+(least squares, minimum norm: with redundant rows lambda is not unique, but the
+component of a driver row is, since no dependency among the rows involves it). A
+driver row is g = sin(theta - f) (angle) or s - f (position), whose derivative along
+the driven joint coordinate is 1 on the constraint (theta = f), so the torque (force)
+the driver applies on the joint's second body about (along) the axis is the
+generalized force of that row on the joint coordinate: -lambda_row. A distance
+driver's row d.d - f^2 has the derivative 2 s = 2 f along the distance s, so its force
+(positive: pushing the bodies apart) is -2 f(t) lambda_row.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .lowering import driver_column, driver_label
+
+# Singular values of B^T below this fraction of the largest count as zero in the
+# minimum-norm solve: the rank tolerance of the solvers (fccgen.rank).
+RCOND = 1e-10
+
+
+def driver_rows(plan) -> dict[str, tuple[int, object]]:
+    """{result column: (constraint row, dg/ds as a function of t)} of the plan's
+    drivers (s the driven joint quantity)."""
+    lowering = getattr(plan.model, "mechanism", None)
+    drivers = getattr(lowering, "drivers", None) or []
+    if not drivers:
+        return {}
+    start, rows = 0, {}
+    by_label = {}
+    for el in plan.elements:
+        by_label[el.label] = start
+        start += el.cls.n_g
+    from ..numeric.time_jets import time_function     # numeric imports this module
+    for d in drivers:
+        slope = (lambda t: 1.0) if d.quantity != "distance" else (
+            lambda t, f=time_function(d.function): 2.0 * f(t)[0])
+        rows[driver_column(d)] = (by_label[driver_label(d)], slope)
+    return rows
+
+
+def multipliers(solver, t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """The minimum-norm multipliers lambda at (t, q, q') (module docstring)."""
+    solver.set_time(t)
+    a = solver.accelerations(q, v)
+    rhs = solver.applied_forces(q, v) - solver.h_vector(q, v) - solver.mass_matrix(q) @ a
+    return np.linalg.lstsq(solver.constraint_jacobian(q).T, rhs, rcond=RCOND)[0]
+
+
+def add_driver_columns(solver, result) -> None:
+    """Append the drivers' generalized forces to ``result`` (in place)."""
+    rows = driver_rows(solver.plan)
+    if not rows or len(result.t) == 0:
+        return
+    plan = solver.plan
+    q = np.column_stack([result.columns[f"{name}.{c}"] for name, _ in plan.triples
+                         for c in "xyz"])
+    v = np.column_stack([result.columns[f"{name}.v{c}"] for name, _ in plan.triples
+                         for c in "xyz"])
+    values = {col: np.empty(len(result.t)) for col in rows}
+    for k, t in enumerate(result.t):
+        lam = multipliers(solver, float(t), q[k], v[k])
+        for col, (row, slope) in rows.items():
+            values[col][k] = -slope(float(t)) * lam[row]
+    result.columns.update(values)
