@@ -36,6 +36,7 @@ from .bodies import choose_frame, typical_body
 # of e3, a condition number of at most 2.
 ALIGN_MIN = 0.5
 from .joints import CarriedTriple, JointLowering, lower_joint, output_columns
+from .reaction_bases import COMPONENTS as REACTION_COMPONENTS
 
 
 @dataclass
@@ -53,8 +54,11 @@ class Lowering:
     labels: dict[str, list[str]] = field(default_factory=dict)   # joint -> labels
 
     def columns(self) -> list[str]:
-        """The joint result columns (J.angle, J.rate, J.position, J.speed)."""
-        return [c for jl in self.joints for c in output_columns(jl.joint)]
+        """The joint result columns (J.angle, J.rate, J.position, J.speed), then the
+        reactions (J.fx ... J.tz; absent from a run that skips or refuses them, see
+        fccgen.mechanism.reactions)."""
+        return ([c for jl in self.joints for c in output_columns(jl.joint)]
+                + [f"{jl.joint.name}.{c}" for jl in self.joints for c in REACTION_COMPONENTS])
 
     def describe(self) -> list[str]:
         """One line per joint and per body, for ``fccgen check``."""

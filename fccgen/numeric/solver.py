@@ -15,6 +15,7 @@ from .. import methods as registry
 from .. import rank as rank_rule
 from ..diagnose import explained
 from ..mechanism.initial_speeds import initial_speeds
+from ..mechanism.reactions import add_reactions
 from ..run_settings import solver_tolerances
 from ..errors import SimulationError
 from ..plan import Plan
@@ -205,7 +206,7 @@ class NumericSolver:
 
     def simulate(self, t_end=None, dt=None, method=None, output_dt=None, project=True,
                  q0=None, v0=None, progress=None, rtol=None, atol=None,
-                 **method_options) -> Result:
+                 reactions=True, **method_options) -> Result:
         """Integrate from (q0, v0), used as given; when q0 is None the consistent
         initial state is used, and when only v0 is None plan.v_target is projected at
         q0. The arguments mean what they mean for
@@ -229,7 +230,8 @@ class NumericSolver:
                                    opts, project, progress))
         except SimulationError as exc:
             raise explained(exc, self, q0) from None
-        return rank_rule.report_run(result, decision, self._rank.stats)
+        rank_rule.report_run(result, decision, self._rank.stats)
+        return add_reactions(self, result) if reactions else result
 
     def decide_rank(self, q) -> rank_rule.RankDecision:
         """Decide the rank of B at q (fccgen.rank) and keep it until the next decision,

@@ -15,6 +15,7 @@ from .. import methods as registry
 from .. import rank as rank_rule
 from ..diagnose import explained
 from ..mechanism.initial_speeds import initial_speeds
+from ..mechanism.reactions import add_reactions
 from ..run_settings import solver_tolerances
 from ..errors import BuildError, SimulationError
 from ..results import InitialState, Result, timed_run
@@ -177,7 +178,7 @@ class CompiledSolver:
     # -- simulation ---------------------------------------------------------------------
     def simulate(self, t_end=None, dt=None, method=None, output_dt=None, project=True,
                  q0=None, v0=None, progress=None, rtol=None, atol=None,
-                 **method_options) -> Result:
+                 reactions=True, **method_options) -> Result:
         """Integrate from (q0, v0), used as given, to t_end. q0 None: the consistent
         :meth:`initial_state`; only v0 None: the model's initial speeds projected at q0.
 
@@ -190,6 +191,9 @@ class CompiledSolver:
         method_options: the method's options (e.g. alpha, beta for baumgarte).
         progress: called with a one-line message (``"t = ..."``) at most about every
         0.5 s of wall time. ``result.info`` holds fccgen.methods.INFO_KEYS and more.
+        reactions: add the joint reaction columns of a mechanism-level model
+        (fccgen.mechanism.reactions; ``result.info["reactions"]`` says whether they
+        are unique, or why they are absent).
         """
         d = self.plan.model.simulate
         m = registry.get(d.method if method is None else method, METHODS)
@@ -208,7 +212,8 @@ class CompiledSolver:
                                lambda: self._run(m, sched, opts, project, q0, v0, report))
         except SimulationError as exc:
             raise explained(exc, self, q0) from None
-        return rank_rule.report_run(result, decision, self._engine.rank_statistics())
+        rank_rule.report_run(result, decision, self._engine.rank_statistics())
+        return add_reactions(self, result) if reactions else result
 
     def decide_rank(self, q) -> rank_rule.RankDecision:
         """Decide the rank of B at q by the SVD gap test (fccgen.rank) and keep it in
