@@ -298,7 +298,7 @@ def _ref(pose, ref):
 def _initial(initial: Initial, pose_bodies) -> Initial:
     """Body-frame angular velocities of pose-form bodies turned global."""
     out = Initial(dict(initial.point_velocities), dict(initial.body_angular_velocities),
-                  dict(initial.joint_speeds))
+                  dict(initial.joint_speeds), dict(initial.joint_positions))
     for name, w in initial.body_angular_velocities.items():
         if name in pose_bodies and w.frame == "body":
             out.body_angular_velocities[name] = replace(

@@ -14,6 +14,7 @@ import numpy as np
 from .. import methods as registry
 from .. import rank as rank_rule
 from ..diagnose import explained
+from ..mechanism.initial_positions import assemble_at_joints
 from ..mechanism.initial_speeds import initial_speeds
 from ..mechanism.reactions import add_reactions
 from ..run_settings import solver_tolerances
@@ -179,6 +180,7 @@ class NumericSolver:
         """plan.q0 assembled onto the constraints and plan.v_target made consistent."""
         q_given = np.array(self.plan.q0, float)
         q, iterations = self.project_positions(q_given)
+        q = assemble_at_joints(self, q)
         self.decide_rank(q)
         v_given = np.array(self.plan.v_target, float)
         try:

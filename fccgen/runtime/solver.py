@@ -14,6 +14,7 @@ import numpy as np
 from .. import methods as registry
 from .. import rank as rank_rule
 from ..diagnose import explained
+from ..mechanism.initial_positions import assemble_at_joints
 from ..mechanism.initial_speeds import initial_speeds
 from ..mechanism.reactions import add_reactions
 from ..run_settings import solver_tolerances
@@ -164,6 +165,7 @@ class CompiledSolver:
         except SimulationError as exc:
             raise SimulationError(f"{plan.model.source}: the initial positions cannot be "
                                   f"assembled onto the constraints: {exc}") from None
+        q = assemble_at_joints(self, q)
         self.decide_rank(q)
         try:
             v = initial_speeds(self, q, plan.v_target)
