@@ -69,7 +69,7 @@ def test_slider_crank_assembled_at_a_slide_position(tmp_path):
     """The spatial slider-crank with its slider moved 0.05 m: S.position starts there,
     every constraint holds (1e-12) and the crank has turned to close the loop."""
     text = (EXAMPLES / "rsup.yaml").read_text().replace(
-        "  bodies: {crank: {angular_velocity: [6.0, 0, 0]}}",
+        "  joints: {A: {rate: 6.0}}",
         "  joints: {S: {position: 0.05}}")
     solver = fccgen.load_numeric(write(tmp_path, text, "rsup_at.yaml"))
     init = solver.initial_state()
@@ -100,7 +100,7 @@ def test_joint_values_the_mechanism_cannot_take_are_an_error(tmp_path, joints, w
 ])
 def test_bad_initial_joint_positions(tmp_path, initial, item, rule):
     text = (EXAMPLES / "rsup.yaml").read_text().replace(
-        "  bodies: {crank: {angular_velocity: [6.0, 0, 0]}}", f"  joints: {initial}")
+        "  joints: {A: {rate: 6.0}}", f"  joints: {initial}")
     with pytest.raises(ModelError) as info:
         fccgen.load_numeric(write(tmp_path, text, "rsup_bad.yaml"))
     assert "rsup_bad.yaml:" in str(info.value) and f"{item}: {rule}" in str(info.value)

@@ -108,19 +108,21 @@ def test_slider_on_an_inclined_prismatic_joint(tmp_path):
 
 def test_ground_reactions_sum_to_the_momentum_rate(compiled):
     """The spatial slider-crank (compiled): the forces of the two ground joints on the
-    crank and the slider plus gravity equal sum m a_G, a_G by second differences of
-    the recorded mass centres (independent of the reaction code's kinematics; the
-    differences at 1 ms err by h^2 |a''| / 12, < 2e-4 N here with |a''| < 1e3 m/s^4)."""
-    r = compiled("rsup").simulate(t_end=0.3, dt=1e-3)
+    crank and the slider plus gravity equal sum m a_G, a_G by fourth-order central
+    differences of the recorded mass centres (independent of the reaction code's
+    kinematics). Their error is O(h^4): measured 6.2e-4 N at 1 ms and 5.5e-5 N at
+    0.5 ms, against forces up to 79 N; 2e-3 N allowed."""
+    h = 1e-3
+    r = compiled("rsup").simulate(t_end=0.3, dt=h)
     assert r.info["reactions"]["unique"]
-    masses = {b.name: b.mass for b in compiled("rsup").plan.model.bodies.values()}
-    total = np.zeros((len(r.t) - 2, 3))
-    for name, m in masses.items():
-        c = np.column_stack([r[f"{name}.c{k}"] for k in "xyz"])
-        total += m * ((c[2:] - 2 * c[1:-1] + c[:-2]) / 1e-6 - [0.0, 0.0, -G])
+    total = np.zeros((len(r.t) - 4, 3))
+    for body in compiled("rsup").plan.model.bodies.values():
+        c = np.column_stack([r[f"{body.name}.c{k}"] for k in "xyz"])
+        a = (-c[4:] + 16 * c[3:-1] - 30 * c[2:-2] + 16 * c[1:-3] - c[:-4]) / (12 * h * h)
+        total += body.mass * (a - [0.0, 0.0, -G])
     ground = vec(r, "A", "f") + vec(r, "S", "f")
-    assert np.abs(ground[1:-1] - total).max() < 5e-4
-    assert np.abs(total).max() > 1.0
+    assert np.abs(ground[2:-2] - total).max() < 2e-3
+    assert np.abs(total).max() > 10.0
 
 
 FOUR_BAR = """name: rx_four_bar

@@ -1,0 +1,22 @@
+"""The mechanism-level examples against independent checks: the spatial slider-crank
+against a minimal-coordinate reference (tests/rsup_reference.py), the scissor boom's
+degree of freedom, energy and symmetry, and the deployable structure in joint form
+against its section-2 form."""
+from __future__ import annotations
+
+import numpy as np
+
+import rsup_reference
+
+
+def test_rsup_crank_angle_against_the_minimal_coordinate_reference(compiled):
+    """examples/rsup.yaml, RK4 at 0.25 ms for 2 s (the crank turns 3.5 times) against
+    the energy equation in the crank angle integrated at 1e-13: the RK4 error shrinks
+    as dt^4 (measured 2.1e-6 rad at 1 ms, 6.0e-8 at 0.5 ms, 4.7e-10 at 0.25 ms),
+    so 1e-8 rad holds with margin; the rate to 1e-7 rad/s (measured 7.7e-9)."""
+    r = compiled("rsup").simulate(t_end=2.0, dt=2.5e-4, output_dt=0.01, reactions=False)
+    theta, rate = rsup_reference.crank_angle(6.0, r.t)
+    assert abs(r["A.rate"][0] - 6.0) < 1e-12                 # the given joint rate
+    assert np.abs(r["A.angle"] - theta).max() < 1e-8
+    assert np.abs(r["A.rate"] - rate).max() < 1e-7
+    assert theta[-1] > 20.0                                  # several turns
