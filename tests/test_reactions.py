@@ -218,3 +218,18 @@ def test_cli_says_when_reactions_are_minimum_norm_and_can_skip_them(tmp_path, ca
     assert main(["simulate", "--numeric", str(path), "--t-end", "0.01", "--dt", "1e-3",
                  "--no-reactions", "--out", str(out)]) == 0
     assert "O.fx" not in out.read_text().splitlines()[0].split(",")
+
+
+def test_a_body_held_by_a_fixed_vector_outside_joints_refuses_reactions(tmp_path):
+    """A section-2 body using a fixed vector z as its u is held by ground through it
+    (a hidden hinge carrying torque): no joint's reaction holds that torque, so the
+    balance cannot be closed; the run says which triple."""
+    text = model_text("revolute").replace("name: j_revolute\n", "name: rx_fixed\n") + (
+        "points:\n  P: [2, 0, 0]\n  Q: [3, 0, 0]\n"
+        "vectors:\n  z: {along: [0, 0, 1], fixed: true}\n")
+    text = text.replace("bodies:\n", "bodies:\n  c: {points: [P, Q], vector: z, mass: 1.0, "
+                                      "inertia: [0.01, 0.1, 0.1]}\n", 1)
+    r = fccgen.load_numeric(write(tmp_path, text)).simulate(t_end=0.002, dt=1e-3)
+    reason = r.info["reactions"]["reason"]
+    assert "z: joint reactions cannot be computed: body c is held by this fixed triple" \
+        in reason, reason

@@ -21,8 +21,10 @@ with ``info["reactions"]["unique"]`` false.
 Applied loads are attributed to bodies: gravity, forces and torques on a body, torsion
 springs on their two bodies, point springs on the bodies that carry their ends. A
 load that acts on a triple shared by two bodies, or on one that no body carries, and
-constraints written in section 2 (not joints) cannot be attributed: reactions are
-refused with a :class:`~fccgen.errors.ModelError` naming the item.
+section-2 ties that act as hidden joints (constraints not made by a joint, a point or
+vector shared by bodies or a fixed one a body uses outside a joint) cannot be
+attributed: reactions are refused with a :class:`~fccgen.errors.ModelError` naming the
+item.
 """
 from __future__ import annotations
 
@@ -69,11 +71,16 @@ def check_attributable(plan) -> None:
                     if len(t.carriers) > 1}
     held = carriers(model)
     for name, bodies in held.items():
-        moving = [b for b in bodies if _moving(plan, b)]
-        if len(bodies) > 1 and moving and name not in joint_shared:
-            where = (model.points.get(name) or model.vectors.get(name)).where
+        moving = sorted(b for b in bodies if _moving(plan, b))
+        if not moving or name in joint_shared:
+            continue
+        where = (model.points.get(name) or model.vectors.get(name)).where
+        if len(bodies) > 1:
             raise _refuse(where, name, f"bodies {', '.join(sorted(bodies))} share it "
                           "without a joint", name)
+        if name not in plan.index:
+            raise _refuse(where, name, f"body {moving[0]} is held by this fixed "
+                          "triple outside any joint", name)
     for k, ld in enumerate(model.loads):
         if isinstance(ld, Spring):
             for end in ld.ends:
