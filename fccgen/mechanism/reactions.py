@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import ModelError
+from ..errors import ModelError, SimulationError
 from ..model.types import (GROUND, Attached, BodyPoint, Force, Spring, Torque,
                            TorsionSpring)
 from .body_motion import Motion
@@ -264,7 +264,8 @@ def add_reactions(solver, result):
         return result
     try:
         cols, info = reactions(solver, result)
-    except ModelError as exc:
+    except (ModelError, SimulationError, np.linalg.LinAlgError) as exc:
+        # the run itself succeeded: keep it, and say why it has no reactions
         result.info["reactions"] = dict(computed=False, reason=str(exc))
         return result
     result.columns.update(cols)
