@@ -220,7 +220,7 @@ def run_one(solver, variant: Variant, setting: str, value: float, reference: Ref
     "failed" when the run stops (with the solver's message) or its state is not finite."""
     row = Row(model_name, variant.method, variant.version, variant.project, setting, value)
     kwargs = dict(t_end=reference.t_end, output_dt=reference.output_dt,
-                  method=variant.method, project=variant.project)
+                  method=variant.method, project=variant.project, reactions=False)
     if setting == "dt":
         kwargs["dt"] = value
     else:

@@ -171,7 +171,7 @@ def _bench_model(path, build_dir="generated", *, repeats=200, progress=None,
     n_steps = 20
     tick("timing numeric RK4 steps")
     t_num = median_time(lambda: ns.simulate(t_end=n_steps * dt, dt=dt, q0=q, v0=v,
-                                            output_dt=n_steps * dt),
+                                            output_dt=n_steps * dt, reactions=False),
                         max(repeats // 40, 3), min_batch_seconds=0.0) / n_steps
     c_steps = []
     for k in range(5):

@@ -75,6 +75,9 @@ def _parser() -> argparse.ArgumentParser:
                    help="any option of the method (repeatable), e.g. penalty=1e8")
     s.add_argument("--output-dt", type=float,
                    help="output interval, a multiple of dt (default: every step)")
+    s.add_argument("--no-reactions", action="store_true",
+                   help="skip the joint reaction columns of a mechanism-level model "
+                        "(J.fx ... J.tz; computed after the run)")
     s.add_argument("--out", help="write results to FILE.csv, .npz or .h5 with how they "
                    "were made (CSV: in FILE.meta.json); checked before the run, "
                    "written atomically")
@@ -344,6 +347,8 @@ def _run(args, progress) -> int:
         options = _method_options(args.method_option)
         options.update({k: v for k, v in (("alpha", args.baumgarte_alpha),
                                           ("beta", args.baumgarte_beta)) if v is not None})
+        if args.no_reactions:
+            options["reactions"] = False
         result, init = api.simulate(
             args.model, t_end=args.t_end, dt=args.dt, method=args.method,
             output_dt=args.output_dt, project=not args.no_project, numeric=args.numeric,
@@ -352,6 +357,10 @@ def _run(args, progress) -> int:
             rtol=args.rtol, atol=args.atol, solver_options=_solver_options(args), **options)
         print(init.report())
         print(_run_summary(result))
+        reaction = result.info.get("reactions", {})
+        if reaction.get("note") or reaction.get("reason"):
+            print(f"fccgen: warning: {reaction.get('note') or reaction['reason']}",
+                  file=sys.stderr)
         if args.out:
             print(f"results: {args.out} ({len(result.t)} rows, {len(result.names)} columns)")
         else:

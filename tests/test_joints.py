@@ -348,12 +348,13 @@ def test_rsup_joint_outputs_against_point_columns(compiled):
     by theta about +x takes z to (0, -sin, cos). S.position and S.speed are the
     slider's joint point S_b along x from its start. Both sides are rounding apart
     (measured 2e-16; 1e-12 allowed). The rate against central differences of the
-    angle, which err by dt^2 |theta_ttt| / 6 = 6e-4 here (|theta_ttt| < 3.6e3 rad/s^3)."""
+    angle, which err by dt^2 |theta_ttt| / 6 = 1.3e-2 here (|theta_ttt| < 7.9e4 rad/s^3
+    by differences at 0.1 ms)."""
     r = compiled("rsup").simulate(t_end=0.3, dt=1e-3)
     assert r.names[1:] == compiled("rsup").plan.columns()      # the same names in order
     theta = np.unwrap(np.arctan2(-(r["B.y"] - 0.1), r["B.z"] - 0.12))
     assert np.abs(r["A.angle"] - theta).max() < 1e-12
-    assert np.abs(np.gradient(theta, r.t) - r["A.rate"])[1:-1].max() < 1e-3
+    assert np.abs(np.gradient(theta, r.t) - r["A.rate"])[1:-1].max() < 1.5e-2
     assert r["A.angle"][-1] > 1.0                      # the crank turns
     assert np.abs(r["S.position"] - (r["S_b.x"] - 0.2)).max() < 1e-12
     assert np.abs(r["S.speed"] - r["S_b.vx"]).max() < 1e-12

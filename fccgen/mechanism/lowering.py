@@ -38,6 +38,7 @@ from .bodies import choose_frame, typical_body
 ALIGN_MIN = 0.5
 from .joints import (CarriedTriple, JointLowering, lower_joint, output_columns,
                      perpendiculars)
+from .reaction_bases import COMPONENTS as REACTION_COMPONENTS
 
 
 @dataclass
@@ -56,10 +57,13 @@ class Lowering:
     drivers: list = field(default_factory=list)       # fccgen.model.types.Driver
 
     def columns(self) -> list[str]:
-        """The joint result columns (J.angle, J.rate, J.position, J.speed) and the
-        drivers' generalized forces (D.torque, D.force)."""
+        """The joint result columns (J.angle, J.rate, J.position, J.speed), the
+        drivers' generalized forces (D.torque, D.force), then the reactions (J.fx ...
+        J.tz; absent from a run that skips or refuses them, see
+        fccgen.mechanism.reactions)."""
         return ([c for jl in self.joints for c in output_columns(jl.joint)]
-                + [driver_column(d) for d in self.drivers])
+                + [driver_column(d) for d in self.drivers]
+                + [f"{jl.joint.name}.{c}" for jl in self.joints for c in REACTION_COMPONENTS])
 
     def describe(self) -> list[str]:
         """One line per joint and per body, for ``fccgen check``."""
@@ -385,7 +389,7 @@ def _ref(pose, ref):
 def _initial(initial: Initial, pose_bodies) -> Initial:
     """Body-frame angular velocities of pose-form bodies turned global."""
     out = Initial(dict(initial.point_velocities), dict(initial.body_angular_velocities),
-                  dict(initial.joint_speeds))
+                  dict(initial.joint_speeds), dict(initial.joint_positions))
     for name, w in initial.body_angular_velocities.items():
         if name in pose_bodies and w.frame == "body":
             out.body_angular_velocities[name] = replace(

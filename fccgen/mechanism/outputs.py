@@ -2,9 +2,11 @@
 run from the recorded coordinates and speeds, vectorised over the output samples.
 
 * ``J.angle`` (revolute, cylindrical): the rotation of body B relative to body A
-  about the joint axis, right-handed, 0 at t = 0, unwrapped over turns. With
-  C = R_A^T R_B (B's frame seen from A's) and D = C C_0^T, a_A the axis in A's frame
-  and n1 a unit vector perpendicular to it: angle = atan2(a_A.(n1 x D n1), n1.D n1).
+  about the joint axis, right-handed, 0 in the configuration the model file writes
+  (plan.q0: 0 at t = 0 unless ``initial: joints:`` gives an angle, which it then
+  starts at), unwrapped over turns. With C = R_A^T R_B (B's frame seen from A's) and
+  D = C C_0^T (C_0 as written), a_A the axis in A's frame
+  (as written) and n1 a unit vector perpendicular to it: angle = atan2(a_A.(n1 x D n1), n1.D n1).
 * ``J.rate``: (w_B - w_A).a, a = R_A a_A the axis now.
 * ``J.position`` (prismatic, cylindrical): (r_Jb - r_Ja).a, the slide of B's joint
   point from A's along the axis (0 at t = 0); ``J.speed``: (v_Jb - v_Ja).a, exact on
@@ -58,20 +60,20 @@ def joint_columns(plan, columns: dict[str, np.ndarray], n: int) -> dict[str, np.
     lowering = getattr(plan.model, "mechanism", None)
     if lowering is None or n == 0:
         return {}
-    s = _Series(plan, columns, n)
+    s, written = _Series(plan, columns, n), _written(plan)
     out: dict[str, np.ndarray] = {}
     for jl in lowering.joints:
         j = jl.joint
         A, B = j.bodies
         if j.type in ANGLE_TYPES:
             RA, RB = s.rotation(A), s.rotation(B)
-            a_A = RA[0].T @ j.axes[0]
+            a_A = written.rotation(A)[0].T @ j.axes[0]
             n1 = perpendiculars(a_A)[0]
             C = np.einsum("nki,nkj->nij", RA, RB)
-            D = np.einsum("nij,kj->nik", C, C[0])
+            D = np.einsum("nij,kj->nik", C, written.rotation(A)[0].T @ written.rotation(B)[0])
             Dn = D @ n1
             angle = np.arctan2(np.cross(n1, Dn) @ a_A, Dn @ n1)
-            out[f"{j.name}.angle"] = np.unwrap(angle)
+            out[f"{j.name}.angle"] = _near_given(plan, j.name, np.unwrap(angle))
             a = RA @ a_A
             out[f"{j.name}.rate"] = np.einsum("ni,ni->n", s.omega(B) - s.omega(A), a)
         if j.type in SLIDE_TYPES:
@@ -80,6 +82,25 @@ def joint_columns(plan, columns: dict[str, np.ndarray], n: int) -> dict[str, np.
             out[f"{j.name}.position"] = np.einsum("ni,ni->n", rb - ra, a)
             out[f"{j.name}.speed"] = np.einsum("ni,ni->n", vb - va, a)
     return out
+
+
+def _written(plan) -> _Series:
+    """The configuration the model file writes (plan.q0), as a one-row series."""
+    columns = {}
+    for k, (name, _) in enumerate(plan.triples):
+        for c, axis in enumerate("xyz"):
+            columns[f"{name}.{axis}"] = np.array([plan.q0[3 * k + c]])
+            columns[f"{name}.v{axis}"] = np.zeros(1)
+    return _Series(plan, columns, 1)
+
+
+def _near_given(plan, joint: str, angle: np.ndarray) -> np.ndarray:
+    """An unwrapped angle moved by whole turns so that it starts nearest the initial
+    angle the model gives the joint (``initial: joints: {J: {angle: a}}``), if any."""
+    given = (getattr(plan.model.initial, "joint_positions", None) or {}).get(joint)
+    if given is None or given[0] != "angle" or not len(angle):
+        return angle
+    return angle + 2 * np.pi * np.round((given[1] - angle[0]) / (2 * np.pi))
 
 
 def add_joint_columns(plan, result) -> None:

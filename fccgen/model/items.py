@@ -42,6 +42,9 @@ INITIAL_KEYS = ((), ("points", "bodies", "joints"))
 # Joint speeds an initial state may fix: quantity -> joint types that have it.
 JOINT_SPEED_TYPES = {"rate": ("revolute", "cylindrical"),
                      "speed": ("prismatic", "cylindrical")}
+# Joint positions an initial state may fix (assembly at a given joint value).
+JOINT_POSITION_TYPES = {"angle": ("revolute", "cylindrical"),
+                        "position": ("prismatic", "cylindrical")}
 INITIAL_BODY_KEYS = (("angular_velocity",), ("frame",))
 SIMULATE_KEYS = ((), ("t_end", "dt", "method", "output_dt", "rank_tol", "position_tol",
                       "max_newton", "linear_solver"))
@@ -253,8 +256,8 @@ class ItemReader(Reader):
         m = self.mapping(node, "initial", *INITIAL_KEYS)
         result = Initial()
         if "joints" in m.entries:
-            result.joint_speeds = self.joint_speeds(m.entries["joints"],
-                                                    {j.name: j for j in joints})
+            result.joint_speeds, result.joint_positions = self.joint_speeds(
+                m.entries["joints"], {j.name: j for j in joints})
         if "points" in m.entries:
             for name, line, value, item in self.entries(m.entries["points"],
                                                         "initial.points"):
@@ -275,26 +278,35 @@ class ItemReader(Reader):
                                                                               line)
         return result
 
-    def joint_speeds(self, node: YNode, joints: dict) -> dict:
-        """``initial.joints``: {J: {rate: w}} or {J: {speed: s}}, kept exactly."""
-        out = {}
+    def joint_speeds(self, node: YNode, joints: dict) -> tuple[dict, dict]:
+        """``initial.joints``: {J: {rate: w}} or {J: {speed: s}}, kept exactly, and
+        {J: {angle: a}} or {J: {position: x}}, the joint values to assemble at (both
+        may be given): (speeds, positions), each {J: (quantity, value, where)}."""
+        speeds, positions = {}, {}
+        kinds = {**JOINT_SPEED_TYPES, **JOINT_POSITION_TYPES}
         for name, line, value, item in self.entries(node, "initial.joints"):
             if name not in joints:
                 raise self.fail(line, item, "names no joint; joints are: "
                                 + listing(joints), name)
-            e = self.mapping(value, item, (), tuple(JOINT_SPEED_TYPES)).entries
-            if len(e) != 1:
-                raise self.fail(line, item, "must give exactly one of rate (revolute, "
-                                "cylindrical) or speed (prismatic, cylindrical)", sorted(e))
-            (quantity, number), = e.items()
-            types = JOINT_SPEED_TYPES[quantity]
-            if joints[name].type not in types:
-                raise self.bad(number, child(item, quantity),
-                               f"a {joints[name].type} joint has no {quantity}; "
-                               f"{quantity} is for {' and '.join(types)} joints")
-            out[name] = (quantity, self.number(number, child(item, quantity)),
-                         Where(self.source, number.line))
-        return out
+            e = self.mapping(value, item, (), tuple(kinds)).entries
+            for group, out, rule in (
+                    (JOINT_SPEED_TYPES, speeds, "rate (revolute, cylindrical) or speed "
+                     "(prismatic, cylindrical)"),
+                    (JOINT_POSITION_TYPES, positions, "angle (revolute, cylindrical) or "
+                     "position (prismatic, cylindrical)")):
+                given = {k: v for k, v in e.items() if k in group}
+                if len(given) > 1 or not e:
+                    raise self.fail(line, item, f"must give exactly one of {rule}",
+                                    sorted(e))
+                for quantity, number in given.items():
+                    types = kinds[quantity]
+                    if joints[name].type not in types:
+                        raise self.bad(number, child(item, quantity),
+                                       f"a {joints[name].type} joint has no {quantity}; "
+                                       f"{quantity} is for {' and '.join(types)} joints")
+                    out[name] = (quantity, self.number(number, child(item, quantity)),
+                                 Where(self.source, number.line))
+        return speeds, positions
 
     def angular_velocity(self, node: YNode, item: str, line: int) -> AngularVelocity:
         e = self.mapping(node, item, *INITIAL_BODY_KEYS).entries

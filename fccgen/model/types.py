@@ -199,6 +199,8 @@ class Initial:
     body_angular_velocities: dict[str, AngularVelocity] = field(default_factory=dict)
     # joint -> (quantity "rate" | "speed", value, where): kept exactly at t = 0
     joint_speeds: dict[str, tuple[str, float, Where]] = field(default_factory=dict)
+    # joint -> (quantity "angle" | "position", value, where): assembled at t = 0
+    joint_positions: dict[str, tuple[str, float, Where]] = field(default_factory=dict)
 
 
 # -- mechanism level (DESIGN section 2b; lowered by fccgen.mechanism) ---------------

@@ -15,7 +15,9 @@ from .. import methods as registry
 from .. import rank as rank_rule
 from ..diagnose import explained
 from ..mechanism.driver_forces import add_driver_columns, driver_rows
+from ..mechanism.initial_positions import assemble_at_joints
 from ..mechanism.initial_speeds import initial_speeds
+from ..mechanism.reactions import add_reactions
 from ..run_settings import linear_solver_choice, solver_tolerances
 from ..errors import SimulationError
 from ..progress import run_reporter
@@ -205,6 +207,7 @@ class NumericSolver:
         self.set_time(0.0)
         q_given = np.array(self.plan.q0, float)
         q, iterations = self.project_positions(q_given)
+        q = assemble_at_joints(self, q)
         self.decide_rank(q)
         v_given = np.array(self.plan.v_target, float)
         try:
@@ -235,7 +238,7 @@ class NumericSolver:
 
     def simulate(self, t_end=None, dt=None, method=None, output_dt=None, project=True,
                  q0=None, v0=None, progress=None, rtol=None, atol=None,
-                 **method_options) -> Result:
+                 reactions=True, **method_options) -> Result:
         """Integrate from (q0, v0), used as given; when q0 is None the consistent
         initial state is used, and when only v0 is None plan.v_target is projected at
         q0. The arguments mean what they mean for
@@ -265,8 +268,9 @@ class NumericSolver:
         if report is not None:
             report.finish(result.t[-1])          # the run's end: 100%
         add_driver_columns(self, result)
-        return rank_rule.report_run(result, decision, self._rank.stats,
-                                    driven=bool(driver_rows(self.plan)))
+        rank_rule.report_run(result, decision, self._rank.stats,
+                             driven=bool(driver_rows(self.plan)))
+        return add_reactions(self, result) if reactions else result
 
     def settings(self) -> dict:
         """The solver's tolerances, as result.info["solver"] records them."""

@@ -15,7 +15,9 @@ from .. import methods as registry
 from .. import rank as rank_rule
 from ..diagnose import explained
 from ..mechanism.driver_forces import add_driver_columns, driver_rows
+from ..mechanism.initial_positions import assemble_at_joints
 from ..mechanism.initial_speeds import initial_speeds
+from ..mechanism.reactions import add_reactions
 from ..run_settings import linear_solver_choice, solver_tolerances
 from ..errors import BuildError, SimulationError
 from ..progress import run_reporter
@@ -202,6 +204,7 @@ class CompiledSolver:
         except SimulationError as exc:
             raise SimulationError(f"{plan.model.source}: the initial positions cannot be "
                                   f"assembled onto the constraints: {exc}") from None
+        q = assemble_at_joints(self, q)
         self.decide_rank(q)
         try:
             v = initial_speeds(self, q, plan.v_target)
@@ -217,7 +220,7 @@ class CompiledSolver:
     # -- simulation ---------------------------------------------------------------------
     def simulate(self, t_end=None, dt=None, method=None, output_dt=None, project=True,
                  q0=None, v0=None, progress=None, rtol=None, atol=None,
-                 **method_options) -> Result:
+                 reactions=True, **method_options) -> Result:
         """Integrate from (q0, v0), used as given, to t_end. q0 None: the consistent
         :meth:`initial_state`; only v0 None: the model's initial speeds projected at q0.
 
@@ -231,6 +234,9 @@ class CompiledSolver:
         progress: called with a :class:`~fccgen.progress.ProgressEvent` (stage
         "simulate", done = t of total = t_end; its text ``"t = ... of ..."``) at most
         about every 0.5 s of wall time. ``result.info`` holds fccgen.methods.INFO_KEYS and more.
+        reactions: add the joint reaction columns of a mechanism-level model
+        (fccgen.mechanism.reactions; ``result.info["reactions"]`` says whether they
+        are unique, or why they are absent).
         """
         d = self.plan.model.simulate
         m = registry.get(d.method if method is None else method, METHODS)
@@ -251,8 +257,9 @@ class CompiledSolver:
             report.finish(result.t[-1])          # the run's end: 100%
         add_driver_columns(self, result)
         used = self.dense_engine() if m.name == "ali3p" else self._engine
-        return rank_rule.report_run(result, decision, used.rank_statistics(),
-                                    driven=bool(driver_rows(self.plan)))
+        rank_rule.report_run(result, decision, used.rank_statistics(),
+                             driven=bool(driver_rows(self.plan)))
+        return add_reactions(self, result) if reactions else result
 
     def dense_engine(self):
         """The dense path's engine (the solver's own unless it takes the sparse one)."""

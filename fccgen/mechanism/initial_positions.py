@@ -1,0 +1,104 @@
+"""Initial positions given as joint angles and slide positions (``initial: joints:
+{A: {angle: 0.3}}``, ``{S: {position: 0.05}}``): the mechanism is assembled at them.
+
+Joint angles are measured from the configuration the model file writes, slide
+positions from the coincidence of the joint's two points (both 0 there; DESIGN
+section 2b). Starting from the written configuration assembled onto g = 0, the given
+values c_J(q) = d_J are reached by continuation in steps of at most STEP_ANGLE rad and
+STEP_LENGTH body lengths, each closed by Newton on
+
+    g(q) = 0,   c(q) - d_k = 0     (d_k: the k-th step towards d)
+
+with the minimum-norm change dq = -[B; C]^+ [g; c - d_k]: the second body's side turns
+or slides, the rest follows as little as the loops allow. C is the joint's rate (slide
+speed) row, the derivative of c along the constraint manifold
+(:func:`fccgen.mechanism.initial_speeds.speed_rows`), exact once g = 0, so Newton
+converges quadratically near the solution. Angles are accumulated step by step (each
+step turns less than half a turn), so any angle, several turns included, is reached.
+Values the mechanism cannot take (beyond a four-bar's limit position, two angles on
+one degree of freedom that disagree, a joint that cannot move) leave Newton without
+convergence and are refused with the nearest values reached.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..errors import ModelError
+from .initial_speeds import speed_rows
+from .outputs import joint_columns
+
+STEP_ANGLE = 0.1           # rad per continuation step
+STEP_LENGTH = 0.05         # body lengths per continuation step
+JOINT_TOL = 1e-12          # rad, and body lengths for positions
+MAX_NEWTON = 30
+RATE_OF = {"angle": "rate", "position": "speed"}
+
+
+def _values(plan, q_ref: np.ndarray, q: np.ndarray, wanted: dict) -> np.ndarray:
+    """Each wanted quantity at q: an angle relative to q_ref, a position absolute."""
+    columns: dict[str, np.ndarray] = {}
+    for k, (name, _) in enumerate(plan.triples):
+        for c, axis in enumerate("xyz"):
+            columns[f"{name}.{axis}"] = np.array([q_ref[3 * k + c], q[3 * k + c]])
+            columns[f"{name}.v{axis}"] = np.zeros(2)
+    values = joint_columns(plan, columns, 2)
+    return np.array([values[f"{j}.{qty}"][1] - (qty == "angle") * values[f"{j}.{qty}"][0]
+                     for j, (qty, _, _) in wanted.items()])
+
+
+def _refuse(wanted: dict, reached: np.ndarray, aim: np.ndarray, why: str) -> ModelError:
+    where = next(iter(wanted.values()))[2]
+    given = ", ".join(f"{j}.{qty} = {v:g}" for j, (qty, v, _) in wanted.items())
+    near = ", ".join(f"{j}.{qty} = {r:.6g}" for (j, (qty, _, _)), r
+                     in zip(wanted.items(), reached))
+    aimed = ", ".join(f"{a:.6g}" for a in aim)
+    return ModelError(where.file, where.line, "initial.joints",
+                      f"the mechanism cannot be assembled at these joint values ({why}); "
+                      f"it assembles up to {near} and fails on the way to {aimed}", given)
+
+
+def assemble_at_joints(solver, q: np.ndarray) -> np.ndarray:
+    """q (assembled at the written configuration) moved to the model's initial joint
+    angles and positions; q itself when it gives none (module docstring)."""
+    plan = solver.plan
+    wanted = dict(getattr(plan.model.initial, "joint_positions", None) or {})
+    if not wanted:
+        return q
+    length = solver.length_scale
+    rates = {j: (RATE_OF[qty], 0.0, where) for j, (qty, _, where) in wanted.items()}
+    is_angle = np.array([qty == "angle" for qty, _, _ in wanted.values()])
+    target = np.array([v for _, v, _ in wanted.values()], float)
+    scale = np.where(is_angle, 1.0, length)
+    q_ref = np.array(q, float)
+    start = np.where(is_angle, 0.0, _values(plan, q_ref, q_ref, wanted))
+    step = np.where(is_angle, STEP_ANGLE, STEP_LENGTH * length)
+    n_steps = max(1, math.ceil(float(np.max(np.abs(target - start) / step))))
+    q, accumulated = q_ref.copy(), start.copy()
+    for k in range(1, n_steps + 1):
+        d = start + (target - start) * k / n_steps
+        q, value = _newton(solver, q, q_ref if k == 1 else q_prev, accumulated, d,
+                           wanted, rates, is_angle, scale, length)
+        q_prev, accumulated = q.copy(), value
+    return q
+
+
+def _newton(solver, q, q_prev, accumulated, d, wanted, rates, is_angle, scale, length):
+    """(q, values) with g(q) = 0 and the joint values d, from q; ModelError if not."""
+    plan = solver.plan
+    for _ in range(MAX_NEWTON):
+        rel = _values(plan, q_prev, q, wanted)
+        value = np.where(is_angle, accumulated + rel, rel)
+        g = solver.constraints(q)
+        miss = (value - d) / scale
+        if np.max(np.abs(g), initial=0.0) <= solver.position_tol and \
+                np.max(np.abs(miss)) <= JOINT_TOL:
+            return q, value
+        if not np.all(np.isfinite(g)) or np.max(np.abs(g), initial=0.0) > 10 * length:
+            break
+        A = np.vstack([solver.constraint_jacobian(q), speed_rows(solver, q, rates)[0]])
+        q = q + np.linalg.lstsq(A, -np.concatenate([g, value - d]), rcond=None)[0]
+    raise _refuse(wanted, accumulated, d,
+                  "a value beyond the mechanism's reach, values that contradict each "
+                  "other, or a joint the constraints hold fixed")

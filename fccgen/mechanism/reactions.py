@@ -1,0 +1,275 @@
+"""Joint reactions (DESIGN section 2b): per joint, the force F and the torque T about
+its point that it applies on its second body, global frame, result columns
+``J.fx J.fy J.fz J.tx J.ty J.tz``.
+
+Joints are lowered onto shared points and vectors, which have no multipliers, so the
+reactions come from a Newton-Euler balance of every moving body at each recorded row
+(post-processing in NumPy). With q'' from the solver (:mod:`.body_motion`):
+
+    sum_J  s_J F_J                                  = m a_G - F_applied
+    sum_J  s_J (T_J + (p_J - r_G) x F_J)            = H_G' - M_applied (about G)
+
+s_J = +1 on the joint's second body, -1 on its first; p_J the joint point on the
+second body. Each (F_J, T_J) is restricted to the joint's reaction subspace
+(:func:`fccgen.mechanism.reaction_bases.bases`), F = P_f x_f, T = P_t x_t with
+orthonormal columns. The rows of all moving bodies stacked give E x = b per result row,
+solved by the pseudo-inverse (an SVD per row). Where E has fewer independent columns
+than unknowns (redundant constraints, e.g. a planar four-bar of revolutes) the
+reactions are not unique and the minimum-norm x (in N and N m together) is reported,
+with ``info["reactions"]["unique"]`` false.
+
+Applied loads are attributed to bodies: gravity, forces and torques on a body, torsion
+springs on their two bodies, point springs on the bodies that carry their ends. A
+load that acts on a triple shared by two bodies, or on one that no body carries, and
+section-2 ties that act as hidden joints (constraints not made by a joint, a point or
+vector shared by bodies or a fixed one a body uses outside a joint) cannot be
+attributed: reactions are refused with a :class:`~fccgen.errors.ModelError` naming the
+item.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import ModelError, SimulationError
+from ..model.types import (GROUND, Attached, BodyPoint, Force, Spring, Torque,
+                           TorsionSpring)
+from .body_motion import Motion
+from .reaction_bases import COMPONENTS, bases
+
+# Relative singular value of E (its largest = 1) below which a direction counts as
+# lost: redundant constraints give singular values at the level of the recorded
+# constraint error (~1e-11 of a length), real ones are O(1) in N and N m per metre.
+RANK_RTOL = 1e-8
+
+
+def _refuse(item_where, item: str, rule: str, value=None) -> ModelError:
+    return ModelError(item_where.file, item_where.line, item,
+                      "joint reactions cannot be computed: " + rule, value)
+
+
+def carriers(model) -> dict[str, set[str]]:
+    """Per triple name, the bodies (moving or not) that carry it."""
+    out: dict[str, set[str]] = {}
+    for name, b in model.bodies.items():
+        for t in (b.i, b.j, b.u):
+            out.setdefault(t, set()).add(name)
+    for c in model.constraints:
+        if isinstance(c, Attached):
+            out.setdefault(c.target, set()).add(c.body)
+    return out
+
+
+def check_attributable(plan) -> None:
+    """ModelError for the first item whose force the body balance cannot place."""
+    model, lowering = plan.model, plan.model.mechanism
+    joint_labels = {lab for labs in lowering.labels.values() for lab in labs}
+    for k, c in enumerate(model.constraints):
+        if getattr(c, "label", None) not in joint_labels:
+            raise _refuse(c.where, f"constraints[{k}]", "its force belongs to no joint; "
+                          "write it as a joint (DESIGN section 2b)", c.type)
+    joint_shared = {t.name for jl in lowering.joints for t in jl.triples
+                    if len(t.carriers) > 1}
+    held = carriers(model)
+    for name, bodies in held.items():
+        moving = sorted(b for b in bodies if _moving(plan, b))
+        if not moving or name in joint_shared:
+            continue
+        where = (model.points.get(name) or model.vectors.get(name)).where
+        if len(bodies) > 1:
+            raise _refuse(where, name, f"bodies {', '.join(sorted(bodies))} share it "
+                          "without a joint", name)
+        if name not in plan.index:
+            raise _refuse(where, name, f"body {moving[0]} is held by this fixed "
+                          "triple outside any joint", name)
+    for k, ld in enumerate(model.loads):
+        if isinstance(ld, Spring):
+            for end in ld.ends:
+                _end_body(plan, held, end, ld, k)
+        elif not isinstance(ld, (Force, Torque, TorsionSpring)):
+            raise _refuse(ld.where, f"loads[{k}]", "no body balance is known for this "
+                          "load type", ld.type)
+
+
+def _moving(plan, body: str) -> bool:
+    return body != GROUND and any(name == body for name, _ in plan.bodies)
+
+
+def _end_body(plan, held, end, load, k) -> str | None:
+    """The moving body a spring end acts on (None: a fixed point)."""
+    if isinstance(end, BodyPoint):
+        return end.body if _moving(plan, end.body) else None
+    if end not in plan.index:
+        return None
+    bodies = [b for b in held.get(end, ()) if _moving(plan, b)]
+    if len(bodies) != 1:
+        whom = ("is carried by no body" if not bodies else
+                f"is shared by {' and '.join(sorted(bodies))}")
+        raise _refuse(load.where, f"loads[{k}]", f"its end {end} {whom}, so its force "
+                      "cannot be given to one body; attach the end to one body "
+                      "(a body point) instead", end)
+    return bodies[0]
+
+
+def applied(plan, motion: Motion, index: dict[str, int]) -> np.ndarray:
+    """(n, 6 n_b) applied forces and torques about each moving body's mass centre."""
+    model = plan.model
+    out = np.zeros((motion.n, 6 * len(index)))
+    centres = {b: motion.centre(b)[0] for b in index}
+
+    def add(body, force=None, torque=None, at=None):
+        if body not in index:
+            return
+        k = 6 * index[body]
+        if force is not None:
+            out[:, k:k + 3] += force
+            if at is not None:
+                out[:, k + 3:k + 6] += np.cross(at - centres[body], force)
+        if torque is not None:
+            out[:, k + 3:k + 6] += torque
+
+    for b in index:
+        add(b, force=np.tile(model.bodies[b].mass * model.gravity, (motion.n, 1)))
+    held = carriers(model)
+    for k, ld in enumerate(model.loads):
+        if isinstance(ld, Force) and ld.body in index:
+            at = (motion.centre(ld.body)[0] if ld.at is None else
+                  motion.body(ld.body).point(ld.at)[0])
+            add(ld.body, force=np.tile(ld.value, (motion.n, 1)), at=at)
+        elif isinstance(ld, Torque):
+            add(ld.body, torque=np.tile(ld.value, (motion.n, 1)))
+        elif isinstance(ld, Spring):
+            _spring(plan, motion, held, ld, k, add)
+        elif isinstance(ld, TorsionSpring):
+            _torsion(plan, motion, ld, k, add)
+    return out
+
+
+def _params(plan, k: int) -> dict[str, float]:
+    el = next(e for e in plan.elements if e.label == f"loads[{k}]")
+    return dict(zip(el.cls.param_names, el.params))
+
+
+def _spring(plan, motion, held, ld, k, add):
+    """f on end B = -(k (L - L0) + c L') n, n = (r_B - r_A) / L; -f on end A."""
+    p = _params(plan, k)
+    (ra, va), (rb, vb) = (motion.reference(e) for e in ld.ends)
+    d = rb - ra
+    length = np.linalg.norm(d, axis=1)
+    n = d / length[:, None]
+    rate = np.einsum("ni,ni->n", vb - va, n)
+    f = -(p["k"] * (length - p["L0"]) + p["c"] * rate)[:, None] * n
+    for end, r, sign in ((ld.ends[0], ra, -1.0), (ld.ends[1], rb, 1.0)):
+        body = _end_body(plan, held, end, ld, k)
+        if body is not None:
+            add(body, force=sign * f, at=r)
+
+
+def _torsion(plan, motion, ld, k, add):
+    """Torque -T u on body B and +T u on body A, T = k phi + c phi' with phi as the
+    element computes it (docs/elements.md) and phi' = (w_B - w_A) . u."""
+    p = _params(plan, k)
+    u = motion.triple(ld.axis)[0]
+    perp = []
+    for name, lam in zip(ld.bodies, (p["lA"], p["lB"])):
+        b = plan.model.bodies[name]
+        perp.append(motion.triple(b.j)[0] - motion.triple(b.i)[0] - lam * u)
+    D = np.einsum("ni,ni->n", u, np.cross(perp[0], perp[1]))
+    P = np.einsum("ni,ni->n", perp[0], perp[1])
+    phi = np.arctan2(p["cos0"] * D - p["sin0"] * P, p["cos0"] * P + p["sin0"] * D)
+    w = [motion.body(b).omega if _moving(plan, b) else 0.0 for b in ld.bodies]
+    rate = np.einsum("ni,ni->n", w[1] - w[0] + np.zeros_like(u), u)
+    torque = (p["k"] * phi + p["c"] * rate)[:, None] * u
+    add(ld.bodies[0], torque=torque)
+    add(ld.bodies[1], torque=-torque)
+
+
+def balance(plan, motion: Motion, index: dict[str, int]):
+    """(E, b, joint column slices): the stacked Newton-Euler rows (module docstring)."""
+    n, nb = motion.n, len(index)
+    blocks, spans = [], []
+    for jl in plan.model.mechanism.joints:
+        p, Pf, Pt = bases(jl, motion)
+        block = np.zeros((n, 6 * nb, Pf.shape[2] + Pt.shape[2]))
+        for body, sign in zip(jl.joint.bodies, (-1.0, 1.0)):
+            if body not in index:
+                continue
+            k = 6 * index[body]
+            arm = p - motion.centre(body)[0]
+            block[:, k:k + 3, :Pf.shape[2]] = sign * Pf
+            block[:, k + 3:k + 6, :Pf.shape[2]] = sign * np.cross(
+                arm[:, :, None], Pf, axis=1)
+            block[:, k + 3:k + 6, Pf.shape[2]:] = sign * Pt
+        spans.append((Pf, Pt))
+        blocks.append(block)
+    E = np.concatenate(blocks, axis=2) if blocks else np.zeros((n, 6 * nb, 0))
+    inertial = np.zeros((n, 6 * nb))
+    for body, b in index.items():
+        inertial[:, 6 * b:6 * b + 3] = plan.model.bodies[body].mass * motion.centre(body)[1]
+        inertial[:, 6 * b + 3:6 * b + 6] = motion.momentum_rate(body)
+    return E, inertial - applied(plan, motion, index), spans
+
+
+def solve(E: np.ndarray, b: np.ndarray):
+    """(x, rank per row): minimum-norm least-squares x of E x = b, row by row."""
+    if E.shape[2] == 0:
+        return np.zeros((len(b), 0)), np.zeros(len(b), int)
+    U, s, Vt = np.linalg.svd(E, full_matrices=False)
+    keep = s > RANK_RTOL * s[:, :1]
+    inv = np.where(keep, 1.0 / np.where(keep, s, 1.0), 0.0)
+    y = np.einsum("nki,nk->ni", U, b) * inv
+    return np.einsum("nij,ni->nj", Vt, y), keep.sum(axis=1)
+
+
+def reactions(solver, result) -> tuple[dict[str, np.ndarray], dict]:
+    """(columns, info) of the joint reactions over the rows of ``result``; ModelError
+    when a load or constraint cannot be attributed to a body (module docstring)."""
+    plan = solver.plan
+    check_attributable(plan)
+    names = [name for name, _ in plan.triples]
+    q = np.column_stack([result.columns[f"{t}.{c}"] for t in names for c in "xyz"])
+    v = np.column_stack([result.columns[f"{t}.v{c}"] for t in names for c in "xyz"])
+    a = np.array([solver.accelerations(qk, vk) for qk, vk in zip(q, v)])
+    motion = Motion(plan, q, v, a.reshape(q.shape))
+    index = {name: k for k, (name, _) in enumerate(plan.bodies)}
+    E, b, spans = balance(plan, motion, index)
+    x, rank = solve(E, b)
+    cols: dict[str, np.ndarray] = {}
+    start = 0
+    for jl, (Pf, Pt) in zip(plan.model.mechanism.joints, spans):
+        nf, nt = Pf.shape[2], Pt.shape[2]
+        F = np.einsum("nik,nk->ni", Pf, x[:, start:start + nf])
+        T = np.einsum("nik,nk->ni", Pt, x[:, start + nf:start + nf + nt])
+        start += nf + nt
+        for k, c in enumerate(COMPONENTS):
+            cols[f"{jl.joint.name}.{c}"] = (F if k < 3 else T)[:, k % 3].copy()
+    residual = np.einsum("nij,nj->ni", E, x) - b
+    unknowns = E.shape[2]
+    info = dict(computed=True, unknowns=int(unknowns),
+                rank=int(rank.min()) if len(rank) else 0,
+                unique=bool(np.all(rank == unknowns)),
+                residual=float(np.max(np.abs(residual))) if residual.size else 0.0)
+    return cols, info
+
+
+def minimum_norm_note(info: dict) -> str:
+    return ("the joint reactions are not unique (redundant constraints: "
+            f"{info['unknowns'] - info['rank']} of {info['unknowns']} reaction components "
+            "are undetermined); the minimum-norm set is reported")
+
+
+def add_reactions(solver, result):
+    """Add the reaction columns to ``result`` of a mechanism-level model (in place);
+    ``result.info["reactions"]`` says whether they are unique, or why they are absent."""
+    if getattr(solver.plan.model, "mechanism", None) is None or len(result.t) == 0:
+        return result
+    try:
+        cols, info = reactions(solver, result)
+    except (ModelError, SimulationError, np.linalg.LinAlgError) as exc:
+        # the run itself succeeded: keep it, and say why it has no reactions
+        result.info["reactions"] = dict(computed=False, reason=str(exc))
+        return result
+    result.columns.update(cols)
+    if not info["unique"]:
+        info["note"] = minimum_norm_note(info)
+    result.info["reactions"] = info
+    return result
