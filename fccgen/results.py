@@ -26,6 +26,8 @@ from .errors import HostError, PartialResultWarning, SimulationError
 
 SUFFIXES = (".csv", ".npz")
 INFO_ENTRY = "__fccgen_info__"          # NPZ entry holding result.info as JSON
+EVENTS_ENTRY = "__fccgen_events__"      # NPZ entry holding result.events as JSON
+EVENT_LINE = "# fccgen: event"          # CSV: one such comment line per event (JSON)
 PARTIAL_LINE = "# fccgen: partial result"
 
 
@@ -97,6 +99,7 @@ class Result:
     t: np.ndarray                               # (n_out,)
     columns: dict[str, np.ndarray]              # name -> (n_out,), insertion order kept
     info: dict = field(default_factory=dict)    # run statistics: steps, method, timings...
+    events: list = field(default_factory=list)  # event table rows (fccgen.events.table)
 
     def __getitem__(self, name: str) -> np.ndarray:
         if name == "t":
@@ -162,12 +165,16 @@ class Result:
         if suffix == ".csv":
             np.savetxt(f, self.table(), delimiter=",", header=",".join(self.names),
                        comments="", fmt="%.17g")
+            for row in self.events:
+                f.write(f"{EVENT_LINE} {json.dumps(row, sort_keys=True)}\n"
+                        .encode("utf-8"))
             if self.partial:
                 f.write(f"{PARTIAL_LINE}: {self.info.get('stopped_by', 'unfinished')}\n"
                         .encode("utf-8"))
         else:
             info = json.dumps(self.info, default=_json_value, sort_keys=True)
-            np.savez(f, **{n: self[n] for n in self.names}, **{INFO_ENTRY: np.array(info)})
+            np.savez(f, **{n: self[n] for n in self.names}, **{INFO_ENTRY: np.array(info)},
+                     **{EVENTS_ENTRY: np.array(json.dumps(self.events))})
 
     @classmethod
     def load(cls, path) -> "Result":
@@ -186,12 +193,13 @@ class Result:
                 arrays = {n: data[n] for n in data.files}
             if INFO_ENTRY in arrays:
                 info = json.loads(str(arrays.pop(INFO_ENTRY)))
+            events = json.loads(str(arrays.pop(EVENTS_ENTRY, np.array("[]"))))
         else:
-            arrays, info = _read_csv(path)
+            arrays, info, events = _read_csv(path)
         if path.name.endswith(f".partial{path.suffix}"):
             info["partial"] = True
         t = arrays.pop("t")
-        result = cls(t, arrays, info)
+        result = cls(t, arrays, info, events)
         if result.partial:
             warnings.warn(PartialResultWarning(
                 f"{path} holds a partial result: the run stopped at t = {t[-1]:.6g} "
@@ -199,8 +207,9 @@ class Result:
         return result
 
 
-def _read_csv(path: Path) -> tuple[dict, dict]:
-    """(arrays by name, info) of a CSV result; refuses a file whose last line is cut."""
+def _read_csv(path: Path) -> tuple[dict, dict, list]:
+    """(arrays by name, info, events) of a CSV result; refuses a file whose last line
+    is cut."""
     with open(path, "rb") as fh:
         data = fh.read()
     if data and not data.endswith(b"\n"):
@@ -210,11 +219,13 @@ def _read_csv(path: Path) -> tuple[dict, dict]:
     if lines and lines[-1].startswith(PARTIAL_LINE):
         info = {"partial": True,
                 "stopped_by": lines[-1][len(PARTIAL_LINE):].lstrip(": ").strip()}
+    events = [json.loads(line[len(EVENT_LINE):]) for line in lines
+              if line.startswith(EVENT_LINE)]
     names = lines[0].strip().split(",") if lines else []
     table = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2, comments="#")
     if table.shape[1] != len(names):
         raise ValueError(f"{path}: {len(names)} column names but {table.shape[1]} columns")
-    return {n: table[:, k] for k, n in enumerate(names)}, info
+    return {n: table[:, k] for k, n in enumerate(names)}, info, events
 
 
 @dataclass

@@ -82,9 +82,11 @@ class CompiledSolver:
     body length, 20).
     """
 
-    def __init__(self, plan, module, *, rank_tol=None, position_tol=None, max_newton=None):
+    def __init__(self, plan, module, *, rank_tol=None, position_tol=None, max_newton=None,
+                 events_module=None):
         self.plan = plan
         self.module = module
+        self.events_module = events_module
         self.n_q = plan.n_q
         self.n_g = plan.n_g
         self.length_scale = length_scale(plan)
@@ -177,7 +179,7 @@ class CompiledSolver:
     # -- simulation ---------------------------------------------------------------------
     def simulate(self, t_end=None, dt=None, method=None, output_dt=None, project=True,
                  q0=None, v0=None, progress=None, rtol=None, atol=None,
-                 **method_options) -> Result:
+                 event_tol=1e-12, rest_speed=1e-6, **method_options) -> Result:
         """Integrate from (q0, v0), used as given, to t_end. q0 None: the consistent
         :meth:`initial_state`; only v0 None: the model's initial speeds projected at q0.
 
@@ -190,6 +192,9 @@ class CompiledSolver:
         method_options: the method's options (e.g. alpha, beta for baumgarte).
         progress: called with a one-line message (``"t = ..."``) at most about every
         0.5 s of wall time. ``result.info`` holds fccgen.methods.INFO_KEYS and more.
+        event_tol: events are located to this time (seconds); rest_speed: a bounce
+        slower than this rests on its limit (docs/events.md). ``result.events``: the
+        event table (fccgen.events.table).
         """
         d = self.plan.model.simulate
         m = registry.get(d.method if method is None else method, METHODS)
@@ -203,12 +208,44 @@ class CompiledSolver:
                 progress(f"t = {t:.6g} of {sched.t_end:.6g} "
                          f"({100.0 * t / sched.t_end:.0f}%)")
         decision = self.decide_rank(q0)
+        events = self._event_set(event_tol, rest_speed)
         try:
             result = timed_run(self.plan, m, sched, opts, project,
-                               lambda: self._run(m, sched, opts, project, q0, v0, report))
+                               lambda: self._run(m, sched, opts, project, q0, v0, report,
+                                                 events))
         except SimulationError as exc:
             raise explained(exc, self, q0) from None
+        if events is not None:
+            from ..events.table import event_rows
+            from ._events import ACTIONS
+            result.events = event_rows(events.names, ACTIONS, events.log())
+            result.info["events"] = len(result.events)
         return rank_rule.report_run(result, decision, self._engine.rank_statistics())
+
+    def _event_set(self, tol, rest_speed):
+        """The compiled events of the model (None: it has none)."""
+        model = self.plan.model
+        if not model.events:
+            return None
+        if self.events_module is None:
+            raise ValueError(f"model {model.name!r} has events: give the solver its "
+                             "event module (fccgen.events.build.load_events)")
+        from ._events import EventSet
+        qty = list(self.events_module.QUANTITY_NAMES)
+
+        def row(joint, kinds):
+            for kind in kinds:
+                if joint is not None and f"{joint}.{kind}" in qty:
+                    return qty.index(f"{joint}.{kind}")
+            return -1
+        rows = [row(e.joint, ("angle", "position")) for e in model.events]
+        rows2 = [row(e.joint, ("position",)) if r >= 0 and qty[r].endswith(".angle")
+                 else -1 for e, r in zip(model.events, rows)]
+        angle_rows = [k for k, name in enumerate(qty) if name.endswith(".angle")]
+        return EventSet(self.events_module, self.n_q, [e.direction for e in model.events],
+                        [e.action for e in model.events], rows, rows2,
+                        [e.restitution for e in model.events], angle_rows, tol=tol,
+                        v_rest=rest_speed)
 
     def decide_rank(self, q) -> rank_rule.RankDecision:
         """Decide the rank of B at q by the SVD gap test (fccgen.rank) and keep it in
@@ -227,12 +264,15 @@ class CompiledSolver:
             v0 = self.project_velocities(q0, self.plan.v_target)
         return q0, v0
 
-    def _run(self, m, sched, opts, project, q0, v0, report):
+    def _run(self, m, sched, opts, project, q0, v0, report, events=None):
         """(arrays, stats) of one run of method m."""
         s, e = sched, self._engine
+        if events is not None and m.name != "rk4":
+            raise ValueError(f"events are located by the rk4 method so far, not by "
+                             f"{m.name}")
         if m.name == "rk4":
             return simulate_rk4(e, q0, v0, s.t_end, s.dt, s.n_steps, s.every, project,
-                                report)
+                                report, events=events)
         if m.name == "baumgarte":
             return simulate_baumgarte(e, q0, v0, s.t_end, s.dt, s.n_steps, s.every,
                                       opts["alpha"], opts["beta"], report)

@@ -1,0 +1,128 @@
+"""Events in a compiled run (fccgen/runtime/_events.pyx, the rk4 hooks): location
+against closed-form times, Newton's impact law, the geometric series of bounces of a
+ball on a limit until it rests, and the event table in every result file format."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.special import ellipkinc
+
+import fccgen.api as api
+from fccgen.results import Result
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+G = 9.81
+BALL = """\
+name: ball_limit
+gravity: [0, 0, -9.81]
+bodies:
+  ball: {mass: 2.0, center: [0, 0, 0], inertia: [0.01, 0.01, 0.01]}
+joints:
+  - {name: S, type: prismatic, bodies: [ground, ball], at: [0, 0, 0], axis: [0, 0, 1],
+     limits: [-1.0, 1.0], restitution: 0.5}
+simulate: {t_end: 2.0, dt: 1.0e-3, method: rk4}
+"""
+
+
+@pytest.fixture(scope="session")
+def pendulum(build_dir):
+    return api.load(EXAMPLES / "pendulum_limit.yaml", build_dir)
+
+
+@pytest.fixture(scope="session")
+def ball(build_dir, tmp_path_factory):
+    path = tmp_path_factory.mktemp("events") / "ball_limit.yaml"
+    path.write_text(BALL)
+    return api.load(path, build_dir)
+
+
+def _elliptic_time(phi: float) -> float:
+    """Time for the example's pendulum, released at rest horizontally, to turn by phi:
+    I w^2 / 2 = m g c sin(theta), so t = int_0^phi dtheta / sqrt(k sin theta) with
+    k = 2 m g c / I, and int_0^a dx / sqrt(cos x) = sqrt(2) F(asin(sqrt(2) sin(a/2)) | 1/2)
+    (x = pi/2 - theta)."""
+    k = 2 * 1.0 * G * 0.5 / (1.0 / 3.0)        # m = 1, c = 0.5, I about the pivot 1/3
+
+    def f(a):
+        return math.sqrt(2) * ellipkinc(math.asin(math.sqrt(2) * math.sin(a / 2)), 0.5)
+    return (f(math.pi / 2) - f(math.pi / 2 - phi)) / math.sqrt(k)
+
+
+def test_rk4_locates_a_pendulum_angle_at_the_elliptic_integral_time(pendulum):
+    """The 'quarter' event (A.angle >= 0.5) against the elliptic-integral time. The
+    located time's error is the root tolerance (1e-12 s) plus the trajectory's global
+    error over the angular rate: RK4's ~C dt^4 with C ~ 0.5 measured at dt = 1e-3
+    (4.8e-13 s; 3.1e-14 s at dt/2: the h^4 ratio 16), so 1e-10 s holds with margin."""
+    result = pendulum.simulate(t_end=0.3, dt=1e-3, method="rk4")
+    first = result.events[0]
+    assert (first["name"], first["action"]) == ("quarter", "log")
+    assert abs(first["t"] - _elliptic_time(0.5)) <= 1e-10
+
+
+def test_rk4_location_converges_with_the_step(pendulum):
+    """Halving dt shrinks the location error by about 2^4: it is the step error,
+    not the root finder's, that bounds it."""
+    errors = [abs(pendulum.simulate(t_end=0.3, dt=dt, method="rk4").events[0]["t"]
+                  - _elliptic_time(0.5)) for dt in (2e-3, 1e-3)]
+    assert errors[1] < errors[0] / 8
+
+
+def test_ball_bounces_in_a_geometric_series_until_it_rests(ball):
+    """Falling 1 from rest onto the lower limit: impact at t1 = sqrt(2/g) with speed
+    v0 = sqrt(2 g), then flights of 2 e^k v0 / g. RK4 is exact for this constant
+    acceleration, so the times are off by the location tolerance (1e-12 s) and its
+    effect on later speeds, which doubles at each bounce relative to the shrinking
+    flight (measured 1e-12 after 12 bounces, 3e-10 after 23): checked at 1e-11 for the
+    first 12, 1e-9 after. Newton's law |s'+| = e |s'-| holds at each impact: this
+    1-DOF body's kinetic energy is m s'^2 / 2, so KE+/KE- = e^2 to 1e-12 (rounding
+    of the impulse). Below the rest speed (1e-6) it rests: locked at the limit."""
+    result = ball.simulate(t_end=2.0, dt=1e-3, method="rk4")
+    rows = result.events
+    e, v0 = 0.5, math.sqrt(2 * G)
+    expected = [math.sqrt(2 / G)]
+    for k in range(1, len(rows)):
+        expected.append(expected[-1] + 2 * v0 * e ** k / G)
+    bounces = [r for r in rows if r["action"] == "bounce"]
+    assert len(bounces) >= 20 and rows[-1]["action"] == "rest"
+    assert all(r["name"] == "S_lower" for r in rows)
+    for k, r in enumerate(rows):
+        assert abs(r["t"] - expected[k]) <= (1e-11 if k < 12 else 1e-9), k
+        assert abs(r["speed_before"] + v0 * e ** k) <= 1e-9 * v0, k
+    for r in bounces:
+        ratio = r["kinetic_energy_after"] / r["kinetic_energy_before"]
+        assert abs(ratio - e * e) <= 1e-12
+    t_rest = math.sqrt(2 / G) + 2 * v0 * e / (G * (1 - e))   # sum of the series
+    assert abs(rows[-1]["t"] - t_rest) <= 1e-6               # rest: |s'| < 1e-6
+    assert rows[-1]["dof"] == 0
+    assert np.all(result["S.position"] >= -1.0 - 1e-12)
+    assert abs(result["S.position"][-1] + 1.0) <= 1e-12
+    assert abs(result["S.speed"][-1]) <= 1e-12
+
+
+def test_pendulum_bounces_on_its_limit_and_rests(pendulum):
+    """The example: e = 0.5 on the upper limit; each bounce keeps e^2 of the kinetic
+    energy (1 DOF) and the arm never passes the limit by more than the location
+    tolerance's worth of angle (rate x 1e-12 s, plus the position projection)."""
+    result = pendulum.simulate(t_end=2.0, dt=1e-3, method="rk4")
+    bounces = [r for r in result.events if r["action"] == "bounce"]
+    assert len(bounces) >= 10
+    for r in bounces:
+        assert r["name"] == "A_upper"
+        ratio = r["kinetic_energy_after"] / r["kinetic_energy_before"]
+        assert abs(ratio - 0.25) <= 1e-12
+    assert result.events[-1]["action"] == "rest"
+    assert np.max(result["A.angle"]) <= 1.0 + 1e-11
+    assert abs(result["A.angle"][-1] - 1.0) <= 1e-11
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".npz"])
+def test_event_table_is_in_every_result_file(pendulum, tmp_path, suffix):
+    result = pendulum.simulate(t_end=0.5, dt=1e-3, method="rk4")
+    assert len(result.events) >= 2
+    path = result.save(tmp_path / f"run{suffix}")
+    back = Result.load(path)
+    assert back.events == result.events
+    np.testing.assert_array_equal(back.t, result.t)
