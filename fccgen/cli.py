@@ -354,6 +354,9 @@ def _run(args, progress) -> int:
             rtol=args.rtol, atol=args.atol, solver_options=_solver_options(args), **options)
         print(init.report())
         print(_run_summary(result))
+        if "events" in result.info:                  # the model has events
+            from .events.table import summary
+            print(summary(result.events))
         if args.out:
             print(f"results: {args.out} ({len(result.t)} rows, {len(result.names)} columns)")
         else:

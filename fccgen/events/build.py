@@ -64,8 +64,8 @@ def print_kernels(system: EventSystem) -> list[EventKernel]:
         _print("event_gradients", "ds_k/dq", grad(system.functions), system, True),
         _print("quantity_values", "r_j(q)", qty, system, False),
         _print("quantity_gradients", "dr_j/dq", grad(qty), system, True),
-        _print("quantity_bias", "(d/dt dr_j/dq) v", [system.bias(e) for e in qty],
-               system, False),
+        _print("quantity_bias", "(d/dt dr_j/dq) v",
+               [system.quantity_bias(x) for x in system.quantities], system, False),
     ]
 
 

@@ -19,6 +19,7 @@ Jacobian grad_q r and bias (d/dt grad_q r) . v = v^T (d^2 r / dq^2) v are kernel
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -35,6 +36,8 @@ class Quantity:
     kind: str
     expr: sympy.Expr                 # of q (and p for angles)
     param: int | None                # angles: index k of (theta_r, cos, sin) in p
+    parts: tuple | None = None       # angles: (y, x, (y', x'), (y'', x'')) of
+                                     # expr = theta_r + atan2(y, x), along v
 
     @property
     def name(self) -> str:
@@ -57,16 +60,31 @@ class EventSystem:
         free = e.free_symbols
         return [sympy.diff(e, s) if s in free else sympy.S.Zero for s in self.q]
 
+    def quantity_bias(self, qty: Quantity) -> sympy.Expr:
+        """(d/dt grad_q r) . v of a quantity; for an angle theta_r + atan2(y, x), by
+        the chain rule from the polynomials x, y: with x' = grad x . v and x'' its
+        bias, r'' = ((x y'' - y x'')(x^2 + y^2) - 2 (x y' - y x')(x x' + y y'))
+        / (x^2 + y^2)^2."""
+        if qty.parts is None:
+            return self.bias(qty.expr)
+        y, x, (yd, xd), (yb, xb) = qty.parts
+        n2 = x * x + y * y
+        return ((x * yb - y * xb) * n2 - 2 * (x * yd - y * xd) * (x * xd + y * yd)) / n2**2
+
+    def rate(self, e: sympy.Expr) -> sympy.Expr:
+        """grad_q e . v."""
+        return sum((g * vk for g, vk in zip(self.gradient(e), self.v)), sympy.S.Zero)
+
     def bias(self, e: sympy.Expr) -> sympy.Expr:
-        """(d/dt grad_q e) . v = sum_ij d^2 e / dq_i dq_j v_i v_j (+ d^2 e/dq dt . v)."""
-        out = sympy.S.Zero
+        """(d/dt grad_q e) . v = sum_ij (d^2 e / dq_i dq_j) v_i v_j for e = e(q) (the
+        quantities' polynomials: term-wise derivatives of the expanded form)."""
         index = {s: k for k, s in enumerate(self.q)}
-        for si in e.free_symbols & set(index):
+        out = []
+        for si in sorted(e.free_symbols & set(index), key=index.get):
             di = sympy.diff(e, si)
-            inner = sum((sympy.diff(di, sj) * self.v[index[sj]]
-                         for sj in di.free_symbols & set(index)), sympy.S.Zero)
-            out += (inner + sympy.diff(di, self.t)) * self.v[index[si]]
-        return out
+            for sj in sorted(di.free_symbols & set(index), key=index.get):
+                out.append(sympy.diff(di, sj) * self.v[index[si]] * self.v[index[sj]])
+        return sympy.Add(*out)
 
     def time_derivative(self, e: sympy.Expr) -> sympy.Expr:
         return sum((g * vk for g, vk in zip(self.gradient(e), self.v)),
@@ -76,8 +94,33 @@ class EventSystem:
 class _Frames:
     """Triples and body rotations in terms of q, constants where fixed."""
 
-    def __init__(self, plan, q):
-        self.plan, self.q = plan, q
+    def __init__(self, plan, q, v):
+        self.plan, self.q, self.v = plan, q, v
+
+    def jet(self, name: str) -> tuple:
+        """(r, r', r'') of a triple along v: (q slots, v slots, 0); fixed: constants."""
+        r = self.triple(name)
+        if name in self.plan.index:
+            k = 3 * self.plan.index[name]
+            return r, sympy.Matrix(self.v[k:k + 3]), sympy.zeros(3, 1)
+        return r, sympy.zeros(3, 1), sympy.zeros(3, 1)
+
+    def rotation_jet(self, body: str) -> tuple:
+        """(R, R', R'') along v of :meth:`rotation` (R'' without the q'' terms: the
+        bias). e1, e2 are linear in q, e3 = r_ij x u / (alpha l) bilinear, so
+        e3'' = 2 r_ij' x u' / (alpha l)."""
+        if body == GROUND:
+            return sympy.eye(3), sympy.zeros(3, 3), sympy.zeros(3, 3)
+        b = self.plan.model.bodies[body]
+        (ri, vi, _), (rj, vj, _), (u, vu, _) = (self.jet(x) for x in (b.i, b.j, b.u))
+        l, alpha, beta = (sympy.Float(x, 17) for x in self.constants(body))
+        r, rd = rj - ri, vj - vi
+
+        def frame(e1, u_, e3):
+            return sympy.Matrix.hstack(e1, (u_ - beta * e1) / alpha, e3 / (alpha * l))
+        zero = sympy.zeros(3, 1)
+        return (frame(r / l, u, r.cross(u)), frame(rd / l, vu, rd.cross(u) + r.cross(vu)),
+                frame(zero, zero, 2 * rd.cross(vu)))
 
     def triple(self, name: str) -> sympy.Matrix:
         if name in self.plan.index:
@@ -88,16 +131,30 @@ class _Frames:
         return sympy.Matrix([sympy.Float(float(x), 17) for x in value])
 
     def rotation(self, body: str) -> sympy.Matrix:
-        """R = [e1 e2 e3] of a body from its i, j, u (ground: the identity)."""
+        """R = [e1 e2 e3] of a body from its i, j, u (ground: the identity), with the
+        body constants l = |r_ij|, beta = cos(r_ij, u), alpha = sin(r_ij, u) (DESIGN
+        section 1): e1 = r_ij / l, e2 = (u - beta e1) / alpha, e3 = r_ij x u / (alpha
+        l). Polynomial in q (exact on the constraint manifold, which the runs keep to
+        their position tolerance), so that derivatives stay small."""
         if body == GROUND:
             return sympy.eye(3)
         b = self.plan.model.bodies[body]
         ri, rj, u = (self.triple(x) for x in (b.i, b.j, b.u))
-        e1 = rj - ri
-        e1 = e1 / sympy.sqrt(e1.dot(e1))
-        e3 = e1.cross(u)
-        e3 = e3 / sympy.sqrt(e3.dot(e3))
-        return sympy.Matrix.hstack(e1, e3.cross(e1), e3)
+        l, alpha, beta = (sympy.Float(x, 17) for x in self.constants(body))
+        rij = rj - ri
+        e1 = rij / l
+        return sympy.Matrix.hstack(e1, (u - beta * e1) / alpha, rij.cross(u) / (alpha * l))
+
+    def constants(self, body: str) -> tuple[float, float, float]:
+        """(l, alpha, beta) of a body at the initial configuration."""
+        m = self.plan.model
+        b = m.bodies[body]
+        pos = {**{n: p.at for n, p in m.points.items()},
+               **{n: v.along for n, v in m.vectors.items()}}
+        rij = np.asarray(pos[b.j], float) - np.asarray(pos[b.i], float)
+        l = float(np.linalg.norm(rij))
+        beta = float(rij @ np.asarray(pos[b.u], float)) / l
+        return l, math.sqrt(1.0 - beta * beta), beta
 
     def rotation0(self, body: str) -> np.ndarray:
         """R of a body at the initial configuration, numerically."""
@@ -118,17 +175,30 @@ def _num(x) -> sympy.Matrix:
     return sympy.Matrix([sympy.Float(float(c), 17) for c in x])
 
 
-def _angle(f: _Frames, joint, p) -> sympy.Expr:
+def _angle(f: _Frames, joint, p) -> tuple:
+    """(theta_r, y, x, (y', x'), (y'', x'')) of the joint's angle theta_r + atan2(y, x),
+    rates and biases along v by the product rule on the frames' jets."""
     A, B = joint.bodies
     RA0, RB0 = f.rotation0(A), f.rotation0(B)
     a_A = RA0.T @ joint.axes[0]
     n1 = perpendiculars(a_A)[0]
     w = (RA0.T @ RB0).T @ n1
-    RA, RB = f.rotation(A), f.rotation(B)
+    JA, JB = f.rotation_jet(A), f.rotation_jet(B)
     theta, c, s = p
     m_A = c * _num(n1) + s * _num(np.cross(a_A, n1))
-    a, m, x = RA * _num(a_A), RA * m_A, RB * _num(w)
-    return theta + sympy.atan2(a.dot(m.cross(x)), m.dot(x))
+    a = [R * _num(a_A) for R in JA]
+    m = [R * m_A for R in JA]
+    x = [R * _num(w) for R in JB]
+    y0 = a[0].dot(m[0].cross(x[0]))
+    y1 = a[1].dot(m[0].cross(x[0])) + a[0].dot(m[1].cross(x[0])) + a[0].dot(m[0].cross(x[1]))
+    y2 = (a[2].dot(m[0].cross(x[0])) + a[0].dot(m[2].cross(x[0]))
+          + a[0].dot(m[0].cross(x[2])) + 2 * (a[1].dot(m[1].cross(x[0]))
+                                              + a[1].dot(m[0].cross(x[1]))
+                                              + a[0].dot(m[1].cross(x[1]))))
+    x0 = m[0].dot(x[0])
+    x1 = m[1].dot(x[0]) + m[0].dot(x[1])
+    x2 = m[2].dot(x[0]) + m[0].dot(x[2]) + 2 * m[1].dot(x[1])
+    return theta, y0, x0, (y1, x1), (y2, x2)
 
 
 def _position(f: _Frames, joint) -> sympy.Expr:
@@ -146,14 +216,16 @@ def event_system(plan) -> EventSystem:
     t = sympy.Symbol("t", real=True)
     lowering = getattr(model, "mechanism", None)
     joints = {jl.joint.name: jl.joint for jl in lowering.joints} if lowering else {}
-    frames = _Frames(plan, q)
+    frames = _Frames(plan, q, v)
     wanted = _wanted_quantities(model.events, joints)
     p, quantities = [], []
     for jname, kind in wanted:
         if kind == "angle":
             k = len(p) // 3
             p += list(sympy.symbols(f"theta{k} cos{k} sin{k}", real=True))
-            quantities.append(Quantity(jname, kind, _angle(frames, joints[jname], p[-3:]), k))
+            theta, y, x, rates, biases = _angle(frames, joints[jname], p[-3:])
+            quantities.append(Quantity(jname, kind, theta + sympy.atan2(y, x), k,
+                                       (y, x, rates, biases)))
         else:
             quantities.append(Quantity(jname, kind, _position(frames, joints[jname]), None))
     system = EventSystem(q, v, t, p, quantities, [], [])
@@ -199,9 +271,11 @@ def _substitutions(model, frames: _Frames, system: EventSystem) -> dict:
         for c, (x, vx) in enumerate(zip(r, vel)):
             subs[sympy.Symbol(f"{name}.{'xyz'[c]}", real=True)] = x
             subs[sympy.Symbol(f"{name}.v{'xyz'[c]}", real=True)] = vx
+    used = set().union(*(ev.function.free_symbols for ev in model.events))
     for qty in system.quantities:
-        rate = "rate" if qty.kind == "angle" else "speed"
+        rate = sympy.Symbol(f"{qty.joint}.{'rate' if qty.kind == 'angle' else 'speed'}",
+                            real=True)
         subs[sympy.Symbol(qty.name, real=True)] = qty.expr
-        subs[sympy.Symbol(f"{qty.joint}.{rate}", real=True)] = \
-            system.time_derivative(qty.expr)
+        if rate in used:
+            subs[rate] = system.time_derivative(qty.expr)
     return subs
