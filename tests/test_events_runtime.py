@@ -199,3 +199,47 @@ def test_plastic_lock_of_a_free_floating_pair(floating):
     assert np.max(np.abs(result["H.rate"][after])) <= 1e-12
     assert np.max(np.abs(result["H.angle"][after] + 0.4)) <= 1e-10
     assert row["constraint_error"] <= 1e-12
+
+
+def test_dopri5_locates_on_its_dense_output(pendulum):
+    """DOPRI5 locates on its continuous extension (order 4) within the accepted step,
+    then ends the step at the event. At rtol = atol = 1e-10 the measured error is
+    5e-12 s (1e-10 s at 1e-8, 4e-14 s at 1e-12: it follows the tolerance), so 1e-10
+    holds with margin. The run then bounces to rest as with RK4."""
+    result = pendulum.simulate(t_end=2.0, method="dopri5", rtol=1e-10, atol=1e-10,
+                               output_dt=1e-2)
+    assert abs(result.events[0]["t"] - _elliptic_time(0.5)) <= 1e-10
+    assert result.events[-1]["action"] == "rest"
+    assert np.max(result["A.angle"]) <= 1.0 + 1e-11
+    for r in result.events:
+        if r["action"] == "bounce":
+            ratio = r["kinetic_energy_after"] / r["kinetic_energy_before"]
+            assert abs(ratio - 0.25) <= 1e-12
+
+
+def test_dopri5_ball_bounce_times(ball):
+    """As with RK4 (exact here too: DOPRI5 and its extension integrate constant
+    acceleration exactly): the first 12 bounce times to 1e-11 s."""
+    result = ball.simulate(t_end=2.0, method="dopri5", rtol=1e-10, atol=1e-10,
+                           output_dt=1e-2)
+    e, v0 = 0.5, math.sqrt(2 * G)
+    t = math.sqrt(2 / G)
+    for k, r in enumerate(result.events[:12]):
+        assert abs(r["t"] - t) <= 1e-11, k
+        t += 2 * v0 * e ** (k + 1) / G
+    assert result.events[-1]["action"] == "rest"
+
+
+def test_stop_ends_the_run_at_the_event(build_dir, tmp_path):
+    """do: stop ends the run at the located time, with a last record there (RK4 and
+    DOPRI5): the example with its 'quarter' event made a stop."""
+    text = (EXAMPLES / "pendulum_limit.yaml").read_text()
+    path = tmp_path / "pendulum_stop.yaml"
+    path.write_text(text.replace("do: log", "do: stop"))
+    solver = api.load(path, build_dir)
+    for method, opts in (("rk4", dict(dt=1e-3)), ("dopri5", dict(rtol=1e-10, atol=1e-10))):
+        result = solver.simulate(t_end=1.0, method=method, **opts)
+        assert [r["action"] for r in result.events] == ["stop"]
+        assert result.t[-1] == result.events[0]["t"]
+        assert abs(result.t[-1] - _elliptic_time(0.5)) <= 1e-10
+        assert abs(result["A.angle"][-1] - 0.5) <= 1e-10

@@ -267,9 +267,9 @@ class CompiledSolver:
     def _run(self, m, sched, opts, project, q0, v0, report, events=None):
         """(arrays, stats) of one run of method m."""
         s, e = sched, self._engine
-        if events is not None and m.name != "rk4":
-            raise ValueError(f"events are located by the rk4 method so far, not by "
-                             f"{m.name}")
+        if events is not None and m.name not in ("rk4", "dopri5"):
+            raise ValueError(f"events are located by the rk4 and dopri5 methods, not "
+                             f"by {m.name}")
         if m.name == "rk4":
             return simulate_rk4(e, q0, v0, s.t_end, s.dt, s.n_steps, s.every, project,
                                 report, events=events)
@@ -278,7 +278,8 @@ class CompiledSolver:
                                       opts["alpha"], opts["beta"], report)
         if m.name == "dopri5":
             return simulate_dopri5(e, q0, v0, s.t_end, s.output_dt, opts["rtol"],
-                                   opts["atol"], s.dt or 0.0, project, report)
+                                   opts["atol"], s.dt or 0.0, project, report,
+                                   events=events)
         if m.name == "ali3p":
             from ._ali3p import simulate_ali3p
             return simulate_ali3p(e, q0, v0, s.t_end, s.dt, s.n_steps, s.every, opts,
