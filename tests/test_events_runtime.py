@@ -243,3 +243,34 @@ def test_stop_ends_the_run_at_the_event(build_dir, tmp_path):
         assert result.t[-1] == result.events[0]["t"]
         assert abs(result.t[-1] - _elliptic_time(0.5)) <= 1e-10
         assert abs(result["A.angle"][-1] - 0.5) <= 1e-10
+
+
+SPIN = """\
+name: spin_events
+bodies:
+  wheel: {mass: 1.0, center: [0.5, 0, 0], inertia: [0.1, 0.1, 0.1]}
+joints:
+  - {name: A, type: revolute, bodies: [ground, wheel], at: [0, 0, 0], axis: [0, 0, 1]}
+initial:
+  joints: {A: {rate: 2.0}}
+events:
+  - {name: flat, when: "A.angle >= pi", do: log}
+  - {name: turn, when: "A.angle - 2*pi", direction: rising, do: log}
+  - {name: late, when: "A.angle >= 3.5*pi", do: log}
+"""
+
+
+def test_angles_locate_through_pi_and_over_turns(build_dir, tmp_path):
+    """A wheel turning freely at 2 rad/s about a fixed hinge: angle = 2 t, so the
+    events at pi (where atan2 wraps), 2 pi and 3.5 pi (past a full turn: turn counting)
+    happen at pi/2, pi and 1.75 pi s. RK4 at dt = 1e-3 moves the wheel's point along
+    its circle with an angle error ~1e-13 per unit time (the radius is held by the
+    projection), so 1e-10 s holds."""
+    path = tmp_path / "spin.yaml"
+    path.write_text(SPIN)
+    result = api.load(path, build_dir).simulate(t_end=6.0, dt=1e-3, method="rk4")
+    got = {r["name"]: r["t"] for r in result.events}
+    assert sorted(got) == ["flat", "late", "turn"] and len(result.events) == 3
+    for name, t in (("flat", math.pi / 2), ("turn", math.pi), ("late", 1.75 * math.pi)):
+        assert abs(got[name] - t) <= 1e-10, name
+    assert abs(result["A.angle"][-1] - 12.0) <= 1e-9
