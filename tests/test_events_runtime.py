@@ -274,3 +274,12 @@ def test_angles_locate_through_pi_and_over_turns(build_dir, tmp_path):
     for name, t in (("flat", math.pi / 2), ("turn", math.pi), ("late", 1.75 * math.pi)):
         assert abs(got[name] - t) <= 1e-10, name
     assert abs(result["A.angle"][-1] - 12.0) <= 1e-9
+
+
+def test_a_pickled_solver_keeps_its_events(pendulum):
+    """Sweeps send solvers to workers by pickle: the event module goes along."""
+    import pickle
+    copy = pickle.loads(pickle.dumps(pendulum))
+    a = pendulum.simulate(t_end=0.5, dt=1e-3, method="rk4").events
+    b = copy.simulate(t_end=0.5, dt=1e-3, method="rk4").events
+    assert a == b and len(a) >= 2
