@@ -283,3 +283,23 @@ def test_a_pickled_solver_keeps_its_events(pendulum):
     a = pendulum.simulate(t_end=0.5, dt=1e-3, method="rk4").events
     b = copy.simulate(t_end=0.5, dt=1e-3, method="rk4").events
     assert a == b and len(a) >= 2
+
+
+def test_latch_at_180_degrees_then_unlock(build_dir, tmp_path):
+    """The panel example with a release at t = 4: the latch at 180 degrees (pi, where
+    atan2 wraps) holds the hinge at pi to 1e-10 until the unlock; the unlock restores
+    the DOF (6 -> 7) without an impulse, and the motor opens the hinge further."""
+    text = (EXAMPLES / "panel_latch.yaml").read_text()
+    path = tmp_path / "panel_release.yaml"
+    latch_line = '  - {name: latch, when: "H.angle >= pi", do: lock, joint: H}\n'
+    assert latch_line in text
+    path.write_text(text.replace(latch_line, latch_line + '  - {name: release, when: '
+                                 '"t >= 4", do: unlock, joint: H}\n'))
+    result = api.load(path, build_dir).simulate(t_end=5.0, dt=1e-3, method="rk4")
+    latch, release = result.events
+    assert (latch["name"], latch["action"], latch["dof"]) == ("latch", "lock", 6)
+    assert (release["name"], release["action"], release["dof"]) == ("release", "unlock", 7)
+    assert abs(release["t"] - 4.0) <= 1e-12 and release["impulse"] == 0.0
+    held = (result.t > latch["t"]) & (result.t <= 4.0)
+    assert np.max(np.abs(result["H.angle"][held] - math.pi)) <= 1e-10
+    assert result["H.angle"][-1] > math.pi + 0.05
