@@ -449,6 +449,26 @@ cdef class EventSet:
                 out[i, j] = self.c.log[i * LOG_COLS + j]
         return out
 
+    def quantity_kernels(self, q, v):
+        """(r, G, (dG/dt) v) of the joint quantities at (q, v) with the current angle
+        references: fresh arrays (for checks)."""
+        qa = np.ascontiguousarray(q, float)
+        va = np.ascontiguousarray(v, float)
+        cdef double[::1] qv = qa, vv = va
+        cdef EvC *c = &self.c
+        if qa.shape[0] != c.n or va.shape[0] != c.n:
+            raise ValueError(f"q and v must hold {c.n} numbers")
+        r, g, b = np.empty(c.nr), np.empty((c.nr, c.n)), np.empty(c.nr)
+        if c.nr:
+            c.tab.quantity_values(&qv[0], &vv[0], 0.0, c.p, c.r)
+            c.tab.quantity_gradients(&qv[0], &vv[0], 0.0, c.p, c.rg)
+            c.tab.quantity_bias(&qv[0], &vv[0], 0.0, c.p, c.rb)
+            for i in range(c.nr):
+                r[i], b[i] = c.r[i], c.rb[i]
+                for j in range(c.n):
+                    g[i, j] = c.rg[i * c.n + j]
+        return r, g, b
+
     def values(self, q, v, double t):
         """s_k at (q, v, t) with the current angle references: a fresh array."""
         qa = np.ascontiguousarray(q, float)
