@@ -44,7 +44,11 @@ def load(path, build_dir=DEFAULT_BUILD_DIR, *, force=False, progress: Progress =
     from .build import load_module
     from .runtime import CompiledSolver
     plan, built = generate(path, build_dir, force=force, progress=progress)
-    return CompiledSolver(plan, load_module(built), **solver_options)
+    events = None
+    if plan.model.events:
+        from .events.build import load_events
+        events = load_events(plan, build_dir, force=force)
+    return CompiledSolver(plan, load_module(built), events_module=events, **solver_options)
 
 
 def load_numeric(path, **solver_options):

@@ -361,6 +361,9 @@ def _run(args, progress) -> int:
         if reaction.get("note") or reaction.get("reason"):
             print(f"fccgen: warning: {reaction.get('note') or reaction['reason']}",
                   file=sys.stderr)
+        if "events" in result.info:                  # the model has events
+            from .events.table import summary
+            print(summary(result.events))
         if args.out:
             print(f"results: {args.out} ({len(result.t)} rows, {len(result.names)} columns)")
         else:

@@ -60,6 +60,7 @@ class Result:
     t: np.ndarray                               # (n_out,)
     columns: dict[str, np.ndarray]              # name -> (n_out,), insertion order kept
     info: dict = field(default_factory=dict)    # run statistics: steps, method, timings...
+    events: list = field(default_factory=list)  # event table rows (fccgen.events.table)
 
     def __getitem__(self, name: str) -> np.ndarray:
         if name == "t":
@@ -123,10 +124,11 @@ class Result:
                              + ("; it is the temporary file of a save that did not end"
                                 if suffix == ".tmp" else ""))
         arrays, info = files.read(path, suffix)
+        events = info.get("events") if isinstance(info.get("events"), list) else []
         if path.name.endswith(f".partial{path.suffix}"):
             info["partial"] = True
         t = arrays.pop("t")
-        result = cls(t, arrays, info)
+        result = cls(t, arrays, info, events)
         if result.partial:
             warnings.warn(PartialResultWarning(
                 f"{path} holds a partial result: the run stopped at t = {t[-1]:.6g} "

@@ -284,3 +284,14 @@ def parse_condition(text: str, symbols: Mapping[str, sympy.Symbol], *, source: s
     lhs = walker.convert(body.left, 1)
     rhs = walker.convert(body.comparators[0], 1)
     return walker.finite(lhs - rhs), DIRECTIONS[op]
+
+
+def parse_event_function(text: str, symbols: Mapping[str, sympy.Symbol], *, source: str,
+                         line: int | None, item: str) -> tuple[sympy.Expr, str | None]:
+    """An event's ``when``: a condition ``lhs OP rhs`` (returns ``(lhs - rhs, its
+    direction)``, see :func:`parse_condition`) or a scalar expression s (returns
+    ``(s, None)``: the direction is the event's own ``direction`` key)."""
+    body, walker = _parse(text, symbols, source, line, item, "an event function")
+    if isinstance(body, ast.Compare):
+        return parse_condition(text, symbols, source=source, line=line, item=item)
+    return walker.finite(walker.convert(body)), None

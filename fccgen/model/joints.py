@@ -18,9 +18,9 @@ FRAME_KEYS = (("x", "y"), ())
 # Per joint type: (required keys besides name, type, bodies; optional keys).
 JOINT_KEYS = {
     "spherical": (("at",), ()),
-    "revolute": (("at", "axis"), ()),
-    "cylindrical": (("at", "axis"), ()),
-    "prismatic": (("at", "axis"), ()),
+    "revolute": (("at", "axis"), ("limits", "restitution")),
+    "cylindrical": (("at", "axis"), ("limits", "restitution")),
+    "prismatic": (("at", "axis"), ("limits", "restitution")),
     "universal": (("at", "axes"), ()),
     "weld": (("at",), ()),
     "planar": (("at", "normal"), ()),
@@ -120,7 +120,30 @@ class MechanismReader(Reader):
             if not 0.0 <= value <= math.pi:
                 raise self.bad(e["angle"], child(item, "angle"),
                                "must be an angle in radians from 0 to pi")
-        return Joint(name, kind, bodies, at, axes, value, Where(self.source, m.line))
+        limits, restitution = self.limits(e, item)
+        return Joint(name, kind, bodies, at, axes, value, Where(self.source, m.line),
+                     limits, restitution)
+
+    def limits(self, e, item: str) -> tuple[tuple[float, float] | None, float]:
+        """``limits: [lo, hi]`` (lo <= 0 <= hi: the joint starts at 0, within them) and
+        their ``restitution`` (0 to 1, default 0)."""
+        limits, restitution = None, 0.0
+        if "limits" in e:
+            lo, hi = self.numbers(e["limits"], child(item, "limits"), (2,))
+            if not lo <= 0.0 <= hi or not lo < hi:
+                raise self.bad(e["limits"], child(item, "limits"),
+                               "must be [lower, upper] with lower < upper and lower <= 0 "
+                               "<= upper (joint quantities are 0 at the start)")
+            limits = (float(lo), float(hi))
+        if "restitution" in e:
+            if limits is None:
+                raise self.bad(e["restitution"], child(item, "restitution"),
+                               "applies only to a joint with limits")
+            restitution = self.number(e["restitution"], child(item, "restitution"))
+            if not 0.0 <= restitution <= 1.0:
+                raise self.bad(e["restitution"], child(item, "restitution"),
+                               "must be a restitution from 0 to 1")
+        return limits, restitution
 
     def joint_bodies(self, node: YNode, item: str, body_names) -> tuple[str, str]:
         pair = self.sequence(node, item, 2)

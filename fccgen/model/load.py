@@ -13,6 +13,7 @@ import numpy as np
 from ..errors import ModelError
 from ..methods import names as _method_names
 from . import checks
+from .events import EventReader
 from .fields import IDENTIFIER, IDENTIFIER_RULE, Reader, child, listing
 from .items import ItemReader
 from .drivers import DriverReader
@@ -30,7 +31,7 @@ MAX_NAME_LENGTH = 64          # the model name becomes a module name and a C sym
 # Keys of each kind of mapping: (required, optional).
 TOP_KEYS = (("name", "points", "bodies"),
             ("gravity", "vectors", "constraints", "loads", "initial", "simulate", "joints",
-             "drivers"))
+             "drivers", "events"))
 POINT_KEYS = (("at",), ("fixed",))
 VECTOR_KEYS = (("along",), ("fixed",))
 BODY_KEYS = (("points", "vector", "mass", "inertia"), ("center",))
@@ -113,11 +114,13 @@ class _ModelReader(Reader):
         loads = items.loads(e["loads"]) if "loads" in e else []
         initial = items.initial(e["initial"], joints) if "initial" in e else Initial()
         simulate = items.simulate(e.get("simulate"), METHODS, self.values_per_output())
+        events = EventReader(self.source, self.points, joints).events(e.get("events"))
         return Model(name=name, source=self.source, gravity=gravity, points=self.points,
                      vectors=self.vectors, bodies=self.bodies, constraints=constraints,
                      loads=loads, initial=initial, simulate=simulate,
                      where={k: self.where(line) for k, line in top.key_lines.items()},
-                     pose_bodies=self.pose_bodies, joints=joints, drivers=drivers)
+                     pose_bodies=self.pose_bodies, joints=joints, drivers=drivers,
+                     events=events)
 
     def values_per_output(self) -> int:
         """Numbers one output row of a run records (DESIGN section 4): t, 6 per moving

@@ -232,6 +232,8 @@ class Joint:
     axes: tuple[np.ndarray, ...]
     value: float | None       # distance length or angle (radians); None: initial
     where: Where
+    limits: tuple[float, float] | None = None   # bounce limits of the angle or slide
+    restitution: float = 0.0                    # ... and their restitution
 
 
 @dataclass
@@ -297,6 +299,7 @@ class Model:
     joints: list[Joint] = field(default_factory=list)
     drivers: list[Driver] = field(default_factory=list)
     mechanism: object = None          # fccgen.mechanism.Lowering, once lowered
+    events: list = field(default_factory=list)    # fccgen.model.events.Event
 
     @property
     def moving_points(self) -> list[Point]:

@@ -28,7 +28,11 @@ OUTPUTS = {
 
 
 def templates_root() -> "Traversable":
-    """The folder of the templates, installed or in the source tree."""
+    """The folder of the templates: the source tree's when this package is in one (so
+    that an editable install of another tree cannot shadow it), else the installed."""
+    tree = Path(__file__).resolve().parents[2] / "templates"
+    if (tree / "kernels.c.jinja").is_file():
+        return tree
     try:
         return importlib.resources.files("fccgen.templates")
     except ModuleNotFoundError:

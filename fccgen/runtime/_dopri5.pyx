@@ -27,6 +27,8 @@ from fccgen.errors import SimulationError
 from ._assemble cimport ASM_G
 from ._engine cimport (AT_POSITIONS, AT_STAGE, AT_STEP, AT_VELOCITIES, ERR_NONE,
                        ERR_NONFINITE_INPUT, Engine, finite)
+from ._events cimport EvC, ev_apply, ev_constrain, ev_correct, ev_crossed, ev_crosses, \
+    ev_leaving, ev_refresh, ev_state, ev_values
 from ._runloop cimport RUN_DONE, RUN_ERROR, RUN_PAUSE, now, write_record
 
 from ._messages import error_message
@@ -78,6 +80,10 @@ cdef struct Run:
     double *body_out
     double *e_out
     double *c_out
+    EvC *ev                   # events (NULL: none)
+    double t0                 # start of the last accepted step
+    bint stopped              # a stop event ended the run at t_stop
+    double t_stop
 
 
 cdef int _f(Engine e, Run *r, int stage, double t, const double *y, double *k,
@@ -88,7 +94,11 @@ cdef int _f(Engine e, Run *r, int stage, double t, const double *y, double *k,
     e.err_stage = stage
     r.n_rhs += 1
     memcpy(k, y + n, n * sizeof(double))
-    return e.accelerations_at(y, y + n, k + n, reuse)
+    if e.accelerations_at(y, y + n, k + n, reuse) < 0:
+        return -1
+    if r.ev != NULL:                          # active lock rows (events)
+        return ev_constrain(e, r.ev, y, y + n, r.t, k + n)
+    return 0
 
 
 cdef void _combine(Run *r, double *out, double h, int s, const double *w) noexcept nogil:
@@ -163,7 +173,94 @@ cdef int _project(Engine e, Run *r, double *y) noexcept nogil:
     r.failures += rc
     r.newton_total += it
     e.err_where = AT_VELOCITIES
-    return e.project_velocities_at(y, y + n, True)
+    if e.project_velocities_at(y, y + n, True) < 0:
+        return -1
+    if r.ev != NULL:
+        return ev_correct(e, r.ev, y, y + n)
+    return 0
+
+
+cdef void _dense_at(Run *r, double th, double *out) noexcept nogil:
+    """The continuous extension of the last step at its fraction th."""
+    cdef int i
+    cdef double th1 = 1.0 - th
+    for i in range(r.n2):
+        out[i] = r.rc[0][i] + th * (r.rc[1][i] + th1 * (
+            r.rc[2][i] + th * (r.rc[3][i] + th1 * r.rc[4][i])))
+
+
+cdef int _locate(Run *r, int k, double h, double *theta) noexcept nogil:
+    """Illinois on th -> s_k(dense output at th) over [0, 1] of the step of size h
+    from r.t0 (s_k crosses between ev.s0 and ev.s1); stops when the bracket is below
+    tol / h. Returns the end of the bracket past the crossing."""
+    cdef EvC *ev = r.ev
+    cdef int n = r.n2 // 2, side = 0, it = 0
+    cdef double a = 0.0, b = 1.0, fa = ev.s0[k], fb = ev.s1[k], c, fc
+    if fabs(fa) < 1e-200:                 # a start just after an event (ev_leaving)
+        fa = -fb
+    while (b - a) * h > ev.tol and it < 200:
+        it += 1
+        c = b - fb * (b - a) / (fb - fa) if fb != fa else 0.5 * (a + b)
+        if not (a < c < b):
+            c = 0.5 * (a + b)
+        _dense_at(r, c, r.yt)
+        ev_values(ev, r.yt, r.yt + n, r.t0 + c * h, ev.s1 + ev.ne)
+        fc = ev.s1[ev.ne + k]
+        if ev_crosses(ev, k, fa, fc) or fc == 0.0 and ev_crosses(ev, k, fa, fb):
+            b, fb = c, fc
+            if side == -1:
+                fa *= 0.5
+            side = -1
+        else:
+            a, fa = c, fc
+            if side == 1:
+                fb *= 0.5
+            side = 1
+    theta[0] = b
+    return 0
+
+
+cdef int _first_event(Run *r, double h, double t1, double *theta) noexcept nogil:
+    """The earliest event that crosses in the step r.t0 -> t1 (-1: none), and where."""
+    cdef EvC *ev = r.ev
+    cdef int n = r.n2 // 2, k, j, first
+    cdef double th
+    ev_values(ev, r.y1, r.y1 + n, t1, ev.s1)
+    k = ev_crossed(ev, ev.s0, ev.s1)
+    if k < 0:
+        return -1
+    theta[0], first = 1.0, k
+    for j in range(k, ev.ne):
+        if j > k and not ev_crosses(ev, j, ev.s0[j], ev.s1[j]):
+            continue
+        _locate(r, j, h, &th)
+        if th < theta[0] or j == k:
+            theta[0], first = th, j
+    return first
+
+
+cdef int _after_event(Engine e, Run *r, int k) noexcept nogil:
+    """Act on event k at the (projected) state r.y, r.t; the next step's values."""
+    cdef EvC *ev = r.ev
+    cdef int n = r.n2 // 2, rc = 0
+    if k >= 0:
+        e.err_t = r.t
+        rc = ev_apply(e, ev, k, r.y, r.y + n, r.t)
+        if rc < 0:
+            return -1
+        if ev.stop:
+            r.stopped, r.t_stop = True, r.t
+            if r.n_out < r.n_req:             # the last record: the stop
+                r.t_req[r.n_out] = r.t
+                write_record(e, r.n_out, r.y, r.y + n, r.q_out, r.v_out, r.body_out,
+                             r.e_out, r.c_out)
+                r.n_out += 1
+            return 0
+    ev_refresh(ev, r.y)
+    ev_values(ev, r.y, r.y + n, r.t, ev.s0)
+    if k >= 0 and rc == 0:
+        ev.s0[k] = ev_leaving(ev, k, r.y, r.y + n, r.t)
+    return 0
 
 
 cdef int _record(Engine e, Run *r) noexcept nogil:
@@ -172,11 +269,7 @@ cdef int _record(Engine e, Run *r) noexcept nogil:
     cdef double th, th1, cerr
     cdef int i
     if j > 0:
-        th = (r.t_req[j] - (r.t - r.h)) / r.h
-        th1 = 1.0 - th
-        for i in range(r.n2):
-            r.yt[i] = r.rc[0][i] + th * (r.rc[1][i] + th1 * (
-                r.rc[2][i] + th * (r.rc[3][i] + th1 * r.rc[4][i])))
+        _dense_at(r, (r.t_req[j] - r.t0) / r.h, r.yt)
         if r.project:
             e.asm.put_time(r.t_req[j])
             if _project(e, r, r.yt) < 0:
@@ -194,9 +287,17 @@ cdef int _record(Engine e, Run *r) noexcept nogil:
 
 cdef int _accept(Engine e, Run *r, double h) noexcept nogil:
     """Take the accepted step y -> y1: outputs in (t, t + h], projection, next K1."""
-    cdef int n = r.n2 // 2
+    cdef int n = r.n2 // 2, k = -1
+    cdef double th = 1.0, t1
     _dense(r, h)
-    r.t = r.t + h if r.t_end - (r.t + h) > 4 * UROUND * r.t_end else r.t_end
+    r.t0 = r.t
+    t1 = r.t + h if r.t_end - (r.t + h) > 4 * UROUND * r.t_end else r.t_end
+    if r.ev != NULL:
+        k = _first_event(r, h, t1, &th)
+        if k >= 0:                            # the step ends at the event
+            t1 = r.t0 + th * h
+            _dense_at(r, th, r.y1)
+    r.t = t1
     r.accepted += 1
     while r.n_out < r.n_req and r.t_req[r.n_out] <= r.t * (1 + 4 * UROUND):
         if _record(e, r) < 0:
@@ -210,6 +311,11 @@ cdef int _accept(Engine e, Run *r, double h) noexcept nogil:
         e.asm.put_time(r.t)
         if _project(e, r, r.y) < 0:
             return -1
+        if r.ev != NULL:
+            if _after_event(e, r, k) < 0:
+                return -1
+            if r.stopped:
+                return 0
         e.err_where = AT_STAGE
         return _f(e, r, 1, r.t, r.y, r.k[0], e.factor_valid)
     memcpy(r.k[0], r.k[6], r.n2 * sizeof(double))        # FSAL
@@ -239,6 +345,8 @@ cdef int _run(Engine e, Run *r, double deadline) noexcept nogil:
             r.h = h
             if _accept(e, r, h) < 0:
                 return RUN_ERROR
+            if r.stopped:
+                return RUN_DONE
             r.h = h * fac
             r.last_rejected = False
         else:
@@ -294,7 +402,7 @@ def output_times(double t_end, double output_dt):
 
 def simulate_dopri5(Engine engine, q0, v0, double t_end, double output_dt, double rtol,
                     double atol, double h0, bint project, progress=None,
-                    double progress_interval=0.5):
+                    double progress_interval=0.5, events=None):
     """DOPRI5 from (q0, v0) (used as given) to t_end; records at 0, every output_dt and
     t_end by dense output. h0: the first step (0: Hairer's automatic choice).
 
@@ -336,6 +444,14 @@ def simulate_dopri5(Engine engine, q0, v0, double t_end, double output_dt, doubl
     memcpy(r.y + n, &vv[0], n * sizeof(double))
     engine.factor_valid = False
     engine.err = ERR_NONE
+    r.ev, r.stopped, r.t_stop, r.t0 = NULL, False, t_end, 0.0
+    if events is not None:
+        if not project:
+            raise ValueError("events need the projected DOPRI5 (projection on)")
+        r.ev = ev_state(events)
+        events.reset(qv)
+        with nogil:
+            ev_values(r.ev, r.y, r.y + n, 0.0, r.ev.s0)
     cdef int status
     cdef double deadline
     engine.running = True
@@ -375,6 +491,9 @@ def simulate_dopri5(Engine engine, q0, v0, double t_end, double output_dt, doubl
     stats = dict(steps=r.accepted, rejected_steps=r.rejected, rhs_evaluations=r.n_rhs,
                  newton_iterations=r.newton_total, projection_failures=r.failures,
                  max_constraint_error=r.max_cerr, last_step=r.h)
+    if r.stopped:                              # a stop event: the records so far
+        arrays = {k: a[:r.n_out] for k, a in arrays.items()}
+        stats["stopped_at"] = r.t_stop
     return arrays, stats
 
 

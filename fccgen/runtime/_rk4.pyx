@@ -18,6 +18,8 @@ from fccgen.errors import SimulationError
 from ._assemble cimport ASM_G
 from libc.math cimport fabs
 
+from ._events cimport EvC, ev_apply, ev_constrain, ev_correct, ev_crossed, ev_crosses, \
+    ev_leaving, ev_refresh, ev_state, ev_values
 from ._engine cimport (AT_POSITIONS, AT_STAGE, AT_STEP, AT_VELOCITIES, ERR_DIVERGED,
                        ERR_NONE, ERR_NONFINITE_INPUT, Engine, finite)
 from ._runloop cimport RUN_DONE, RUN_ERROR, RUN_PAUSE, now, write_record
@@ -60,6 +62,12 @@ cdef struct Run:
     double *body_out
     double *e_out
     double *c_out
+    EvC *ev                   # events (NULL: none); their saved step start:
+    double *eq                # q, v at the start of the step being located
+    double *evv
+    double t0                 # time at the start of the step (stage times)
+    bint stopped              # a stop event ended the run at t_stop
+    double t_stop
 
 
 cdef int _stage(Engine e, Run *r, int stage, const double *q, const double *v, double *a,
@@ -68,7 +76,11 @@ cdef int _stage(Engine e, Run *r, int stage, const double *q, const double *v, d
     r.n_rhs += 1
     if r.baumgarte:
         return e.baumgarte_at(q, v, a, r.alpha, r.beta)
-    return e.accelerations_at(q, v, a, reuse)
+    if e.accelerations_at(q, v, a, reuse) < 0:
+        return -1
+    if r.ev != NULL:                          # active lock rows (events)
+        return ev_constrain(e, r.ev, q, v, r.t0, a)
+    return 0
 
 
 cdef int _step(Engine e, Run *r, double t, double h) noexcept nogil:
@@ -121,6 +133,8 @@ cdef int _after_step(Engine e, Run *r) noexcept nogil:
         e.err_where = AT_VELOCITIES
         if e.project_velocities_at(r.q, r.v, True) < 0:
             return -1
+        if r.ev != NULL and ev_correct(e, r.ev, r.q, r.v) < 0:
+            return -1
     else:
         e.asm.assemble(r.q, NULL, ASM_G)
         cerr = e.asm.max_abs_g()
@@ -165,6 +179,97 @@ cdef void _record(Engine e, Run *r, double t) noexcept nogil:
     r.n_out += 1
 
 
+cdef int _state_at(Engine e, Run *r, double t0, double tau) noexcept nogil:
+    """The state at t0 + tau by one step of size tau from the saved step start
+    (a re-integrated partial step), into r.q, r.v."""
+    memcpy(r.q, r.eq, e.n * sizeof(double))
+    memcpy(r.v, r.evv, e.n * sizeof(double))
+    e.factor_valid = False
+    r.t0 = t0
+    return _step(e, r, t0, tau)
+
+
+cdef int _locate(Engine e, Run *r, int k, double t0, double h, double *tau) noexcept nogil:
+    """Illinois (modified regula falsi) on tau -> s_k(state(t0 + tau)) over [0, h],
+    where s_k crosses between the saved start (ev.s0) and the step's end (ev.s1): the
+    bracket [a, b] always holds the crossing; stops when b - a <= tol. Returns b, the
+    earliest time found past the crossing."""
+    cdef EvC *ev = r.ev
+    cdef double a = 0.0, b = h, fa = ev.s0[k], fb = ev.s1[k], c, fc
+    cdef int side = 0, it = 0
+    if fabs(fa) < 1e-200:                 # a start just after an event (ev_leaving)
+        fa = -fb                          # counts as before the crossing: bisect first
+    while b - a > ev.tol and it < 200:
+        it += 1
+        c = b - fb * (b - a) / (fb - fa) if fb != fa else 0.5 * (a + b)
+        if not (a < c < b):
+            c = 0.5 * (a + b)
+        if _state_at(e, r, t0, c) < 0:
+            return -1
+        ev_values(ev, r.q, r.v, t0 + c, ev.s1 + ev.ne)     # work: after s1's ne
+        fc = ev.s1[ev.ne + k]
+        if ev_crosses(ev, k, fa, fc) or fc == 0.0 and ev_crosses(ev, k, fa, fb):
+            b, fb = c, fc
+            if side == -1:
+                fa *= 0.5
+            side = -1
+        else:
+            a, fa = c, fc
+            if side == 1:
+                fb *= 0.5
+            side = 1
+    tau[0] = b
+    return 0
+
+
+cdef int _events(Engine e, Run *r, double t0, double h) noexcept nogil:
+    """After a step from t0 of size h (state projected): find the first event that
+    crossed, locate it, act, and integrate the rest of the step again; repeat.
+    ev.s0 holds the event values at the step's start."""
+    cdef EvC *ev = r.ev
+    cdef int k, j, first, rc, count = 0, loops = 0
+    cdef double tau, best
+    while True:
+        ev_values(ev, r.q, r.v, t0 + h, ev.s1)
+        k = ev_crossed(ev, ev.s0, ev.s1)
+        loops += 1
+        if k < 0 or loops > 4 * ev.max_per_step:    # none (more) in this step
+            ev_refresh(ev, r.q)
+            ev_values(ev, r.q, r.v, t0 + h, ev.s0)
+            return 0
+        best, first = h, k
+        for j in range(k, ev.ne):               # the earliest of those that crossed
+            if j > k and not ev_crosses(ev, j, ev.s0[j], ev.s1[j]):
+                continue
+            if _locate(e, r, j, t0, h, &tau) < 0:
+                return -1
+            if tau < best or j == k:
+                best, first = tau, j
+        if _state_at(e, r, t0, best) < 0 or _after_step(e, r) < 0:
+            return -1
+        count += 1
+        e.err_t = t0 + best
+        rc = ev_apply(e, ev, first if count <= ev.max_per_step else -1 - first, r.q, r.v,
+                      t0 + best)
+        if rc < 0:
+            return -1
+        count -= rc                          # an impact that was none does not count
+        if ev.stop:
+            r.stopped, r.t_stop = True, t0 + best
+            return 0
+        ev_refresh(ev, r.q)
+        ev_values(ev, r.q, r.v, t0 + best, ev.s0)
+        ev.s0[first] = ev_leaving(ev, first, r.q, r.v, t0 + best)
+        t0, h = t0 + best, h - best
+        memcpy(r.eq, r.q, e.n * sizeof(double))
+        memcpy(r.evv, r.v, e.n * sizeof(double))
+        if h <= 0.0:
+            return 0
+        r.t0 = t0
+        if _step(e, r, t0, h) < 0 or _after_step(e, r) < 0:
+            return -1
+
+
 cdef int _run(Engine e, Run *r, double deadline) noexcept nogil:
     """Steps until the end (RUN_DONE), an error (RUN_ERROR) or the wall-clock deadline
     (RUN_PAUSE)."""
@@ -175,6 +280,10 @@ cdef int _run(Engine e, Run *r, double deadline) noexcept nogil:
         e.err_where = AT_STAGE
         e.err_t = t
         e.err_h = h
+        if r.ev != NULL:
+            memcpy(r.eq, r.q, e.n * sizeof(double))
+            memcpy(r.evv, r.v, e.n * sizeof(double))
+        r.t0 = t
         if _step(e, r, t, h) < 0:
             return RUN_ERROR
         r.k += 1
@@ -182,6 +291,12 @@ cdef int _run(Engine e, Run *r, double deadline) noexcept nogil:
         e.err_t = t
         if _after_step(e, r) < 0:
             return RUN_ERROR
+        if r.ev != NULL:
+            if _events(e, r, t - h, h) < 0:
+                return RUN_ERROR
+            if r.stopped:
+                _record(e, r, r.t_stop)
+                return RUN_DONE
         if r.k % r.every == 0 or r.k == r.n_steps:
             _record(e, r, t)
         if r.k < r.n_steps and now() >= deadline:
@@ -213,7 +328,7 @@ cdef void _start(Engine e, Run *r, double[::1] q0, double[::1] v0, dict arrays):
 
 def simulate_rk4(Engine engine, q0, v0, double t_end, double dt, long n_steps,
                  long output_every, bint project, progress=None,
-                 double progress_interval=0.5):
+                 double progress_interval=0.5, events=None):
     """Classical RK4 from (q0, v0) (used as given) over n_steps steps of dt, the last
     one shortened to end at t_end; after each step, if project, position then velocity
     projection. Records t = 0, every output_every steps and t_end.
@@ -226,7 +341,7 @@ def simulate_rk4(Engine engine, q0, v0, double t_end, double dt, long n_steps,
     non-finite state.
     """
     return _simulate(engine, q0, v0, t_end, dt, n_steps, output_every, project, False,
-                     0.0, 0.0, progress, progress_interval)
+                     0.0, 0.0, progress, progress_interval, events)
 
 
 def simulate_baumgarte(Engine engine, q0, v0, double t_end, double dt, long n_steps,
@@ -243,7 +358,7 @@ def simulate_baumgarte(Engine engine, q0, v0, double t_end, double dt, long n_st
 
 def _simulate(Engine engine, q0, v0, double t_end, double dt, long n_steps,
               long output_every, bint project, bint baumgarte, double alpha, double beta,
-              progress, double progress_interval):
+              progress, double progress_interval, events=None):
     """The shared driver of simulate_rk4 and simulate_baumgarte."""
     if engine.running:
         raise RuntimeError("this engine is already running a simulation")
@@ -267,6 +382,16 @@ def _simulate(Engine engine, q0, v0, double t_end, double dt, long n_steps,
     r.max_cerr = 0.0
     r.q_bound, r.v_bound = divergence_bounds(np.asarray(qv), np.asarray(vv), t_end, dt)
     _start(engine, &r, qv, vv, arrays)
+    r.ev, r.stopped, r.t_stop = NULL, False, t_end
+    if events is not None:
+        if baumgarte or not project:
+            raise ValueError("events need the projected RK4 (method rk4, projection on)")
+        saved = np.zeros(2 * n)
+        r.eq, r.evv = _data(saved), _data(saved) + n
+        r.ev = ev_state(events)
+        events.reset(qv)
+        with nogil:
+            ev_values(r.ev, r.q, r.v, 0.0, r.ev.s0)
     cdef int status
     cdef double deadline
     engine.running = True
@@ -297,4 +422,7 @@ def _simulate(Engine engine, q0, v0, double t_end, double dt, long n_steps,
     stats = dict(steps=r.k, rhs_evaluations=r.n_rhs, rejected_steps=0,
                  newton_iterations=r.newton_total, max_newton_iterations=r.newton_max,
                  projection_failures=r.failures, max_constraint_error=r.max_cerr)
+    if r.stopped:                              # a stop event: the records so far
+        arrays = {k: a[:r.n_out] for k, a in arrays.items()}
+        stats["stopped_at"] = r.t_stop
     return arrays, stats

@@ -269,9 +269,12 @@ def module_directory(module) -> Path:
     return Path(module.__file__).resolve().parent
 
 
-def rebuild_solver(cls, plan, directory, options):
-    """Unpickle a solver: load the module from its folder (checked) and bind the plan."""
+def rebuild_solver(cls, plan, directory, options, events_directory=None):
+    """Unpickle a solver: load the module (and the event module, if any) from its
+    folder (checked) and bind the plan."""
     from ..build import load_module
+    if events_directory is not None:
+        options = {**options, "events_module": load_module(events_directory)}
     return cls(plan, load_module(directory), **options)
 
 
@@ -279,5 +282,7 @@ def reduce_solver(solver):
     """``__reduce__`` of a compiled solver: its plan, module folder and tolerances."""
     options = {"rank_tol": solver.rank_tol, "position_tol": solver.position_tol,
                "max_newton": solver.max_newton, "linear_solver": solver.linear_solver}
+    events = getattr(solver, "events_module", None)
     return (rebuild_solver, (type(solver), solver.plan,
-                             str(module_directory(solver.module)), options))
+                             str(module_directory(solver.module)), options,
+                             None if events is None else str(module_directory(events))))

@@ -87,6 +87,18 @@ def time_slots(plan) -> np.ndarray:
     return np.array(slots, dtype=np.intc)
 
 
+def dense_only_reason(plan) -> str:
+    """What in the model only the dense path handles ("" if nothing): the sparse
+    engine's projections and Baumgarte terms hold B q' = 0, while a driven (rheonomic)
+    model needs B q' = -dg/dt; lock and bounce rows of events are solved through the
+    dense path's factorisation (fccgen/runtime/_events.pyx)."""
+    if driver_rows(plan):
+        return "drivers (time-dependent constraints)"
+    if plan.model.events:
+        return "events (lock and bounce rows)"
+    return ""
+
+
 class CompiledSolver:
     """Assembly, constrained solve, projections and the integration methods of
     :mod:`fccgen.methods` for one model, the per-step loops in compiled code.
@@ -101,9 +113,10 @@ class CompiledSolver:
     """
 
     def __init__(self, plan, module, *, rank_tol=None, position_tol=None, max_newton=None,
-                 linear_solver=None):
+                 linear_solver=None, events_module=None):
         self.plan = plan
         self.module = module
+        self.events_module = events_module
         self.n_q = plan.n_q
         self.n_g = plan.n_g
         self.length_scale = length_scale(plan)
@@ -113,13 +126,12 @@ class CompiledSolver:
         self.row_groups = plan.row_groups
         self.linear_solver = linear_solver_choice(plan.model.simulate, linear_solver)
         self.sparse = use_sparse(self.linear_solver, self.n_q)
-        if self.sparse and driver_rows(plan):
-            # The sparse engine's projections and Baumgarte terms hold B q' = 0; a
-            # driven (rheonomic) model needs B q' = -dg/dt, which only the dense path has.
+        dense_only = dense_only_reason(plan)
+        if self.sparse and dense_only:
             if self.linear_solver == "sparse":
                 raise ValueError(f"{plan.model.name}: linear_solver='sparse' does not take "
-                                 "drivers (time-dependent constraints) yet; use 'dense' or "
-                                 "'auto' (auto takes the dense path for driven models)")
+                                 f"{dense_only} yet; use 'dense' or 'auto' (auto takes the "
+                                 "dense path for such models)")
             self.sparse = False
         self._engine = make_engine(self._asm, self.rank_tol, self.position_tol,
                                    self.max_newton, self.sparse)
@@ -220,7 +232,8 @@ class CompiledSolver:
     # -- simulation ---------------------------------------------------------------------
     def simulate(self, t_end=None, dt=None, method=None, output_dt=None, project=True,
                  q0=None, v0=None, progress=None, rtol=None, atol=None,
-                 reactions=True, **method_options) -> Result:
+                 reactions=True, event_tol=1e-12, rest_speed=1e-6,
+                 **method_options) -> Result:
         """Integrate from (q0, v0), used as given, to t_end. q0 None: the consistent
         :meth:`initial_state`; only v0 None: the model's initial speeds projected at q0.
 
@@ -237,6 +250,10 @@ class CompiledSolver:
         reactions: add the joint reaction columns of a mechanism-level model
         (fccgen.mechanism.reactions; ``result.info["reactions"]`` says whether they
         are unique, or why they are absent).
+        event_tol: events are located to this time (seconds); rest_speed: a bounce
+        slower than this rests on its limit (docs/events.md). ``result.events``: the
+        event table (fccgen.events.table), also kept in ``result.info["events"]`` so
+        that every file format carries it.
         """
         d = self.plan.model.simulate
         m = registry.get(d.method if method is None else method, METHODS)
@@ -247,14 +264,21 @@ class CompiledSolver:
         project = bool(project) and m.projects
         report = run_reporter(progress, sched.t_end)
         decision = self.decide_rank(q0)
+        events = self._event_set(event_tol, rest_speed)
         try:
             result = timed_run(self.plan, m, sched, opts, project,
-                               lambda: self._run(m, sched, opts, project, q0, v0, report),
+                               lambda: self._run(m, sched, opts, project, q0, v0, report,
+                                                 events),
                                settings=self.settings())
         except SimulationError as exc:
             raise explained(exc, self, q0) from None
         if report is not None:
             report.finish(result.t[-1])          # the run's end: 100%
+        if events is not None:
+            from ..events.table import event_rows
+            from ._events import ACTIONS
+            result.events = event_rows(events.names, ACTIONS, events.log())
+            result.info["events"] = result.events
         add_driver_columns(self, result)
         used = self.dense_engine() if m.name == "ali3p" else self._engine
         rank_rule.report_run(result, decision, used.rank_statistics(),
@@ -275,6 +299,31 @@ class CompiledSolver:
                 "max_newton": self.max_newton, "linear_solver": self.linear_solver,
                 "path": "sparse" if self.sparse else "dense"}
 
+    def _event_set(self, tol, rest_speed):
+        """The compiled events of the model (None: it has none)."""
+        model = self.plan.model
+        if not model.events:
+            return None
+        if self.events_module is None:
+            raise ValueError(f"model {model.name!r} has events: give the solver its "
+                             "event module (fccgen.events.build.load_events)")
+        from ._events import EventSet
+        qty = list(self.events_module.QUANTITY_NAMES)
+
+        def row(joint, kinds):
+            for kind in kinds:
+                if joint is not None and f"{joint}.{kind}" in qty:
+                    return qty.index(f"{joint}.{kind}")
+            return -1
+        rows = [row(e.joint, ("angle", "position")) for e in model.events]
+        rows2 = [row(e.joint, ("position",)) if r >= 0 and qty[r].endswith(".angle")
+                 else -1 for e, r in zip(model.events, rows)]
+        angle_rows = [k for k, name in enumerate(qty) if name.endswith(".angle")]
+        return EventSet(self.events_module, self.n_q, [e.direction for e in model.events],
+                        [e.action for e in model.events], rows, rows2,
+                        [e.restitution for e in model.events], angle_rows, tol=tol,
+                        v_rest=rest_speed)
+
     def decide_rank(self, q) -> rank_rule.RankDecision:
         """Decide the rank of B at q by the SVD gap test (fccgen.rank) and keep it in
         the engine's factorisations (runs and direct calls) until the next decision.
@@ -294,18 +343,22 @@ class CompiledSolver:
             v0 = self.project_velocities(q0, self.plan.v_target)
         return q0, v0
 
-    def _run(self, m, sched, opts, project, q0, v0, report):
+    def _run(self, m, sched, opts, project, q0, v0, report, events=None):
         """(arrays, stats) of one run of method m."""
         s, e = sched, self._engine
+        if events is not None and m.name not in ("rk4", "dopri5"):
+            raise ValueError(f"events are located by the rk4 and dopri5 methods, not "
+                             f"by {m.name}")
         if m.name == "rk4":
             return simulate_rk4(e, q0, v0, s.t_end, s.dt, s.n_steps, s.every, project,
-                                report)
+                                report, events=events)
         if m.name == "baumgarte":
             return simulate_baumgarte(e, q0, v0, s.t_end, s.dt, s.n_steps, s.every,
                                       opts["alpha"], opts["beta"], report)
         if m.name == "dopri5":
             return simulate_dopri5(e, q0, v0, s.t_end, s.output_dt, opts["rtol"],
-                                   opts["atol"], s.dt or 0.0, project, report)
+                                   opts["atol"], s.dt or 0.0, project, report,
+                                   events=events)
         if m.name == "ali3p":                # assembles dense M and B itself
             from ._ali3p import simulate_ali3p
             return simulate_ali3p(self.dense_engine(), q0, v0, s.t_end, s.dt, s.n_steps, s.every, opts,

@@ -1,0 +1,132 @@
+"""Print the event kernels of a model (fccgen.events.symbolic) to C and compile them
+into one small extension module, cached by a hash of the event expressions.
+
+Kernels (fccgen_events.h): event_values s_k(q, v, t), event_gradients ds_k/dq,
+quantity_values r_j(q) (joint angles and slides that events read or lock),
+quantity_gradients dr_j/dq and quantity_bias (d/dt dr_j/dq) v. Common subexpressions
+are eliminated over all outputs of a kernel together; structurally zero entries of the
+dense gradients are not printed (the kernel clears out first).
+"""
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass
+from pathlib import Path
+
+import sympy
+
+from .. import __version__
+from ..build import BuiltModule, _built, load_module
+from ..build.cache import cache_key, check_entry
+from ..build.compile import (FLAG_POLICY, compile_args, compile_sources,
+                             extension_filename, link_args)
+from ..build.store import build_lock, clean_stale, entry_dir
+from ..printing.c99 import KernelPrinter, slot_map
+from ..render import environment
+from .symbolic import EventSystem, event_system
+
+EVENT_HEADER = "fccgen_events.h"
+
+
+@dataclass(frozen=True)
+class EventKernel:
+    name: str
+    equation: str
+    size: int
+    sparse: bool                               # zero entries left out (out cleared)
+    temporaries: tuple[tuple[str, str], ...]
+    outputs: tuple[tuple[int, str], ...]       # (slot, C expression)
+    n_ops: int
+
+
+def _print(name: str, equation: str, exprs: list, system: EventSystem,
+           sparse: bool) -> EventKernel:
+    keep = [(k, e) for k, e in enumerate(exprs) if not (sparse and e == 0)]
+    values = [e for _, e in keep]
+    used = set().union(*(e.free_symbols for e in values)) if values else set()
+    temps, reduced = sympy.cse(values, symbols=sympy.numbered_symbols("x", exclude=used))
+    slots = slot_map(system.q, system.v, system.p)
+    slots[system.t] = "t"
+    printer = KernelPrinter(slots)
+    n_ops = (sum(sympy.count_ops(e) for _, e in temps)
+             + sum(sympy.count_ops(e) for e in reduced))
+    return EventKernel(name, equation, len(exprs), sparse,
+                       tuple((str(s), printer.doprint(e)) for s, e in temps),
+                       tuple((k, printer.doprint(e)) for (k, _), e in zip(keep, reduced)),
+                       int(n_ops))
+
+
+def print_kernels(system: EventSystem) -> list[EventKernel]:
+    qty = [x.expr for x in system.quantities]
+    grad = lambda exprs: [g for e in exprs for g in system.gradient(e)]   # noqa: E731
+    return [
+        _print("event_values", "s_k(q, v, t)", system.functions, system, False),
+        _print("event_gradients", "ds_k/dq", grad(system.functions), system, True),
+        _print("quantity_values", "r_j(q)", qty, system, False),
+        _print("quantity_gradients", "dr_j/dq", grad(qty), system, True),
+        _print("quantity_bias", "(d/dt dr_j/dq) v",
+               [system.quantity_bias(x) for x in system.quantities], system, False),
+    ]
+
+
+def event_hash(system: EventSystem) -> str:
+    """sha256 of the event functions and quantities: what the module computes."""
+    text = sympy.srepr((system.q, system.p, system.functions,
+                        [x.expr for x in system.quantities]))
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+def render(model_name: str, module_name: str, system: EventSystem, names: list[str],
+           kernels: list[EventKernel], e_hash: str, flags: list[str]) -> dict[str, str]:
+    from importlib.resources import files
+    env = environment()
+    ctx = dict(fccgen_version=__version__, model_name=model_name, module_name=module_name,
+               event_hash=e_hash, n_q=len(system.q), n_p=len(system.p),
+               event_names=names, quantity_names=[x.name for x in system.quantities],
+               kernels=kernels, compile_args=flags, link_args=link_args())
+    out = {name: env.get_template(tpl).render(**ctx) for name, tpl in (
+        ("events.c", "events.c.jinja"), ("events.h", "events.h.jinja"),
+        ("events_module.pyx", "events.pyx.jinja"),
+        ("build_module.py", "events_build.py.jinja"))}
+    out[EVENT_HEADER] = (files("fccgen.runtime") / EVENT_HEADER).read_text(encoding="utf-8")
+    return out
+
+
+def build_events(plan, out_dir="generated", *, force: bool = False) -> BuiltModule | None:
+    """Build (or reuse) the event module of ``plan.model`` (None: it has no events)."""
+    model = plan.model
+    if not model.events:
+        return None
+    system = event_system(plan)
+    e_hash = event_hash(system)
+    module_name = f"{model.name}_events"
+    key = cache_key(module_name, [], FLAG_POLICY, e_hash)
+    entry = entry_dir(Path(out_dir).absolute(), module_name, key)
+    clean_stale(entry.parent)
+    manifest, _ = (None, None) if force else check_entry(entry, key, module_name)
+    if manifest is not None:
+        return _built(entry, manifest, True, {})
+    with build_lock(entry):
+        manifest, _ = (None, None) if force else check_entry(entry, key, module_name)
+        if manifest is not None:
+            return _built(entry, manifest, True, {})
+        kernels = print_kernels(system)
+        n_ops = sum(k.n_ops for k in kernels)
+        flags = compile_args(n_ops)
+        sources = render(model.name, module_name, system, [e.name for e in model.events],
+                         kernels, e_hash, flags)
+        tmp = compile_sources(sources, entry, module_name)
+        manifest = {"fccgen_version": __version__, "model_name": module_name,
+                    "cache_key": key, "structure_hash": e_hash, "n_ops": {"events": n_ops},
+                    "flags": flags, "timings": {},
+                    "extension": extension_filename(module_name),
+                    "sources": sorted(sources)}
+        from ..build.compile import install
+        install(tmp, entry, module_name, manifest)
+    return _built(entry, manifest, False, {})
+
+
+def load_events(plan, out_dir="generated", *, force: bool = False):
+    """The imported event module of ``plan.model`` (None: no events)."""
+    built = build_events(plan, out_dir, force=force)
+    return None if built is None else load_module(built)

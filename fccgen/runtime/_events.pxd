@@ -1,0 +1,70 @@
+# Events in compiled code (see _events.pyx): the C state the integrators drive.
+from ._engine cimport Engine
+
+cdef extern from "fccgen_events.h":
+    ctypedef void (*fcc_event_kernel)(const double *q, const double *v, double t,
+                                      const double *p, double *out) noexcept nogil
+    ctypedef struct fcc_event_table:
+        int abi_version
+        int n_q
+        int n_p
+        int n_events
+        int n_quantities
+        fcc_event_kernel event_values
+        fcc_event_kernel event_gradients
+        fcc_event_kernel quantity_values
+        fcc_event_kernel quantity_gradients
+        fcc_event_kernel quantity_bias
+
+cdef enum:
+    ACT_STOP = 0
+    ACT_LOG = 1
+    ACT_LOCK = 2
+    ACT_UNLOCK = 3
+    ACT_BOUNCE = 4
+    ACT_REST = 5              # a bounce too slow to go on: the limit holds (a lock)
+    LOG_COLS = 9              # t, event, action, impulse, ke before, ke after,
+                              # constraint error, dof, speed before
+
+cdef struct EvC:
+    const fcc_event_table *tab
+    int n, ne, nr, np
+    double tol                # location tolerance in time
+    double v_rest             # a bounce with |ds/dt| below this becomes a rest (lock)
+    int max_per_step          # more events than this in one step: Zeno, rest
+    double *p                 # angle references (theta, cos, sin) per angle quantity
+    int *angle_row            # per parameter triple: its quantity row
+    double *s0                # event values at the start of the step
+    double *s1                # ... at its end (or at a trial time)
+    double *sg                # event gradients (ne x n)
+    double *r                 # quantity values, gradients (nr x n), bias
+    double *rg
+    double *rb
+    double *z                 # nr x n: constrained responses to the active rows
+    double *gz                # nr x nr work
+    double *mu
+    double *held              # per quantity row: the value a lock holds
+    int *active               # per quantity row: the row is an active constraint
+    int *direction            # per event: +1 rising, -1 falling, 0 either
+    int *action
+    int *row                  # per event: its joint's first quantity row (or -1)
+    int *row2                 # ... second row (cylindrical) or -1
+    double *restitution
+    int stop                  # a stop event happened
+    long n_log
+    long cap_log
+    double *log               # cap_log x LOG_COLS
+
+cdef void ev_refresh(EvC *ev, const double *q) noexcept nogil
+cdef void ev_values(EvC *ev, const double *q, const double *v, double t,
+                    double *out) noexcept nogil
+cdef int ev_crossed(EvC *ev, const double *a, const double *b) noexcept nogil
+cdef bint ev_crosses(EvC *ev, int k, double a, double b) noexcept nogil
+cdef int ev_constrain(Engine e, EvC *ev, const double *q, const double *v,
+                      double t, double *a) noexcept nogil
+cdef int ev_correct(Engine e, EvC *ev, double *q, double *v) noexcept nogil
+cdef int ev_apply(Engine e, EvC *ev, int k, double *q, double *v,
+                  double t) noexcept nogil
+cdef double ev_leaving(EvC *ev, int k, const double *q, const double *v,
+                       double t) noexcept nogil
+cdef EvC *ev_state(object events) except? NULL
