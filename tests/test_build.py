@@ -250,7 +250,7 @@ def test_module_exposes_table_and_names(first_build):
     get = ctypes.pythonapi.PyCapsule_GetPointer
     get.argtypes, get.restype = [ctypes.py_object, ctypes.c_char_p], ctypes.c_void_p
     table = Table.from_address(get(capsule, b"fccgen.model_table"))
-    assert table.abi_version == module.ABI_VERSION == 2
+    assert table.abi_version == module.ABI_VERSION == 3
     assert table.structure_hash.decode() == module.STRUCTURE_HASH == built.structure_hash
     assert table.n_classes == len(plan.classes)
     assert module.CLASS_NAMES == tuple(c.name for c in plan.classes)
