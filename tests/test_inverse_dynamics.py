@@ -54,7 +54,8 @@ def test_freedoms_left_are_refused(tmp_path):
     """The slider of tests/test_drivers.py without its driver keeps one freedom (its
     9 coordinates: two points and the axis)."""
     text = SLIDER.split("drivers:")[0] + "simulate: {t_end: 0.1}\n"
-    with pytest.raises(ModelError, match=r"0 driver\(s\) rank B = 8 of 9 coordinates leaves 1 degree"):
+    rule = r"0 driver\(s\) rank B = 8 of 9 coordinates leaves 1 degree"
+    with pytest.raises(ModelError, match=rule):
         fccgen.inverse_dynamics(write(tmp_path, text), numeric=True)
 
 

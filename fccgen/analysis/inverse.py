@@ -58,11 +58,9 @@ def output_times(t_end: float, dt: float) -> np.ndarray:
     return t if t_end - t[-1] <= 1e-9 * dt else np.append(t, t_end)
 
 
-def kinematics(solver, times: np.ndarray) -> tuple[dict, dict]:
+def kinematics(solver, times: np.ndarray, q, v) -> tuple[dict, dict]:
     """(arrays t, q, v, body, energy, constraint_error; stats) of the driven motion at
-    ``times`` (module docstring)."""
-    init = solver.initial_state()
-    q, v = init.q, init.v
+    ``times`` from the consistent state (q, v) at t = 0 (module docstring)."""
     a = np.zeros_like(q)
     rows = {k: [] for k in ("q", "v", "body", "energy", "constraint_error")}
     newton = max_newton = 0
@@ -102,10 +100,10 @@ def solve_inverse(solver, t_end=None, dt=None):
     dt = float((d.output_dt or d.dt) if dt is None else dt)
     times = output_times(t_end, dt)
     solver.set_time(0.0)
-    q0 = solver.initial_state().q
-    rank = check_fully_driven(solver, q0)
+    init = solver.initial_state()
+    rank = check_fully_driven(solver, init.q)
     start = time.perf_counter()
-    arrays, stats = kinematics(solver, times)
+    arrays, stats = kinematics(solver, times, init.q, init.v)
     info = provenance(solver.plan, solver.settings())
     info.update(method=METHOD, kind="kinematic", steps=len(times) - 1,
                 rhs_evaluations=len(times), rejected_steps=0, t_end=t_end, output_dt=dt,

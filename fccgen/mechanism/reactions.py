@@ -15,11 +15,12 @@ second body. Each (F_J, T_J) is restricted to the joint's reaction subspace
 orthonormal columns; a joint's drivers widen it by the driven direction, so its
 reaction holds the motor's torque (force) too. A coordinate driver of a point adds
 one unknown, the force x e along its direction e at the point, on the one moving body
-that carries the point (a point two bodies share is refused). The rows of all moving bodies stacked give E x = b per result row,
-solved by the pseudo-inverse (an SVD per row). Where E has fewer independent columns
-than unknowns (redundant constraints, e.g. a planar four-bar of revolutes) the
-reactions are not unique and the minimum-norm x (in N and N m together) is reported,
-with ``info["reactions"]["unique"]`` false.
+that carries the point (a point two bodies share is refused). The rows of all moving
+bodies stacked give E x = b per result row, solved by the pseudo-inverse (an SVD per
+row). Where E has fewer independent columns than unknowns (redundant constraints,
+e.g. a planar four-bar of revolutes) the reactions are not unique and the
+minimum-norm x (in N and N m together) is reported, with
+``info["reactions"]["unique"]`` false.
 
 Applied loads are attributed to bodies: gravity, forces and torques on a body, torsion
 springs on their two bodies, point springs on the bodies that carry their ends, a
