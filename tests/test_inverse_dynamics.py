@@ -106,3 +106,14 @@ def test_kinematic_rows_satisfy_the_constraints(inverse, compiled):
         assert np.max(np.abs(B @ vk + solver.constraint_rate(qk))) <= 1e-10
         assert np.max(np.abs(B @ a + solver.constraint_bias(qk, vk))) <= 1e-10
     assert np.max(np.abs(v)) > 0.5                     # not vacuous: it moves
+
+
+def test_progress_reaches_the_end(compiled, monkeypatch):
+    """With REPORT_EVERY = 0 every row reports; the last event is t_end (100%)."""
+    import fccgen.analysis.inverse as inv
+    monkeypatch.setattr(inv, "REPORT_EVERY", 0.0)
+    events = []
+    inv.solve_inverse(compiled("four_bar_driven"), t_end=0.05, dt=0.01,
+                      progress=events.append)
+    assert [e.stage for e in events] == ["inverse"] * len(events) and len(events) >= 6
+    assert events[-1].done == pytest.approx(0.05) and "(100%)" in str(events[-1])

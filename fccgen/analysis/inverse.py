@@ -30,6 +30,7 @@ import numpy as np
 from ..errors import ModelError
 
 METHOD = "inverse"
+REPORT_EVERY = 0.5       # seconds of wall time between progress events of a run
 
 
 def check_fully_driven(solver, q) -> int:
@@ -58,13 +59,14 @@ def output_times(t_end: float, dt: float) -> np.ndarray:
     return t if t_end - t[-1] <= 1e-9 * dt else np.append(t, t_end)
 
 
-def kinematics(solver, times: np.ndarray, q, v) -> tuple[dict, dict]:
+def kinematics(solver, times: np.ndarray, q, v, report=None) -> tuple[dict, dict]:
     """(arrays t, q, v, body, energy, constraint_error; stats) of the driven motion at
-    ``times`` from the consistent state (q, v) at t = 0 (module docstring)."""
+    ``times`` from the consistent state (q, v) at t = 0 (module docstring); ``report``:
+    a :class:`~fccgen.progress.RunReporter`, called about every REPORT_EVERY s."""
     a = np.zeros_like(q)
     rows = {k: [] for k in ("q", "v", "body", "energy", "constraint_error")}
     newton = max_newton = 0
-    t_prev = 0.0
+    t_prev, last = 0.0, time.perf_counter()
     for t in times:
         t, h = float(t), float(t) - t_prev
         solver.set_time(t)
@@ -78,6 +80,11 @@ def kinematics(solver, times: np.ndarray, q, v) -> tuple[dict, dict]:
                             float(np.max(np.abs(solver.constraints(q)), initial=0.0)))):
             rows[key].append(np.array(value, float))
         t_prev = t
+        if report is not None and time.perf_counter() - last >= REPORT_EVERY:
+            report(t)
+            last = time.perf_counter()
+    if report is not None:
+        report.finish(t_prev)
     arrays = {k: np.array(v) for k, v in rows.items()}
     arrays["t"] = np.array(times, float)
     arrays["body"] = arrays["body"].reshape(len(times), len(solver.plan.bodies), 6)
@@ -86,13 +93,15 @@ def kinematics(solver, times: np.ndarray, q, v) -> tuple[dict, dict]:
     return arrays, stats
 
 
-def solve_inverse(solver, t_end=None, dt=None):
+def solve_inverse(solver, t_end=None, dt=None, progress=None):
     """The :class:`~fccgen.results.Result` of the inverse dynamics of ``solver``'s
     model (compiled or numeric) from 0 to t_end at the output spacing dt (defaults: the
-    model's simulate t_end and output_dt, else dt)."""
+    model's simulate t_end and output_dt, else dt); ``progress`` as for
+    ``simulate`` (stage "inverse")."""
     from ..mechanism.driver_forces import add_driver_columns
     from ..mechanism.outputs import add_joint_columns
     from ..mechanism.reactions import add_reactions
+    from ..progress import run_reporter
     from ..provenance import provenance
     from ..results import result_from_arrays
     d = solver.plan.model.simulate
@@ -103,7 +112,8 @@ def solve_inverse(solver, t_end=None, dt=None):
     init = solver.initial_state()
     rank = check_fully_driven(solver, init.q)
     start = time.perf_counter()
-    arrays, stats = kinematics(solver, times, init.q, init.v)
+    arrays, stats = kinematics(solver, times, init.q, init.v,
+                               run_reporter(progress, t_end, "inverse"))
     info = provenance(solver.plan, solver.settings())
     info.update(method=METHOD, kind="kinematic", steps=len(times) - 1,
                 rhs_evaluations=len(times), rejected_steps=0, t_end=t_end, output_dt=dt,
@@ -130,7 +140,7 @@ def inverse_dynamics(path, *, t_end=None, dt=None, out=None, numeric=False,
     if out is not None:
         out = check_output(out)
     solver = load_numeric(path) if numeric else load(path, build_dir, progress=progress)
-    result = solve_inverse(solver, t_end=t_end, dt=dt)
+    result = solve_inverse(solver, t_end=t_end, dt=dt, progress=progress)
     if out is not None:
         result.save(out)
     return result
