@@ -117,3 +117,13 @@ def test_progress_reaches_the_end(compiled, monkeypatch):
                       progress=events.append)
     assert [e.stage for e in events] == ["inverse"] * len(events) and len(events) >= 6
     assert events[-1].done == pytest.approx(0.05) and "(100%)" in str(events[-1])
+
+
+def test_numeric_and_compiled_inverse_agree(inverse, numeric):
+    """The NumPy version's inverse dynamics of the four-bar over its first 0.1 s: the
+    same rows to rounding (1e-10 N m, N)."""
+    from fccgen.analysis.inverse import solve_inverse
+    r = solve_inverse(numeric("four_bar_driven"), t_end=0.1, dt=0.01)
+    assert len(r.t) == 11
+    for name in ("motor.torque", "O.tz", "C.fx", "C.fy"):
+        assert np.max(np.abs(r[name] - inverse[name][:11])) <= 1e-10, name
