@@ -8,9 +8,10 @@ The runtime path (loading a cached module, simulating) never imports SymPy.
 """
 __version__ = "0.1.0"
 
-from .api import generate, load, load_numeric, simulate  # noqa: E402
+from .api import generate, inverse_dynamics, load, load_numeric, simulate  # noqa: E402
 from .progress import ProgressEvent  # noqa: E402
 from .results import Result  # noqa: E402
 
-__all__ = ["__version__", "generate", "load", "load_numeric", "simulate", "Result",
+__all__ = ["__version__", "generate", "load", "load_numeric", "simulate",
+           "inverse_dynamics", "Result",
            "ProgressEvent"]

@@ -159,6 +159,15 @@ def statics(path, *, numeric=False, build_dir=DEFAULT_BUILD_DIR, progress: Progr
     return solve_statics(solver)
 
 
+def inverse_dynamics(path, *, t_end=None, dt=None, out=None, numeric=False,
+                     build_dir=DEFAULT_BUILD_DIR, progress: Progress = None):
+    """The driver forces and joint reactions along a motion the drivers fix completely
+    (:func:`fccgen.analysis.inverse.inverse_dynamics`); returns a Result."""
+    from .analysis.inverse import inverse_dynamics as run
+    return run(path, t_end=t_end, dt=dt, out=out, numeric=numeric, build_dir=build_dir,
+               progress=progress)
+
+
 def modes(path, *, about="equilibrium", out=None, shapes=None, amplitude=None,
           numeric=False, build_dir=DEFAULT_BUILD_DIR, progress: Progress = None):
     """Natural frequencies and mode shapes about the static equilibrium

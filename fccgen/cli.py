@@ -9,6 +9,7 @@
     fccgen sweep MODEL.yaml --set K=V1,V2 --out T.csv   many runs on Dask
     fccgen statics MODEL.yaml         static equilibrium, reactions, stability
     fccgen modes MODEL.yaml           natural frequencies about the equilibrium
+    fccgen inverse MODEL.yaml         driver forces and reactions along the drivers
 """
 from __future__ import annotations
 
@@ -27,7 +28,7 @@ from .methods import names as method_names
 from .run_settings import LINEAR_SOLVERS
 
 COMMANDS = ("simulate", "bench", "check", "generate", "plot", "animate", "sweep",
-            "statics", "modes")
+            "statics", "modes", "inverse")
 EXIT_INTERRUPTED = 130      # 128 + SIGINT, as shells report it
 
 
@@ -147,6 +148,14 @@ def _parser() -> argparse.ArgumentParser:
     mo.add_argument("--out", help="write the rows mode, frequency_hz, damping_ratio, "
                                   "rigid to FILE.csv")
     _mode_shape_options(mo)
+    iv = sub.add_parser("inverse", help="inverse dynamics: the driver forces and joint "
+                        "reactions along a motion the drivers fix completely")
+    common(iv)
+    iv.add_argument("--t-end", type=float, help="end time (default: the model's)")
+    iv.add_argument("--dt", type=float, help="output spacing (default: the model's "
+                    "output_dt, else dt)")
+    iv.add_argument("--out", help="write the results (.npz, .csv, .h5)")
+    iv.add_argument("--numeric", action="store_true", help="use the NumPy version")
     return p
 
 
@@ -399,7 +408,7 @@ def _run(args, progress) -> int:
         from .check import check_model
         print(check_model(args.model).text())
         return 0
-    if args.command in ("statics", "modes"):
+    if args.command in ("statics", "modes", "inverse"):
         return _analysis(args, progress, api)
     raise AssertionError(args.command)
 
@@ -408,6 +417,13 @@ def _analysis(args, progress, api) -> int:
     """``fccgen statics`` and ``fccgen modes``: one call of the API each."""
     if args.command == "statics":
         print(api.statics(args.model, build_dir=args.build_dir, progress=progress).text())
+        return 0
+    if args.command == "inverse":
+        from .analysis.inverse import inverse_dynamics, summary
+        result = inverse_dynamics(args.model, t_end=args.t_end, dt=args.dt, out=args.out,
+                                  numeric=args.numeric, build_dir=args.build_dir,
+                                  progress=progress)
+        print(summary(result, args.out))
         return 0
     result, equilibrium = api.modes(args.model, about=args.about, out=args.out,
                                     shapes=args.shapes, amplitude=args.amplitude,

@@ -3,6 +3,7 @@ versions, the driven four-bar's motor torque against minimal coordinates, a slid
 driven along a prismatic joint, and the model file's rules."""
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -96,6 +97,7 @@ G = 9.81
 OMEGA, THETA0 = 10.0, math.pi / 3
 
 
+@functools.cache                 # SymPy takes seconds; other test modules reuse it
 def minimal_torque():
     """tau(theta) = M'(theta) omega^2 / 2 + V'(theta) of the four-bar in its crank
     angle theta (minimal coordinates, written from the loop closure with SymPy: B on

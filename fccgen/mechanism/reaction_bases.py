@@ -18,7 +18,11 @@ angle             none                                 along a1 x a2
 ================  ===================================  ==============================
 
 These are the constraint wrenches that do no work in the joint's freedoms (docs/joints.md
-lists the freedoms). The axis, normal and the first body's perpendiculars n1, n2 are
+lists the freedoms). A driver on the joint takes its freedom away and its generalized
+force joins the reaction: an angle driver adds the torque along the axis (revolute,
+cylindrical: the torque becomes any), a position driver the force along it (prismatic,
+cylindrical: the force becomes any); a distance driver replaces the distance joint's own
+row and keeps its subspace. The axis, normal and the first body's perpendiculars n1, n2 are
 the joint's carried vectors at each row.
 """
 from __future__ import annotations
@@ -54,9 +58,20 @@ def _none(n: int) -> np.ndarray:
     return np.zeros((n, 3, 0))
 
 
-def bases(jl, motion: Motion):
+def bases(jl, motion: Motion, driven=frozenset()):
     """(p, P_f, P_t) of joint lowering ``jl``: the point p (n, 3) on the second body
-    about which the torque is taken, force and torque columns (n, 3, k)."""
+    about which the torque is taken, force and torque columns (n, 3, k); ``driven``:
+    the quantities ("angle", "position") its drivers fix (module docstring)."""
+    p, Pf, Pt = _free_bases(jl, motion)
+    if "angle" in driven:
+        Pt = _full(motion.n)
+    if "position" in driven:
+        Pf = _full(motion.n)
+    return p, Pf, Pt
+
+
+def _free_bases(jl, motion: Motion):
+    """(p, P_f, P_t) of the undriven joint (the table of the module docstring)."""
     j = jl.joint
     n, name, t = motion.n, j.name, j.type
 

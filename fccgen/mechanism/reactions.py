@@ -12,14 +12,19 @@ reactions come from a Newton-Euler balance of every moving body at each recorded
 s_J = +1 on the joint's second body, -1 on its first; p_J the joint point on the
 second body. Each (F_J, T_J) is restricted to the joint's reaction subspace
 (:func:`fccgen.mechanism.reaction_bases.bases`), F = P_f x_f, T = P_t x_t with
-orthonormal columns. The rows of all moving bodies stacked give E x = b per result row,
-solved by the pseudo-inverse (an SVD per row). Where E has fewer independent columns
-than unknowns (redundant constraints, e.g. a planar four-bar of revolutes) the
-reactions are not unique and the minimum-norm x (in N and N m together) is reported,
-with ``info["reactions"]["unique"]`` false.
+orthonormal columns; a joint's drivers widen it by the driven direction, so its
+reaction holds the motor's torque (force) too. A coordinate driver of a point adds
+one unknown, the force x e along its direction e at the point, on the one moving body
+that carries the point (a point two bodies share is refused). The rows of all moving
+bodies stacked give E x = b per result row, solved by the pseudo-inverse (an SVD per
+row). Where E has fewer independent columns than unknowns (redundant constraints,
+e.g. a planar four-bar of revolutes) the reactions are not unique and the
+minimum-norm x (in N and N m together) is reported, with
+``info["reactions"]["unique"]`` false.
 
 Applied loads are attributed to bodies: gravity, forces and torques on a body, torsion
-springs on their two bodies, point springs on the bodies that carry their ends. A
+springs on their two bodies, point springs on the bodies that carry their ends, a
+joint's linear spring on the joint's two bodies at its points J_a, J_b. A
 load that acts on a triple shared by two bodies, or on one that no body carries, and
 section-2 ties that act as hidden joints (constraints not made by a joint, a point or
 vector shared by bodies or a fixed one a body uses outside a joint) cannot be
@@ -31,8 +36,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import ModelError, SimulationError
-from ..model.types import (GROUND, Attached, BodyPoint, Force, Spring, Torque,
-                           TorsionSpring)
+from ..model.types import (GROUND, Attached, BodyPoint, DriverRow, Force,
+                           LinearSpring, Spring, Torque, TorsionSpring)
 from .body_motion import Motion
 from .reaction_bases import COMPONENTS, bases
 
@@ -63,13 +68,15 @@ def check_attributable(plan) -> None:
     """ModelError for the first item whose force the body balance cannot place."""
     model, lowering = plan.model, plan.model.mechanism
     joint_labels = {lab for labs in lowering.labels.values() for lab in labs}
+    held = carriers(model)
     for k, c in enumerate(model.constraints):
-        if getattr(c, "label", None) not in joint_labels:
+        if isinstance(c, DriverRow) and c.kind == "coordinate":
+            _driven_body(plan, held, c, k)
+        elif getattr(c, "label", None) not in joint_labels:
             raise _refuse(c.where, f"constraints[{k}]", "its force belongs to no joint; "
                           "write it as a joint (DESIGN section 2b)", c.type)
     joint_shared = {t.name for jl in lowering.joints for t in jl.triples
                     if len(t.carriers) > 1}
-    held = carriers(model)
     for name, bodies in held.items():
         moving = sorted(b for b in bodies if _moving(plan, b))
         if not moving or name in joint_shared:
@@ -85,7 +92,7 @@ def check_attributable(plan) -> None:
         if isinstance(ld, Spring):
             for end in ld.ends:
                 _end_body(plan, held, end, ld, k)
-        elif not isinstance(ld, (Force, Torque, TorsionSpring)):
+        elif not isinstance(ld, (Force, Torque, TorsionSpring, LinearSpring)):
             raise _refuse(ld.where, f"loads[{k}]", "no body balance is known for this "
                           "load type", ld.type)
 
@@ -107,6 +114,19 @@ def _end_body(plan, held, end, load, k) -> str | None:
         raise _refuse(load.where, f"loads[{k}]", f"its end {end} {whom}, so its force "
                       "cannot be given to one body; attach the end to one body "
                       "(a body point) instead", end)
+    return bodies[0]
+
+
+def _driven_body(plan, held, row, k) -> str:
+    """The moving body that carries the point of coordinate driver row ``row``."""
+    point = row.triples[0]
+    bodies = sorted(b for b in held.get(point, ()) if _moving(plan, b))
+    if len(bodies) != 1:
+        whom = ("is carried by no moving body" if not bodies else
+                f"is shared by {' and '.join(bodies)}")
+        raise _refuse(row.where, f"constraints[{k}]", f"the point {point} of {row.label} "
+                      f"{whom}, so the driver's force cannot be given to one body; drive "
+                      "a point of one body instead", point)
     return bodies[0]
 
 
@@ -141,6 +161,8 @@ def applied(plan, motion: Motion, index: dict[str, int]) -> np.ndarray:
             _spring(plan, motion, held, ld, k, add)
         elif isinstance(ld, TorsionSpring):
             _torsion(plan, motion, ld, k, add)
+        elif isinstance(ld, LinearSpring):
+            _linear(plan, motion, ld, k, add)
     return out
 
 
@@ -169,10 +191,11 @@ def _torsion(plan, motion, ld, k, add):
     element computes it (docs/elements.md) and phi' = (w_B - w_A) . u."""
     p = _params(plan, k)
     u = motion.triple(ld.axis)[0]
+    sides = ld.sides or tuple((plan.model.bodies[b].i, plan.model.bodies[b].j)
+                              for b in ld.bodies)
     perp = []
-    for name, lam in zip(ld.bodies, (p["lA"], p["lB"])):
-        b = plan.model.bodies[name]
-        perp.append(motion.triple(b.j)[0] - motion.triple(b.i)[0] - lam * u)
+    for (i, j), lam in zip(sides, (p["lA"], p["lB"])):
+        perp.append(motion.triple(j)[0] - motion.triple(i)[0] - lam * u)
     D = np.einsum("ni,ni->n", u, np.cross(perp[0], perp[1]))
     P = np.einsum("ni,ni->n", perp[0], perp[1])
     phi = np.arctan2(p["cos0"] * D - p["sin0"] * P, p["cos0"] * P + p["sin0"] * D)
@@ -183,12 +206,39 @@ def _torsion(plan, motion, ld, k, add):
     add(ld.bodies[1], torque=-torque)
 
 
+def _linear(plan, motion, ld, k, add):
+    """A joint's linear spring (s = u.(r_b - r_a), T = k (s - L) + c s'): -T u on the
+    joint's second body at r_b, +T u on its first at r_a, and the couple T d x u
+    (d = r_b - r_a; zero while r_b stays on the axis line through r_a) on the first,
+    which carries the axis: the element's generalized force -T ds/dq as body loads."""
+    p = _params(plan, k)
+    (u, du, _), (ra, va, _), (rb, vb, _) = (motion.triple(t) for t in ld.triples)
+    d = rb - ra
+    s = np.einsum("ni,ni->n", u, d)
+    rate = np.einsum("ni,ni->n", du, d) + np.einsum("ni,ni->n", u, vb - va)
+    tension = (p["k"] * (s - p["L"]) + p["c"] * rate)[:, None]
+    first, second = _joint_bodies(plan, ld.triples[1])
+    add(second, force=-tension * u, at=rb)
+    add(first, force=tension * u, at=ra, torque=tension * np.cross(d, u))
+
+
+def _joint_bodies(plan, point_a: str) -> tuple[str, str]:
+    """The two bodies of the joint whose first point is ``point_a`` (J_a)."""
+    joint = point_a[:-len("_a")]
+    return next(jl.joint.bodies for jl in plan.model.mechanism.joints
+                if jl.joint.name == joint)
+
+
 def balance(plan, motion: Motion, index: dict[str, int]):
     """(E, b, joint column slices): the stacked Newton-Euler rows (module docstring)."""
     n, nb = motion.n, len(index)
     blocks, spans = [], []
-    for jl in plan.model.mechanism.joints:
-        p, Pf, Pt = bases(jl, motion)
+    lowering = plan.model.mechanism
+    driven: dict[str, set[str]] = {}
+    for d in lowering.drivers:
+        driven.setdefault(d.joint, set()).add(d.quantity)
+    for jl in lowering.joints:
+        p, Pf, Pt = bases(jl, motion, driven.get(jl.joint.name, frozenset()))
         block = np.zeros((n, 6 * nb, Pf.shape[2] + Pt.shape[2]))
         for body, sign in zip(jl.joint.bodies, (-1.0, 1.0)):
             if body not in index:
@@ -201,12 +251,31 @@ def balance(plan, motion: Motion, index: dict[str, int]):
             block[:, k + 3:k + 6, Pf.shape[2]:] = sign * Pt
         spans.append((Pf, Pt))
         blocks.append(block)
+    blocks += _coordinate_blocks(plan, motion, index)
     E = np.concatenate(blocks, axis=2) if blocks else np.zeros((n, 6 * nb, 0))
     inertial = np.zeros((n, 6 * nb))
     for body, b in index.items():
         inertial[:, 6 * b:6 * b + 3] = plan.model.bodies[body].mass * motion.centre(body)[1]
         inertial[:, 6 * b + 3:6 * b + 6] = motion.momentum_rate(body)
     return E, inertial - applied(plan, motion, index), spans
+
+
+def _coordinate_blocks(plan, motion, index) -> list[np.ndarray]:
+    """One column per coordinate driver: the force along its direction e at its point,
+    on the body that carries the point (:func:`_driven_body`)."""
+    held, out = carriers(plan.model), []
+    for k, c in enumerate(plan.model.constraints):
+        if not (isinstance(c, DriverRow) and c.kind == "coordinate"):
+            continue
+        body = _driven_body(plan, held, c, k)
+        e = np.array([c.scalars[x] for x in ("ex", "ey", "ez")])
+        arm = motion.triple(c.triples[0])[0] - motion.centre(body)[0]
+        block = np.zeros((motion.n, 6 * len(index), 1))
+        b = 6 * index[body]
+        block[:, b:b + 3, 0] = e
+        block[:, b + 3:b + 6, 0] = np.cross(arm, e)
+        out.append(block)
+    return out
 
 
 def solve(E: np.ndarray, b: np.ndarray):
@@ -228,8 +297,11 @@ def reactions(solver, result) -> tuple[dict[str, np.ndarray], dict]:
     names = [name for name, _ in plan.triples]
     q = np.column_stack([result.columns[f"{t}.{c}"] for t in names for c in "xyz"])
     v = np.column_stack([result.columns[f"{t}.v{c}"] for t in names for c in "xyz"])
-    a = np.array([solver.accelerations(qk, vk) for qk, vk in zip(q, v)])
-    motion = Motion(plan, q, v, a.reshape(q.shape))
+    a = np.empty_like(q)
+    for k, t in enumerate(result.t):
+        solver.set_time(float(t))              # a driven model's q'' depends on t
+        a[k] = solver.accelerations(q[k], v[k])
+    motion = Motion(plan, q, v, a)
     index = {name: k for k, (name, _) in enumerate(plan.bodies)}
     E, b, spans = balance(plan, motion, index)
     x, rank = solve(E, b)
