@@ -15,9 +15,13 @@ from .symbols import ClassSymbols
 
 def _time_function(s: ClassSymbols) -> tuple[sympy.Symbol, sympy.Expr]:
     """(t, f(t)) of a driver class: its expression read again by the restricted
-    grammar (it was checked when the model was loaded) over a real symbol t."""
+    grammar (it was checked when the model was loaded) over a real symbol t, or its
+    table's spline (fccgen.mechanism.tables)."""
     from ..mechanism.expressions import parse_expression
+    from ..mechanism.tables import is_table_text, table_text_expression
     t = sympy.Symbol("t", real=True)
+    if is_table_text(s.cls.function):          # a table: the spline of tables.py
+        return t, table_text_expression(s.cls.function, t)
     f = parse_expression(s.cls.function, {"t": t}, source="<driver class>", line=None,
                          item=s.cls.name)
     return t, f

@@ -74,7 +74,7 @@ def read_table(path: str, *, source: str, line: int | None, item: str
         if not fields or not "".join(fields).strip() or fields[0].lstrip().startswith("#"):
             continue
         values = _row(fields)
-        if values is None and not first:
+        if values is None and not (first and _is_header(fields)):
             raise _fail(source, line, item, f"{path} row {number}: must be two finite "
                         f"numbers t, value", ",".join(fields))
         first = False
@@ -91,6 +91,18 @@ def read_table(path: str, *, source: str, line: int | None, item: str
         raise _fail(source, line, item, f"{path}: t must increase strictly from row to "
                     f"row (t = {float(t[k])!r} is followed by t = {float(t[k + 1])!r})", path)
     return t, y
+
+
+def _is_header(fields: list[str]) -> bool:
+    """A first row is a header when it is not two numbers (a row of two numbers that
+    are not finite, such as ``nan``, is refused, not skipped)."""
+    if len(fields) != 2:
+        return True
+    try:
+        float(fields[0]), float(fields[1])
+    except ValueError:
+        return True
+    return False
 
 
 def _row(fields: list[str]) -> tuple[float, float] | None:
@@ -219,3 +231,37 @@ def table_expression(path: str, symbol_t: sympy.Symbol, *, source: str,
     coef = spline_coefficients(t, y)
     key = hashlib.sha256(np.concatenate([t, y]).tobytes()).hexdigest()[:12]
     return table_function(key, t, coef)(symbol_t)
+
+
+# -- a table as the text of a driver's function ----------------------------------------
+# A driver carries its f(t) as text (Driver.function, ElementClass.function, part of
+# the class key). A table is carried by its numbers: "table:<hash>:t,y t,y ...", each
+# number written by repr (read back exactly), so that the key changes with the table's
+# content (not its file name) and no file is read after the model is loaded.
+
+TEXT_PREFIX = "table:"
+
+
+def table_text(t: np.ndarray, y: np.ndarray) -> str:
+    """The function text of the table (t, y) (see above)."""
+    key = hashlib.sha256(np.concatenate([t, y]).tobytes()).hexdigest()[:12]
+    rows = " ".join(f"{float(a)!r},{float(b)!r}" for a, b in zip(t, y))
+    return f"{TEXT_PREFIX}{key}:{rows}"
+
+
+def is_table_text(text: str) -> bool:
+    return text.startswith(TEXT_PREFIX)
+
+
+def table_rows(text: str) -> tuple[np.ndarray, np.ndarray]:
+    """(t, y) of a text made by :func:`table_text`."""
+    rows = text[len(TEXT_PREFIX):].split(":", 1)[1].split()
+    t, y = np.array([[float(x) for x in r.split(",")] for r in rows]).T
+    return t, y
+
+
+def table_text_expression(text: str, symbol_t: sympy.Symbol) -> sympy.Expr:
+    """The tabulated function of a :func:`table_text` as a SymPy expression."""
+    t, y = table_rows(text)
+    key = hashlib.sha256(np.concatenate([t, y]).tobytes()).hexdigest()[:12]
+    return table_function(key, t, spline_coefficients(t, y))(symbol_t)

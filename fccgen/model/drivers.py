@@ -123,6 +123,8 @@ class DriverReader(Reader):
         import sympy
 
         from ..mechanism.expressions import parse_expression
+        if isinstance(node, YMap):
+            return self.table(node, item, integrate)
         if isinstance(node, YScalar):
             value = node.value
             text = value if isinstance(value, (bool, int, float)) else node.text
@@ -145,6 +147,21 @@ class DriverReader(Reader):
                             "within the expression grammar (SymPy found none); give the "
                             "angle or position itself", text)
         return out
+
+    def table(self, node: YMap, item: str, integrate: bool) -> str:
+        """``{table: file.csv}``: the checked table's function text
+        (:func:`fccgen.mechanism.tables.table_text`); a rate or speed is refused (give
+        the angle or position table)."""
+        from ..mechanism.tables import read_table, table_text
+        m = self.mapping(node, item, ("table",))
+        path = self.text(m.entries["table"], child(item, "table"))
+        if integrate:
+            raise self.fail(node.line, item, "a table gives an angle, position, distance "
+                            "or value, not a rate or speed (tabulate the angle or "
+                            "position instead)", path)
+        t, y = read_table(path, source=self.source, line=m.entries["table"].line,
+                          item=child(item, "table"))
+        return table_text(t, y)
 
 
 def integral_text(rate, t) -> str | None:

@@ -114,9 +114,31 @@ def _eval(node: ast.AST, t: Jet) -> Jet:
                      f"{ast.dump(node)}")
 
 
+def table_jet(text: str) -> Callable[[float], Jet]:
+    """t -> (f, f', f'') of a table's function text (fccgen.mechanism.tables): SciPy's
+    clamped cubic spline through the rows, evaluated by SciPy (not by the polynomials
+    that the kernels print), held at the end values with zero derivatives outside."""
+    from scipy.interpolate import CubicSpline
+
+    from ..mechanism.tables import table_rows
+    knots, values = table_rows(text)
+    spline = CubicSpline(knots, values, bc_type="clamped")
+
+    def evaluate(time: float) -> Jet:
+        if time < knots[0]:
+            return _const(values[0])
+        if time >= knots[-1]:
+            return _const(values[-1])
+        return tuple(float(spline(time, nu)) for nu in range(3))
+    return evaluate
+
+
 @lru_cache(maxsize=None)
 def time_function(text: str) -> Callable[[float], Jet]:
-    """t -> (f(t), f'(t), f''(t)) of the expression ``text`` in t."""
+    """t -> (f(t), f'(t), f''(t)) of the expression ``text`` in t (or of a table,
+    :func:`table_jet`)."""
+    if text.startswith("table:"):
+        return table_jet(text)
     tree = ast.parse(text.strip(), mode="eval").body
 
     def evaluate(time: float) -> Jet:

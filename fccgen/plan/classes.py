@@ -243,5 +243,8 @@ class ElementClass:
         parts.append("fixed " + (",".join(fixed) if fixed else "none"))
         parts.append("zeros " + (",".join(sorted(self.zeros)) if self.zeros else "none"))
         if self.function:
-            parts.append(f"f(t) = {self.function}")
+            text = self.function
+            if text.startswith("table:"):         # a table: its hash (the rows are long)
+                text = ":".join(text.split(":")[:2])
+            parts.append(f"f(t) = {text}")
         return "; ".join(parts)
