@@ -34,7 +34,8 @@ TEXT = table_text(KNOTS, 0.3 * np.sin(2 * KNOTS) + 0.1 * KNOTS ** 2)
 F, T = False, True
 CLASSES = [ElementClass("driver_angle", (), (F, F, F), frozenset(), TEXT),
            ElementClass("driver_position", (), (T, T, F), frozenset(), TEXT),
-           ElementClass("driver_distance", (), (T, F), frozenset(), TEXT)]
+           ElementClass("driver_distance", (), (T, F), frozenset(), TEXT),
+           ElementClass("driver_coordinate", (), (F,), frozenset(), TEXT)]
 
 
 def write_rows(folder, name, rows, header="t, angle\n"):
@@ -56,10 +57,12 @@ def test_compiled_and_numeric_table_driver_kernels_agree(cls):
     TableFunction.value; their C printing is checked in test_mechanism_tables) against
     the numeric version's chain rule and SciPy spline evaluation, at random (q, v, t):
     1e-12 of each kernel's largest entry (the same spline evaluated in a different
-    order, sums of a few terms of size ~1, f'' of size ~1)."""
+    order, sums of a few terms of size ~1, f'' of size ~1); also before, after and at
+    the table's ends, where f holds its end values."""
     d = derive_class(cls)
-    for seed in range(4):
-        q, v, p = random_case(cls, seed)
+    cases = [random_case(cls, seed) for seed in range(4)]
+    for q, v, p in cases + [(q, v, np.r_[t, p[1:]]) for t, (q, v, p) in
+                            zip((-0.3, 2.7, 0.0, 2.0), cases)]:      # outside, ends
         for name, m in d.kernels.items():
             if m is None:
                 continue
