@@ -96,6 +96,7 @@ cdef class SparseEngine(Engine):
     cdef double *Mblk
     cdef double *Bblk
     cdef double *lq
+    cdef double *ly               # local: an element's share of a product
     cdef double *alpha            # m: penalty per row
     cdef double *rnorm            # m: ||B_k||
     cdef int *perm                # new -> old
@@ -145,6 +146,7 @@ cdef class SparseEngine(Engine):
         self.Mblk = <double *>_alloc(total_m, sizeof(double))
         self.Bblk = <double *>_alloc(total_b, sizeof(double))
         self.lq = <double *>_alloc(local, sizeof(double))
+        self.ly = <double *>_alloc(local, sizeof(double))
         cdef int n = asm.n_q, m = asm.n_g
         self.alpha = <double *>_alloc(m, sizeof(double))
         self.rnorm = <double *>_alloc(m, sizeof(double))
@@ -164,6 +166,7 @@ cdef class SparseEngine(Engine):
 
     def __dealloc__(self):
         free(self.mptr); free(self.bptr); free(self.Mblk); free(self.Bblk); free(self.lq)
+        free(self.ly)
         free(self.alpha); free(self.rnorm); free(self.lam); free(self.r2); free(self.bdx)
         free(self.res); free(self.mu); free(self.p); free(self.sp); free(self.u)
         free(self.w_n); free(self.r1); free(self.dx); free(self.t); free(self.base)
@@ -322,6 +325,58 @@ cdef class SparseEngine(Engine):
                     continue
                 for j in range(nq):
                     y[idx[j]] += blk[r * nq + j] * zr
+
+    cdef void residual_pass(self, const double *x, const double *b, bint pending,
+                            bint penalised, double *y, double *r2) noexcept nogil:
+        """One pass over the elements for the true residuals at x:
+        r2 = b - B x (b NULL: zero; stored when r2 is not NULL), then, when pending,
+        the deferred multiplier update lambda -= alpha r2 (the augmented-Lagrangian
+        update lambda + alpha (B dx - r2_old) written with the new residual), and
+        y = base - M x - B^T (lambda - alpha r2) when penalised (the right-hand side
+        r1 + B^T alpha r2 of the next correction), y = r1 = base - M x - B^T lambda
+        otherwise. Each element's coordinates are gathered and scattered once."""
+        cdef int e, a, r, nq, ng, row
+        cdef const int *idx
+        cdef const double *mb
+        cdef const double *bb
+        cdef double *xl = self.lq
+        cdef double *yl = self.ly
+        cdef double acc, z
+        memcpy(y, self.base, <size_t>self.n * sizeof(double))
+        for e in range(self.asm.n_el):
+            nq = self.asm.cls[e].n_q
+            ng = self.asm.cls[e].n_g
+            mb = self.Mblk + self.mptr[e] if self.mptr[e + 1] > self.mptr[e] else NULL
+            if mb == NULL and ng == 0:
+                continue
+            idx = self.asm.qidx + self.asm.qptr[e]
+            for a in range(nq):
+                xl[a] = x[idx[a]]
+                yl[a] = 0.0
+            if mb != NULL:
+                for a in range(nq):
+                    acc = 0.0
+                    for r in range(nq):
+                        acc += mb[a * nq + r] * xl[r]
+                    yl[a] = acc
+            bb = self.Bblk + self.bptr[e]
+            row = self.asm.gptr[e]
+            for r in range(ng):
+                acc = b[row + r] if b != NULL else 0.0
+                for a in range(nq):
+                    acc -= bb[r * nq + a] * xl[a]
+                if pending:
+                    self.lam[row + r] -= self.alpha[row + r] * acc
+                if r2 != NULL:
+                    r2[row + r] = acc
+                z = self.lam[row + r]
+                if penalised:
+                    z -= self.alpha[row + r] * acc
+                if z != 0.0:
+                    for a in range(nq):
+                        yl[a] += bb[r * nq + a] * z
+            for a in range(nq):
+                y[idx[a]] -= yl[a]
 
     cdef double row_norms(self) noexcept nogil:
         """rnorm_k = ||B_k||; alpha_k = RHO m_ref / s_k^2 with s_k = max(||B_k||,
@@ -486,12 +541,14 @@ cdef class SparseEngine(Engine):
         """x of M x + B^T lambda = Q + M w, B x = b (Q, w, b may be NULL: zero):
         iterative refinement with the true residuals r1 = Q + M w - M x - B^T lambda,
         r2 = b - B x. Each correction is one augmented-Lagrangian step (module
-        docstring) while those converge fast; once a step shrinks the change by less
-        than SLOW (a nearly singular B: near a singular position), the corrections are
-        conjugate-gradient solves (:meth:`correction`)."""
+        docstring), its right-hand side and the previous step's multiplier update
+        formed in one pass (:meth:`residual_pass`), while those converge fast; once a
+        step shrinks the change by less than SLOW (a nearly singular B: near a
+        singular position), the corrections are conjugate-gradient solves
+        (:meth:`correction`)."""
         cdef int i, it, solves = 0, n = self.n, m = self.m, cg = 0
         cdef double nd, nx, prev = 0.0, rate
-        cdef bint done = False
+        cdef bint done = False, pending = False
         memset(self.base, 0, <size_t>n * sizeof(double))
         if Q != NULL:
             memcpy(self.base, Q, <size_t>n * sizeof(double))
@@ -501,35 +558,20 @@ cdef class SparseEngine(Engine):
         memset(self.lam, 0, <size_t>m * sizeof(double))
         self.n_solves += 1
         for it in range(AL_MAX + REFINE_MAX):
-            if it == 0:
-                memcpy(self.r1, self.base, <size_t>n * sizeof(double))
-                for i in range(m):
-                    self.r2[i] = b[i] if b != NULL else 0.0
-            else:
-                self.mult_m(x, self.w_n, False)
-                for i in range(n):
-                    self.r1[i] = self.base[i] - self.w_n[i]
-                for i in range(m):
-                    self.bdx[i] = -self.lam[i]
-                self.mult_bt(self.bdx, NULL, self.r1)
-                self.mult_b(x, self.r2)
-                for i in range(m):
-                    self.r2[i] = (b[i] if b != NULL else 0.0) - self.r2[i]
             if cg:
+                self.residual_pass(x, b, pending, False, self.r1, self.r2)
+                pending = False
                 solves += self.correction()
+                for i in range(m):
+                    self.lam[i] += self.bdx[i]
                 cg += 1
             else:
-                memcpy(self.dx, self.r1, <size_t>n * sizeof(double))
-                self.mult_bt(self.r2, self.alpha, self.dx)
+                self.residual_pass(x, b, pending, True, self.dx, NULL)
                 self.solve_a(self.dx)
-                self.mult_b(self.dx, self.bdx)
-                for i in range(m):
-                    self.bdx[i] = self.alpha[i] * (self.bdx[i] - self.r2[i])
+                pending = True
                 solves += 1
             nd = 0.0
             nx = 0.0
-            for i in range(m):
-                self.lam[i] += self.bdx[i]
             for i in range(n):
                 x[i] += self.dx[i]
                 if fabs(self.dx[i]) > nd:
