@@ -16,8 +16,11 @@ iteration takes the residuals r1 = Q - M x - B^T lambda, r2 = b - B x and correc
 
 which zeroes r1 and multiplies the constraint part of the error by about
 1 / (1 + alpha sigma^2 / m) (sigma: a singular value of B, m a mass): with
-alpha_k = RHO m_ref / ||B_k||^2 three or four iterations reach rounding. It stops when
-the estimated remaining change, |dx| rate / (1 - rate), is below AL_STOP |x|. Near a
+alpha_k = RHO m_ref / ||B_k||^2 about three iterations reach rounding. It stops when
+the estimated remaining change, |dx| rate / (1 - rate), is below AL_STOP |x|. The
+multiplier update alpha (B dx - r2) equals -alpha r2 at the new x, so it is made in the
+next iteration's residual pass, which forms r2, the update and r1 + B^T alpha r2 in one
+sweep over the element blocks. Near a
 singular position (sigma small) these steps slow down; the corrections are then
 conjugate-gradient solves of the multipliers' Schur system B A^{-1} B^T, preconditioned
 by diag(alpha), which take the few small singular values in a few extra steps.
@@ -46,9 +49,16 @@ from ._ldl cimport ldl_numeric, ldl_solve, ldl_symbolic
 from ._model_table cimport fcc_element_class
 
 # alpha_k = RHO m_ref / s_k^2: the constraint error shrinks ~1/RHO per iteration, while
-# A's condition number grows ~RHO (1e6: 3-4 iterations, 1e-10 relative rounding in one
-# solve, which the refinement removes).
-cdef double RHO = 1e6
+# A's condition number grows ~RHO (1e7: about 3 iterations, 1e-9 relative rounding in
+# one solve, which the refinement removes; 1e6 took a third more solves on the A02
+# chain). Not more: 1e8 gives unconverged solves on Bricard's loop, whose redundant
+# rows are dependent only to rounding. Along such a row (singular value sigma tiny) a
+# step moves x by about alpha sigma^2 / m of the way towards b's rounding noise over
+# sigma; the few steps of a solve leave that negligible at 1e7 (as the dense path's
+# dropped row), no longer at 1e8. Scaling alpha per row group cannot help: the row
+# is one of a group of full-size rows. (Starting a solve from the previous stage's
+# solution accumulates the same drift over the run: measured, it breaks Bricard.)
+cdef double RHO = 1e7
 # Augmented-Lagrangian steps stop when the estimated remaining change,
 # |dx| rate / (1 - rate), is at most AL_STOP |x|; a step with rate above SLOW (or the
 # AL_MAX-th) hands over to conjugate-gradient corrections, which stop when a step
@@ -648,12 +658,18 @@ cdef class SparseEngine(Engine):
             return -1
         for i in range(self.n):
             self.rhs[i] = self.asm.f[i] - self.asm.h[i]
-        self.mult_b(v, self.nb)
-        for i in range(self.m):
-            self.nb[i] = (-self.asm.c[i] - 2.0 * alpha * self.nb[i]
-                          - beta * beta * self.asm.g[i])
+        self.baumgarte_targets(v, alpha, beta, self.nb)
         self.kkt_solve(self.rhs, NULL, self.nb, a)
         return self.finish(q, v, a, flags)
+
+    cdef void baumgarte_targets(self, const double *v, double alpha, double beta,
+                                double *b) noexcept nogil:
+        """b = -c - 2 alpha g' - beta^2 g, the right-hand side of B a = b in
+        Baumgarte's stabilisation, with g' = B v (assembled c and g, blocks of B)."""
+        cdef int i
+        self.mult_b(v, b)
+        for i in range(self.m):
+            b[i] = -self.asm.c[i] - 2.0 * alpha * b[i] - beta * beta * self.asm.g[i]
 
     cdef int project_positions_at(self, double *q, int *iterations) noexcept nogil:
         cdef int i, it = 0
@@ -698,13 +714,19 @@ cdef class SparseEngine(Engine):
         self.assemble_mb(q, ASM_M if have_B else ASM_M | ASM_B)
         if self.factor(q) < 0:
             return -1
-        self.kkt_solve(NULL, v, NULL, self.vtmp)
+        self.velocity_targets(q, self.nb)
+        self.kkt_solve(NULL, v, self.nb, self.vtmp)
         if self.finish(q, v, self.vtmp, ASM_M | ASM_B) < 0:
             return -1
         self.watch_kinetic_energy(v, self.vtmp)
         memcpy(v, self.vtmp, self.n * sizeof(double))
         self.factor_valid = True
         return 0
+
+    cdef void velocity_targets(self, const double *q, double *b) noexcept nogil:
+        """b of the velocity projection's B w = b: zero (the constraints do not
+        depend on time)."""
+        memset(b, 0, <size_t>self.m * sizeof(double))
 
     cdef void watch_kinetic_energy(self, const double *v, const double *w) noexcept nogil:
         """As Engine.watch_kinetic_energy, with M v from the blocks."""
