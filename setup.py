@@ -11,7 +11,7 @@ from pathlib import Path
 from Cython.Build import cythonize
 from setuptools import Extension, setup
 
-CIMPORT_ORDER = ("_solve", "_assemble", "_engine", "_ldl")
+CIMPORT_ORDER = ("_solve", "_assemble", "_engine", "_ldl", "_sparse_blocks", "_al_refine")
 
 
 def runtime_modules() -> list[str]:
