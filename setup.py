@@ -11,7 +11,8 @@ from pathlib import Path
 from Cython.Build import cythonize
 from setuptools import Extension, setup
 
-CIMPORT_ORDER = ("_solve", "_assemble", "_engine", "_ldl", "_events")
+CIMPORT_ORDER = ("_solve", "_assemble", "_engine", "_ldl", "_sparse_blocks", "_al_refine",
+                 "_events")
 
 
 def runtime_modules() -> list[str]:

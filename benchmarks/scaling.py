@@ -1,15 +1,17 @@
 """Cost per RK4 step of the dense and the sparse path on the A02 chain, against its size.
 
-    python benchmarks/scaling.py [--n 5 10 20 40 80 160 320] [--dense-max 160]
+    python benchmarks/scaling.py [--n 5 10 20 40 80 160 320] [--dense-max 160] [--cpu-time]
 
 For each N the A02 N-four-bar model (examples/make_n_four_bar.py) is generated and
 compiled into a scratch directory, loaded once with ``linear_solver="dense"`` and once
 with ``"sparse"``; from the consistent initial state, RK4 with projection at
-dt = 1e-3 is timed: a warm-up run, then several runs of K steps (K chosen so that a run
-takes about 0.2 s) and of 2K steps, the median of their difference over K reported
-(the run's set-up excluded). Prints the table and, for each
-path, the exponent p of time ~ N^p fitted by least squares of log time on log N.
+dt = 1e-3 is timed: runs of K and of 2K steps (K doubled until the K extra steps take
+about 0.2 s), the difference of the fastest of 5 runs of each length over K reported
+(the run's set-up excluded; on a loaded machine the fastest run is the one least
+disturbed). Prints the table and, for each path, the exponent p of time ~ N^p fitted by least squares of log time on log N.
 The dense path above --dense-max is skipped (one step costs a second at N = 320).
+With --cpu-time the process's CPU time is measured instead of wall time: on a machine
+shared with other work it counts only this process's own work.
 """
 from __future__ import annotations
 
@@ -20,7 +22,6 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import importlib.util  # noqa: E402
-import statistics  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
 import warnings  # noqa: E402
@@ -42,19 +43,26 @@ def model_text(n: int) -> str:
     return module.model_text(n)
 
 
+CLOCK = time.perf_counter
+
+
 def step_time(solver, q0, v0, target: float = 0.2, repeats: int = 5) -> float:
-    """Median seconds per RK4 step (with projection) of warm runs: runs of 2K and K
-    steps, their difference over K (so the run's set-up, the dense SVD of the initial
-    rank decision and the first projections, is not counted)."""
+    """Seconds per RK4 step (with projection) of warm runs: runs of K and 2K steps,
+    K doubled until the K extra steps take about ``target`` seconds, the difference of
+    the fastest run of each length over K (so the run's set-up, the dense SVD of the
+    initial rank decision and the first projections, is not counted; the fastest runs,
+    as the machine's other work only ever adds time)."""
     def run(k):
-        t0 = time.perf_counter()
+        t0 = CLOCK()
         solver.simulate(t_end=k * DT, dt=DT, method="rk4", q0=q0, v0=v0,
                         output_dt=k * DT)
-        return time.perf_counter() - t0
+        return CLOCK() - t0
     k = 4
-    while run(k) < target and k < 1 << 16:
+    while run(2 * k) - run(k) < target and k < 1 << 16:
         k *= 2
-    return statistics.median((run(2 * k) - run(k)) / k for _ in range(repeats))
+    shorter = min(run(k) for _ in range(repeats))
+    longer = min(run(2 * k) for _ in range(repeats))
+    return (longer - shorter) / k
 
 
 def exponent(ns, times) -> float:
@@ -66,7 +74,11 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--n", type=int, nargs="+", default=[5, 10, 20, 40, 80, 160, 320])
     parser.add_argument("--dense-max", type=int, default=160)
+    parser.add_argument("--cpu-time", action="store_true",
+                        help="time the process's CPU time, not wall time")
     args = parser.parse_args(argv)
+    global CLOCK
+    CLOCK = time.process_time if args.cpu_time else time.perf_counter
     warnings.simplefilter("ignore")
     rows = []
     with tempfile.TemporaryDirectory() as tmp:

@@ -10,7 +10,8 @@ docs/performance.md, "Dense and sparse paths").
 from __future__ import annotations
 
 from ._engine import Engine
-from ._sparse import SparseEngine, element_structure
+from ._sparse import SparseEngine
+from ._sparse_blocks import element_structure
 from .sparsity import structure
 
 SPARSE_MIN_COORDINATES = 40

@@ -1,0 +1,25 @@
+# The sparse path's augmented-Lagrangian refinement (see _al_refine.pyx).
+from ._sparse_blocks cimport SparseBlocks
+
+
+cdef class ALRefinement(SparseBlocks):
+    cdef double *w_n              # n-vectors: work, residual, correction, Q + M w
+    cdef double *r1
+    cdef double *dx
+    cdef double *base
+    cdef double *lam              # m-vectors
+    cdef double *r2
+    cdef double *bdx
+    cdef double *res
+    cdef double *mu
+    cdef double *p
+    cdef double *sp
+    cdef double *u                # n
+    cdef long n_solves, n_iterations, n_unconverged
+    cdef int most_iterations
+
+    cdef void residual_pass(self, const double *x, const double *b, bint pending,
+                            bint penalised, double *y, double *r2) noexcept nogil
+    cdef int correction(self) noexcept nogil
+    cdef void kkt_solve(self, const double *Q, const double *w, const double *b,
+                        double *x) noexcept nogil

@@ -1,0 +1,243 @@
+# cython: language_level=3
+"""The sparse path's constrained solve: iterative refinement of the saddle-point system
+
+    M x + B^T lambda = Q,    B x = b
+
+with the true residuals r1 = Q - M x - B^T lambda, r2 = b - B x, each correction an
+augmented-Lagrangian step (Garcia de Jalon and Bayo) with the factor of
+A = M + B^T diag(alpha) B (_sparse_blocks.pyx):
+
+    A dx = r1 + B^T alpha r2,   dlambda = alpha (B dx - r2),
+
+which zeroes r1 and multiplies the constraint part of the error by about
+1 / (1 + alpha sigma^2 / m) (sigma: a singular value of B, m a mass): with
+alpha_k = RHO m_ref / ||B_k||^2 about three iterations reach rounding. It stops when
+the estimated remaining change, |dx| rate / (1 - rate), is below AL_STOP |x|. The
+multiplier update alpha (B dx - r2) equals -alpha r2 at the new x, so it is made in the
+next iteration's residual pass, which forms r2, the update and r1 + B^T alpha r2 in one
+sweep over the element blocks. Near a singular position (sigma small) these steps slow
+down; the corrections are then conjugate-gradient solves of the multipliers' Schur
+system B A^{-1} B^T, preconditioned by diag(alpha), which take the few small singular
+values in a few extra steps. Redundant rows need no rank decision.
+"""
+from libc.math cimport fabs
+from libc.stdlib cimport free
+from libc.string cimport memcpy, memset
+
+from ._assemble cimport Assembler
+from ._sparse_blocks cimport SparseBlocks, alloc_zeroed
+
+# Augmented-Lagrangian steps stop when the estimated remaining change,
+# |dx| rate / (1 - rate), is at most AL_STOP |x|; a step with rate above SLOW (or the
+# AL_MAX-th) hands over to conjugate-gradient corrections, which stop when a step
+# changes x by at most CG_STOP |x| (or after CG_MAX steps), the refinement when a
+# correction is at most REFINE_STOP |x| (or after REFINE_MAX corrections: a solve
+# that did not converge, counted).
+cdef double AL_STOP = 1e-15
+cdef int AL_MAX = 8
+cdef double SLOW = 0.05
+cdef double CG_STOP = 1e-13
+cdef int CG_MAX = 40
+cdef double REFINE_STOP = 1e-14
+cdef int REFINE_MAX = 3
+
+
+cdef class ALRefinement(SparseBlocks):
+    """SparseBlocks with the refinement's solve :meth:`kkt_solve` (module docstring)."""
+
+    def __cinit__(self, Assembler asm, *args, **kwargs):
+        cdef int n = asm.n_q, m = asm.n_g
+        self.lam = <double *>alloc_zeroed(m, sizeof(double))
+        self.r2 = <double *>alloc_zeroed(m, sizeof(double))
+        self.bdx = <double *>alloc_zeroed(m, sizeof(double))
+        self.res = <double *>alloc_zeroed(m, sizeof(double))
+        self.mu = <double *>alloc_zeroed(m, sizeof(double))
+        self.p = <double *>alloc_zeroed(m, sizeof(double))
+        self.sp = <double *>alloc_zeroed(m, sizeof(double))
+        self.u = <double *>alloc_zeroed(n, sizeof(double))
+        self.w_n = <double *>alloc_zeroed(n, sizeof(double))
+        self.r1 = <double *>alloc_zeroed(n, sizeof(double))
+        self.dx = <double *>alloc_zeroed(n, sizeof(double))
+        self.base = <double *>alloc_zeroed(n, sizeof(double))
+
+    def __dealloc__(self):
+        free(self.lam); free(self.r2); free(self.bdx); free(self.res); free(self.mu)
+        free(self.p); free(self.sp); free(self.u); free(self.w_n); free(self.r1)
+        free(self.dx); free(self.base)
+
+    def solve_statistics(self):
+        """Factorisations and solves since the last rank decision, refinement iterations
+        in all and at most in one solve, and solves that did not converge."""
+        return dict(factorisations=self.n_factor, solves=self.n_solves,
+                    iterations=self.n_iterations, max_iterations=self.most_iterations,
+                    unconverged=self.n_unconverged)
+
+    cdef void residual_pass(self, const double *x, const double *b, bint pending,
+                            bint penalised, double *y, double *r2) noexcept nogil:
+        """One pass over the elements for the true residuals at x:
+        r2 = b - B x (b NULL: zero; stored when r2 is not NULL), then, when pending,
+        the deferred multiplier update lambda -= alpha r2 (the augmented-Lagrangian
+        update lambda + alpha (B dx - r2_old) written with the new residual), and
+        y = base - M x - B^T (lambda - alpha r2) when penalised (the right-hand side
+        r1 + B^T alpha r2 of the next correction), y = r1 = base - M x - B^T lambda
+        otherwise. Each element's coordinates are gathered and scattered once."""
+        cdef int e, a, r, nq, ng, row
+        cdef const int *idx
+        cdef const double *mb
+        cdef const double *bb
+        cdef double *xl = self.lq
+        cdef double *yl = self.ly
+        cdef double acc, z
+        memcpy(y, self.base, <size_t>self.n * sizeof(double))
+        for e in range(self.asm.n_el):
+            nq = self.asm.cls[e].n_q
+            ng = self.asm.cls[e].n_g
+            mb = self.Mblk + self.mptr[e] if self.mptr[e + 1] > self.mptr[e] else NULL
+            if mb == NULL and ng == 0:
+                continue
+            idx = self.asm.qidx + self.asm.qptr[e]
+            for a in range(nq):
+                xl[a] = x[idx[a]]
+                yl[a] = 0.0
+            if mb != NULL:
+                for a in range(nq):
+                    acc = 0.0
+                    for r in range(nq):
+                        acc += mb[a * nq + r] * xl[r]
+                    yl[a] = acc
+            bb = self.Bblk + self.bptr[e]
+            row = self.asm.gptr[e]
+            for r in range(ng):
+                acc = b[row + r] if b != NULL else 0.0
+                for a in range(nq):
+                    acc -= bb[r * nq + a] * xl[a]
+                if pending:
+                    self.lam[row + r] -= self.alpha[row + r] * acc
+                if r2 != NULL:
+                    r2[row + r] = acc
+                z = self.lam[row + r]
+                if penalised:
+                    z -= self.alpha[row + r] * acc
+                if z != 0.0:
+                    for a in range(nq):
+                        yl[a] += bb[r * nq + a] * z
+            for a in range(nq):
+                y[idx[a]] -= yl[a]
+
+    cdef int correction(self) noexcept nogil:
+        """(dx, dlam) of M dx + B^T dlam = r1, B dx = r2: conjugate gradients on the
+        multipliers' Schur system S mu = B x0 - r2, S = B A^{-1} B^T, preconditioned by
+        diag(alpha), from x0 = A^{-1} (r1 + B^T alpha r2); dx = x0 - A^{-1} B^T mu and
+        dlam = mu + alpha (B dx - r2) satisfy the first equation exactly whatever the
+        iteration count. Returns the number of solves with A."""
+        cdef int i, k = 0, n = self.n, m = self.m
+        cdef double rz, rz_new, psp, step, du, ndx
+        memcpy(self.dx, self.r1, <size_t>n * sizeof(double))
+        self.mult_bt(self.r2, self.alpha, self.dx)
+        self.solve_a(self.dx)
+        self.mult_b(self.dx, self.res)
+        rz = 0.0
+        for i in range(m):
+            self.res[i] -= self.r2[i]
+            self.mu[i] = 0.0
+            self.p[i] = self.alpha[i] * self.res[i]
+            rz += self.res[i] * self.p[i]
+        for k in range(1, CG_MAX + 1):
+            if not rz > 0.0:
+                break
+            memset(self.u, 0, <size_t>n * sizeof(double))
+            self.mult_bt(self.p, NULL, self.u)
+            self.solve_a(self.u)
+            self.mult_b(self.u, self.sp)
+            psp = 0.0
+            for i in range(m):
+                psp += self.p[i] * self.sp[i]
+            if not psp > 0.0:
+                break
+            step = rz / psp
+            du = 0.0
+            ndx = 0.0
+            for i in range(n):
+                self.dx[i] -= step * self.u[i]
+                if fabs(step * self.u[i]) > du:
+                    du = fabs(step * self.u[i])
+                if fabs(self.dx[i]) > ndx:
+                    ndx = fabs(self.dx[i])
+            rz_new = 0.0
+            for i in range(m):
+                self.mu[i] += step * self.p[i]
+                self.res[i] -= step * self.sp[i]
+                rz_new += self.res[i] * self.alpha[i] * self.res[i]
+            if not du > CG_STOP * ndx:
+                break
+            for i in range(m):
+                self.p[i] = self.alpha[i] * self.res[i] + (rz_new / rz) * self.p[i]
+            rz = rz_new
+        for i in range(m):                  # res = B dx - r2
+            self.bdx[i] = self.mu[i] + self.alpha[i] * self.res[i]
+        return k + 1
+
+    cdef void kkt_solve(self, const double *Q, const double *w, const double *b,
+                        double *x) noexcept nogil:
+        """x of M x + B^T lambda = Q + M w, B x = b (Q, w, b may be NULL: zero):
+        iterative refinement with the true residuals r1 = Q + M w - M x - B^T lambda,
+        r2 = b - B x. Each correction is one augmented-Lagrangian step (module
+        docstring), its right-hand side and the previous step's multiplier update
+        formed in one pass (:meth:`residual_pass`), while those converge fast; once a
+        step shrinks the change by less than SLOW (a nearly singular B: near a
+        singular position), the corrections are conjugate-gradient solves
+        (:meth:`correction`)."""
+        cdef int i, it, solves = 0, n = self.n, m = self.m, cg = 0
+        cdef double nd, nx, prev = 0.0, rate
+        cdef bint done = False, pending = False
+        memset(self.base, 0, <size_t>n * sizeof(double))
+        if Q != NULL:
+            memcpy(self.base, Q, <size_t>n * sizeof(double))
+        if w != NULL:
+            self.mult_m(w, self.base, True)
+        memset(x, 0, <size_t>n * sizeof(double))
+        memset(self.lam, 0, <size_t>m * sizeof(double))
+        self.n_solves += 1
+        for it in range(AL_MAX + REFINE_MAX):
+            if cg:
+                self.residual_pass(x, b, pending, False, self.r1, self.r2)
+                pending = False
+                solves += self.correction()
+                for i in range(m):
+                    self.lam[i] += self.bdx[i]
+                cg += 1
+            else:
+                self.residual_pass(x, b, pending, True, self.dx, NULL)
+                self.solve_a(self.dx)
+                pending = True
+                solves += 1
+            nd = 0.0
+            nx = 0.0
+            for i in range(n):
+                x[i] += self.dx[i]
+                if fabs(self.dx[i]) > nd:
+                    nd = fabs(self.dx[i])
+                if fabs(x[i]) > nx:
+                    nx = fabs(x[i])
+            if not nd > 0.0:                    # zero, or NaN (the caller checks x)
+                done = True
+                break
+            if cg:
+                if nd <= REFINE_STOP * nx:
+                    done = True
+                    break
+                if cg >= REFINE_MAX:
+                    break
+            elif it > 0:
+                rate = nd / prev
+                if rate < 0.5 and nd * rate / (1.0 - rate) <= AL_STOP * nx:
+                    done = True
+                    break
+                if rate > SLOW or it + 1 >= AL_MAX:
+                    cg = 1
+            prev = nd
+        if not done:
+            self.n_unconverged += 1
+        self.n_iterations += solves
+        if solves > self.most_iterations:
+            self.most_iterations = solves

@@ -1,0 +1,44 @@
+# Element blocks of the sparse path and the LDL^T of A = M + B^T alpha B (see
+# _sparse_blocks.pyx).
+from ._engine cimport Engine
+
+
+cdef void *alloc_zeroed(size_t n, size_t size) except NULL
+
+
+cdef class SparseBlocks(Engine):
+    cdef bint ready
+    cdef int nnz_a, nnz_l
+    cdef int *mptr                # per element: start of its mass block (n_el + 1)
+    cdef int *bptr                # per element: start of its Jacobian block
+    cdef double *Mblk
+    cdef double *Bblk
+    cdef double *lq               # local: an element's coordinates
+    cdef double *ly               # local: an element's share of a product
+    cdef double *alpha            # m: penalty per row
+    cdef double *rnorm            # m: ||B_k||
+    cdef int *perm                # new -> old
+    cdef int *Ap
+    cdef int *Ai
+    cdef double *Ax
+    cdef int *emap_ptr
+    cdef int *emap
+    cdef int *Lp
+    cdef int *Li
+    cdef double *Lx
+    cdef double *D
+    cdef int *parent
+    cdef int *Lnz
+    cdef int *flag
+    cdef int *pattern
+    cdef double *Y
+    cdef double *t                # n: the permuted right-hand side of a solve
+    cdef long n_factor
+
+    cdef void assemble_mb(self, const double *q, int flags) noexcept nogil
+    cdef void mult_m(self, const double *x, double *y, bint add) noexcept nogil
+    cdef void mult_b(self, const double *x, double *y) noexcept nogil
+    cdef void mult_bt(self, const double *z, const double *s, double *y) noexcept nogil
+    cdef double row_norms(self) noexcept nogil
+    cdef double scaled_residual_sparse(self) noexcept nogil
+    cdef void solve_a(self, double *x) noexcept nogil

@@ -1,0 +1,343 @@
+# cython: language_level=3
+"""Element blocks of the sparse path and the LDL^T of the matrix built from them.
+
+SparseBlocks (an Engine) keeps M and B as the kernels' element blocks (never a dense
+n x n or m x n array) with the products y = M x, y = B x, y += B^T diag(s) z over them,
+and the matrix of the sparse solve
+
+    A = M + B^T diag(alpha) B,    alpha_k = RHO m_ref / s_k^2,
+
+(m_ref the largest diagonal entry of M, s_k = max(||B_k||, ROW_FLOOR times the largest
+row norm of B_k's element)), assembled through the scatter maps of
+fccgen.runtime.sparsity in the fill-reducing order chosen at load and factored by the
+LDL^T of _ldl.pyx over its fixed pattern. A is positive definite whenever M is on the
+null space of B (the mechanism is well posed), whatever the rank of B.
+"""
+from libc.math cimport fabs, sqrt
+from libc.stdlib cimport calloc, free
+from libc.string cimport memset
+
+import numpy as np
+
+from ._assemble cimport ASM_B, ASM_C, ASM_F, ASM_G, ASM_H, ASM_M, Assembler
+from ._engine cimport ERR_LAPACK, ERR_NONFINITE_INPUT, ERR_SINGULAR, Engine, finite
+from ._ldl cimport ldl_numeric, ldl_solve, ldl_symbolic
+from ._model_table cimport fcc_element_class
+
+
+# alpha_k = RHO m_ref / s_k^2: the constraint error shrinks ~1/RHO per iteration, while
+# A's condition number grows ~RHO (1e7: about 3 iterations, 1e-9 relative rounding in
+# one solve, which the refinement removes; 1e6 took a third more solves on the A02
+# chain). Not more: 1e8 gives unconverged solves on Bricard's loop, whose redundant
+# rows are dependent only to rounding. Along such a row (singular value sigma tiny) a
+# step moves x by about alpha sigma^2 / m of the way towards b's rounding noise over
+# sigma; the few steps of a solve leave that negligible at 1e7 (as the dense path's
+# dropped row), no longer at 1e8. Scaling alpha per row group cannot help: the row
+# is one of a group of full-size rows. (Starting a solve from the previous stage's
+# solution accumulates the same drift over the run: measured, it breaks Bricard.)
+cdef double RHO = 1e7
+# Row scale floor within an element, as the dense path's (fccgen.rank.ROW_FLOOR).
+cdef double ROW_FLOOR = 1e-4
+# An LDL^T pivot D_k at or below this fraction of A_kk counts as zero.
+cdef double PIVOT_TOL = 64 * 2.220446049250313e-16
+
+
+cdef void *alloc_zeroed(size_t n, size_t size) except NULL:
+    """calloc of at least one item, MemoryError when it fails."""
+    cdef void *p = calloc(n if n > 0 else 1, size)
+    if p == NULL:
+        raise MemoryError("cannot allocate the sparse solve's work arrays")
+    return p
+
+
+def element_structure(Assembler asm):
+    """(q_ptr, q_idx, couples) of the assembler's elements: couples[e] is True when
+    element e has a mass matrix or constraint rows (it adds a block to A)."""
+    cdef int e
+    q_ptr = np.array([asm.qptr[e] for e in range(asm.n_el + 1)], dtype=np.intc)
+    q_idx = np.array([asm.qidx[e] for e in range(asm.qptr[asm.n_el])], dtype=np.intc)
+    couples = np.array([asm.cls[e].mass_matrix != NULL or asm.cls[e].n_g > 0
+                        for e in range(asm.n_el)], dtype=bool)
+    return q_ptr, q_idx, couples
+
+
+cdef class SparseBlocks(Engine):
+    """The element blocks, the products with them and the factorisation of A (module
+    docstring). Call :meth:`set_structure` (fccgen.runtime.sparsity) before use."""
+
+    def __cinit__(self, Assembler asm, *args, **kwargs):
+        cdef int e, nq, total_m = 0, total_b = 0, local = 1
+        cdef const fcc_element_class *k
+        self.mptr = <int *>alloc_zeroed(asm.n_el + 1, sizeof(int))
+        self.bptr = <int *>alloc_zeroed(asm.n_el + 1, sizeof(int))
+        for e in range(asm.n_el):
+            k = asm.cls[e]
+            nq = k.n_q
+            local = max(local, nq)
+            total_m += nq * nq if k.mass_matrix != NULL else 0
+            total_b += k.n_g * nq
+            self.mptr[e + 1] = total_m
+            self.bptr[e + 1] = total_b
+        self.Mblk = <double *>alloc_zeroed(total_m, sizeof(double))
+        self.Bblk = <double *>alloc_zeroed(total_b, sizeof(double))
+        self.lq = <double *>alloc_zeroed(local, sizeof(double))
+        self.ly = <double *>alloc_zeroed(local, sizeof(double))
+        self.alpha = <double *>alloc_zeroed(asm.n_g, sizeof(double))
+        self.rnorm = <double *>alloc_zeroed(asm.n_g, sizeof(double))
+        self.t = <double *>alloc_zeroed(asm.n_q, sizeof(double))
+
+    def __dealloc__(self):
+        free(self.mptr); free(self.bptr); free(self.Mblk); free(self.Bblk); free(self.lq)
+        free(self.ly); free(self.alpha); free(self.rnorm); free(self.t)
+        free(self.perm); free(self.Ap); free(self.Ai); free(self.Ax); free(self.emap_ptr)
+        free(self.emap); free(self.Lp); free(self.Li); free(self.Lx); free(self.D)
+        free(self.parent); free(self.Lnz); free(self.flag); free(self.pattern)
+        free(self.Y)
+
+    def set_structure(self, perm, Ap, Ai, emap_ptr, emap):
+        """Take the pattern of A and the scatter maps (fccgen.runtime.sparsity.Structure)
+        and do the symbolic factorisation."""
+        if self.ready:
+            raise RuntimeError("the structure is already set")
+        cdef int[::1] pv = np.ascontiguousarray(perm, dtype=np.intc)
+        cdef int[::1] apv = np.ascontiguousarray(Ap, dtype=np.intc)
+        cdef int[::1] aiv = np.ascontiguousarray(Ai, dtype=np.intc)
+        cdef int[::1] epv = np.ascontiguousarray(emap_ptr, dtype=np.intc)
+        cdef int[::1] ev = np.ascontiguousarray(emap, dtype=np.intc)
+        cdef int n = self.n, i
+        if pv.shape[0] != n or apv.shape[0] != n + 1 or epv.shape[0] != self.asm.n_el + 1:
+            raise ValueError("the structure does not match the engine's sizes")
+        if sorted(np.asarray(pv).tolist()) != list(range(n)):
+            raise ValueError("perm is not a permutation")
+        self.nnz_a = apv[n]
+        self.perm = <int *>alloc_zeroed(n, sizeof(int))
+        self.Ap = <int *>alloc_zeroed(n + 1, sizeof(int))
+        self.Ai = <int *>alloc_zeroed(self.nnz_a, sizeof(int))
+        self.Ax = <double *>alloc_zeroed(self.nnz_a, sizeof(double))
+        self.emap_ptr = <int *>alloc_zeroed(self.asm.n_el + 1, sizeof(int))
+        self.emap = <int *>alloc_zeroed(ev.shape[0], sizeof(int))
+        for i in range(n):
+            self.perm[i] = pv[i]
+        for i in range(n + 1):
+            self.Ap[i] = apv[i]
+        for i in range(self.nnz_a):
+            self.Ai[i] = aiv[i]
+        for i in range(self.asm.n_el + 1):
+            self.emap_ptr[i] = epv[i]
+        for i in range(ev.shape[0]):
+            if not -1 <= ev[i] < self.nnz_a:
+                raise ValueError("scatter map index out of range")
+            self.emap[i] = ev[i]
+        self.Lp = <int *>alloc_zeroed(n + 1, sizeof(int))
+        self.parent = <int *>alloc_zeroed(n, sizeof(int))
+        self.Lnz = <int *>alloc_zeroed(n, sizeof(int))
+        self.flag = <int *>alloc_zeroed(n, sizeof(int))
+        self.pattern = <int *>alloc_zeroed(n, sizeof(int))
+        self.D = <double *>alloc_zeroed(n, sizeof(double))
+        self.Y = <double *>alloc_zeroed(n, sizeof(double))
+        ldl_symbolic(n, self.Ap, self.Ai, self.Lp, self.parent, self.Lnz, self.flag)
+        self.nnz_l = self.Lp[n]
+        self.Li = <int *>alloc_zeroed(self.nnz_l, sizeof(int))
+        self.Lx = <double *>alloc_zeroed(self.nnz_l, sizeof(double))
+        self.ready = True
+
+    @property
+    def nonzeros(self):
+        """(nonzeros of upper(A), nonzeros of the strict lower part of L)."""
+        return self.nnz_a, self.nnz_l
+
+    # -- element blocks ------------------------------------------------------------
+    cdef void assemble_mb(self, const double *q, int flags) noexcept nogil:
+        """The mass (ASM_M) and Jacobian (ASM_B) blocks of every element at q."""
+        cdef int e, i, nq
+        cdef const fcc_element_class *k
+        cdef const int *idx
+        cdef const double *p
+        for e in range(self.asm.n_el):
+            k = self.asm.cls[e]
+            nq = k.n_q
+            idx = self.asm.qidx + self.asm.qptr[e]
+            p = self.asm.params + self.asm.pptr[e]
+            if not ((flags & ASM_M and k.mass_matrix != NULL)
+                    or (flags & ASM_B and k.constraint_jacobian != NULL)):
+                continue
+            for i in range(nq):
+                self.lq[i] = q[idx[i]]
+            if flags & ASM_M and k.mass_matrix != NULL:
+                k.mass_matrix(self.lq, p, self.Mblk + self.mptr[e])
+            if flags & ASM_B and k.constraint_jacobian != NULL:
+                k.constraint_jacobian(self.lq, p, self.Bblk + self.bptr[e])
+
+    cdef void mult_m(self, const double *x, double *y, bint add) noexcept nogil:
+        """y (+)= M x."""
+        cdef int e, i, j, nq
+        cdef const int *idx
+        cdef const double *blk
+        cdef double acc
+        if not add:
+            memset(y, 0, <size_t>self.n * sizeof(double))
+        for e in range(self.asm.n_el):
+            if self.mptr[e + 1] == self.mptr[e]:
+                continue
+            nq = self.asm.cls[e].n_q
+            idx = self.asm.qidx + self.asm.qptr[e]
+            blk = self.Mblk + self.mptr[e]
+            for i in range(nq):
+                acc = 0.0
+                for j in range(nq):
+                    acc += blk[i * nq + j] * x[idx[j]]
+                y[idx[i]] += acc
+
+    cdef void mult_b(self, const double *x, double *y) noexcept nogil:
+        """y = B x (m rows)."""
+        cdef int e, r, j, nq, row
+        cdef const int *idx
+        cdef const double *blk
+        cdef double acc
+        for e in range(self.asm.n_el):
+            nq = self.asm.cls[e].n_q
+            idx = self.asm.qidx + self.asm.qptr[e]
+            blk = self.Bblk + self.bptr[e]
+            row = self.asm.gptr[e]
+            for r in range(self.asm.cls[e].n_g):
+                acc = 0.0
+                for j in range(nq):
+                    acc += blk[r * nq + j] * x[idx[j]]
+                y[row + r] = acc
+
+    cdef void mult_bt(self, const double *z, const double *s, double *y) noexcept nogil:
+        """y += B^T diag(s) z (s NULL: the identity)."""
+        cdef int e, r, j, nq, row
+        cdef const int *idx
+        cdef const double *blk
+        cdef double zr
+        for e in range(self.asm.n_el):
+            nq = self.asm.cls[e].n_q
+            idx = self.asm.qidx + self.asm.qptr[e]
+            blk = self.Bblk + self.bptr[e]
+            row = self.asm.gptr[e]
+            for r in range(self.asm.cls[e].n_g):
+                zr = z[row + r] if s == NULL else z[row + r] * s[row + r]
+                if zr == 0.0:
+                    continue
+                for j in range(nq):
+                    y[idx[j]] += blk[r * nq + j] * zr
+
+    cdef double row_norms(self) noexcept nogil:
+        """rnorm_k = ||B_k||; alpha_k = RHO m_ref / s_k^2 with s_k = max(||B_k||,
+        ROW_FLOOR * the largest row norm of its element), 0 for a zero row; m_ref = the
+        largest diagonal entry of M. Returns m_ref."""
+        cdef int e, r, j, nq, row, ng
+        cdef double acc, largest, s, mref = 0.0
+        cdef const double *blk
+        for e in range(self.asm.n_el):
+            if self.mptr[e + 1] == self.mptr[e]:
+                continue
+            nq = self.asm.cls[e].n_q
+            blk = self.Mblk + self.mptr[e]
+            for j in range(nq):
+                if blk[j * nq + j] > mref:
+                    mref = blk[j * nq + j]
+        if not mref > 0.0:
+            mref = 1.0
+        for e in range(self.asm.n_el):
+            nq = self.asm.cls[e].n_q
+            ng = self.asm.cls[e].n_g
+            blk = self.Bblk + self.bptr[e]
+            row = self.asm.gptr[e]
+            largest = 0.0
+            for r in range(ng):
+                acc = 0.0
+                for j in range(nq):
+                    acc += blk[r * nq + j] * blk[r * nq + j]
+                self.rnorm[row + r] = sqrt(acc)
+                if self.rnorm[row + r] > largest:
+                    largest = self.rnorm[row + r]
+            for r in range(ng):
+                s = self.rnorm[row + r]
+                if s < ROW_FLOOR * largest:
+                    s = ROW_FLOOR * largest
+                self.alpha[row + r] = RHO * mref / (s * s) if s > 0.0 else 0.0
+        return mref
+
+    cdef double scaled_residual_sparse(self) noexcept nogil:
+        """max_k |g_k| / ||B_k|| (|g_k| for a zero row; NaN if a g_k is not), with the
+        assembled g and the row norms of the Jacobian blocks."""
+        cdef int k
+        cdef double worst = 0.0, val
+        self.row_norms()
+        for k in range(self.m):
+            val = fabs(self.asm.g[k])
+            if self.rnorm[k] > 0.0:
+                val /= self.rnorm[k]
+            if not val <= worst:
+                worst = val
+                if val != val:
+                    return val
+        return worst
+
+    # -- factorisation and solve ----------------------------------------------------
+    cdef int factor(self, const double *q) noexcept nogil:
+        """A = M + B^T diag(alpha) B from the blocks, and its LDL^T."""
+        cdef int e, a, b, r, nq, ng, pos, info, bad
+        cdef const int *em
+        cdef const double *mb
+        cdef const double *bb
+        cdef const double *al
+        cdef double val
+        self.factor_valid = False
+        if not self.ready:
+            return self.fail(ERR_LAPACK, -1, 0)
+        self.row_norms()
+        memset(self.Ax, 0, <size_t>self.nnz_a * sizeof(double))
+        for e in range(self.asm.n_el):
+            if self.emap_ptr[e + 1] == self.emap_ptr[e]:
+                continue
+            nq = self.asm.cls[e].n_q
+            ng = self.asm.cls[e].n_g
+            em = self.emap + self.emap_ptr[e]
+            mb = self.Mblk + self.mptr[e] if self.mptr[e + 1] > self.mptr[e] else NULL
+            bb = self.Bblk + self.bptr[e]
+            al = self.alpha + self.asm.gptr[e]
+            for a in range(nq):
+                for b in range(nq):
+                    pos = em[a * nq + b]
+                    if pos < 0:
+                        continue
+                    val = mb[a * nq + b] if mb != NULL else 0.0
+                    for r in range(ng):
+                        val += bb[r * nq + a] * al[r] * bb[r * nq + b]
+                    self.Ax[pos] += val
+        self.n_factor += 1
+        info = ldl_numeric(self.n, self.Ap, self.Ai, self.Ax, self.Lp, self.parent,
+                           self.Lnz, self.Li, self.Lx, self.D, self.Y, self.pattern,
+                           self.flag, PIVOT_TOL)
+        if info == 0:
+            return 0
+        bad = self.nonfinite_input(q, NULL, ASM_M | ASM_B)
+        if bad:
+            return self.fail(ERR_NONFINITE_INPUT, 0, bad)
+        return self.fail(ERR_SINGULAR, info, 0)
+
+    cdef void solve_a(self, double *x) noexcept nogil:
+        """x <- A^{-1} x through the permutation."""
+        cdef int i, n = self.n
+        for i in range(n):
+            self.t[i] = x[self.perm[i]]
+        ldl_solve(n, self.Lp, self.Li, self.Lx, self.D, self.t)
+        for i in range(n):
+            x[self.perm[i]] = self.t[i]
+
+    # -- the Engine's building block that reads the blocks ----------------------------
+    cdef int nonfinite_input(self, const double *q, const double *v, int flags) noexcept nogil:
+        cdef int n = self.n, m = self.m
+        if q != NULL and not finite(q, n): return 1
+        if v != NULL and not finite(v, n): return 2
+        if flags & ASM_M and not finite(self.Mblk, self.mptr[self.asm.n_el]): return 3
+        if flags & ASM_H and not finite(self.asm.h, n): return 4
+        if flags & ASM_F and not finite(self.asm.f, n): return 5
+        if flags & ASM_B and not finite(self.Bblk, self.bptr[self.asm.n_el]): return 6
+        if flags & ASM_C and not finite(self.asm.c, m): return 7
+        if flags & ASM_G and not finite(self.asm.g, m): return 8
+        return 0
+
