@@ -8,7 +8,7 @@ blocks and the LDL^T of A = M + B^T diag(alpha) B of _sparse_blocks.pyx:
 * accelerations: M a + B^T lambda = f - h, B a = -c (Baumgarte:
   B a = -c - 2 alpha g' - beta^2 g, formed in :meth:`SparseEngine.baumgarte_targets`);
 * velocity projection: M w + B^T mu = M v, B w = b with b from
-  :meth:`SparseEngine.velocity_targets` (zero: no time-dependent constraints);
+  :meth:`SparseEngine.velocity_targets` (-dg/dt of time-dependent constraints);
 * each Newton step of the position projection: M dq + B^T mu = 0, B dq = -g.
 
 Solves whose constraint residual did not converge (a singular position: b outside the
@@ -18,7 +18,7 @@ from libc.math cimport isfinite
 from libc.string cimport memcpy, memset
 
 from ._al_refine cimport ALRefinement
-from ._assemble cimport ASM_B, ASM_C, ASM_F, ASM_G, ASM_H, ASM_M
+from ._assemble cimport ASM_B, ASM_C, ASM_F, ASM_G, ASM_H, ASM_M, ASM_T
 from ._engine cimport (ERR_DIVERGED, ERR_NONFINITE_INPUT, ERR_NONFINITE_RESULT, Engine,
                        finite)
 
@@ -70,7 +70,8 @@ cdef class SparseEngine(ALRefinement):
     cdef int baumgarte_at(self, const double *q, const double *v, double *a,
                           double alpha, double beta) noexcept nogil:
         cdef int i, flags = ASM_M | ASM_B | ASM_H | ASM_F | ASM_C | ASM_G
-        self.asm.assemble(q, v, ASM_H | ASM_F | ASM_C | ASM_G)
+        self.asm.assemble(q, v, ASM_H | ASM_F | ASM_C | ASM_G
+                          | (ASM_T if self.asm.n_time else 0))
         self.assemble_mb(q, ASM_M | ASM_B)
         if self.factor(q) < 0:
             return -1
@@ -83,9 +84,13 @@ cdef class SparseEngine(ALRefinement):
     cdef void baumgarte_targets(self, const double *v, double alpha, double beta,
                                 double *b) noexcept nogil:
         """b = -c - 2 alpha g' - beta^2 g, the right-hand side of B a = b in
-        Baumgarte's stabilisation, with g' = B v (assembled c and g, blocks of B)."""
+        Baumgarte's stabilisation, with g' = B v + dg/dt (assembled c, g and, for
+        time-dependent constraints, dg/dt; blocks of B)."""
         cdef int i
         self.mult_b(v, b)
+        if self.asm.n_time:
+            for i in range(self.m):
+                b[i] += self.asm.gt[i]
         for i in range(self.m):
             b[i] = -self.asm.c[i] - 2.0 * alpha * b[i] - beta * beta * self.asm.g[i]
 
@@ -142,9 +147,15 @@ cdef class SparseEngine(ALRefinement):
         return 0
 
     cdef void velocity_targets(self, const double *q, double *b) noexcept nogil:
-        """b of the velocity projection's B w = b: zero (the constraints do not
-        depend on time)."""
-        memset(b, 0, <size_t>self.m * sizeof(double))
+        """b of the velocity projection's B w = b: -dg/dt at the time set last
+        (zero when no constraint depends on time)."""
+        cdef int i
+        if not self.asm.n_time:
+            memset(b, 0, <size_t>self.m * sizeof(double))
+            return
+        self.asm.assemble(q, NULL, ASM_T)
+        for i in range(self.m):
+            b[i] = -self.asm.gt[i]
 
     cdef void watch_kinetic_energy(self, const double *v, const double *w) noexcept nogil:
         """As Engine.watch_kinetic_energy, with M v from the blocks."""

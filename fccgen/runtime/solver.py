@@ -88,12 +88,9 @@ def time_slots(plan) -> np.ndarray:
 
 
 def dense_only_reason(plan) -> str:
-    """What in the model only the dense path handles ("" if nothing): the sparse
-    engine's projections and Baumgarte terms hold B q' = 0, while a driven (rheonomic)
-    model needs B q' = -dg/dt; lock and bounce rows of events are solved through the
-    dense path's factorisation (fccgen/runtime/_events.pyx)."""
-    if driver_rows(plan):
-        return "drivers (time-dependent constraints)"
+    """What in the model only the dense path handles ("" if nothing): the lock and
+    bounce rows of events are solved through the dense path's factorisation
+    (fccgen/runtime/_events.pyx)."""
     if plan.model.events:
         return "events (lock and bounce rows)"
     return ""
