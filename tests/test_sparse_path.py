@@ -82,8 +82,11 @@ def test_one_second_runs_agree_with_the_dense_path(compiled, name):
     dense, sparse = pair
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RunWarning)
-        rd = dense.simulate(t_end=1.0, dt=1e-3, method="rk4")
-        rs = sparse.simulate(t_end=1.0, dt=1e-3, method="rk4")
+        # reactions off: they are post-processing of the recorded states by the same
+        # code on both paths, and a reaction component that is zero in truth carries
+        # the rounding of the model's largest forces (1e6 N in deployable_joints)
+        rd = dense.simulate(t_end=1.0, dt=1e-3, method="rk4", reactions=False)
+        rs = sparse.simulate(t_end=1.0, dt=1e-3, method="rk4", reactions=False)
     for column in rd.columns:
         a, b = rd[column], rs[column]
         if column == "constraint_error":      # a residual: rounding of the state's size
