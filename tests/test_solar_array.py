@@ -25,12 +25,24 @@ def array(compiled):
     return solver, solver.simulate(t_end=3.0, dt=1e-3, method="rk4")
 
 
+def start_series(plan):
+    """The model file's initial positions as a one-record series (body frames)."""
+    columns = {}
+    for i, (n, _) in enumerate(plan.triples):
+        for j, k in enumerate("xyz"):
+            columns[f"{n}.{k}"] = np.array([plan.q0[3 * i + j]])
+            columns[f"{n}.v{k}"] = np.zeros(1)
+    return _Series(plan, columns, 1)
+
+
 def momenta(solver, result):
     """Per record: linear momentum P = sum m_i v_i and angular momentum about the
     centre of mass L = sum m_i (c_i - c) x (v_i - v) + R_i I_i R_i^T w_i, with
     v_i = v_p + w_i x (c_i - p) from a point p of the body, each body's
-    inertia turned by R(t) R(0)^T (its frame from its points and vectors)."""
+    inertia turned by R(t) R0^T, R0 its frame in the model file's initial positions
+    (frames from the body's points and vectors)."""
     series = _Series(solver.plan, result.columns, len(result.t))
+    start = start_series(solver.plan)
     c = {b: np.column_stack([result[f"{b}.c{k}"] for k in "xyz"]) for b in MASS}
     w = {b: np.column_stack([result[f"{b}.w{k}"] for k in "xyz"]) for b in MASS}
     point = {n: np.column_stack([result[f"{n}.{k}"] for k in "xyz"]) for n in REF.values()}
@@ -43,7 +55,7 @@ def momenta(solver, result):
     L = np.zeros_like(cg)
     for b in MASS:
         R = series.rotation(b)
-        turn = R @ R[0].T
+        turn = R @ start.rotation(b)[0].T
         Iw = np.einsum("nij,jk,nlk,nl->ni", turn, INERTIA[b], turn, w[b])
         L += MASS[b] * np.cross(c[b] - cg, v[b] - vg) + Iw
     return P, L
