@@ -15,12 +15,13 @@ independent of the event machinery.
   the free rigid body turns with L fixed in space: dR/dt = [w] R, w = (R I0 R^T)^-1 L,
   integrated by SciPy's DOP853 to 1e-13.
 
-Event times: the hand phases take the one-call run's located t1 and t2 (the same
-times are found to 1e-12 s by either, as the first test of tests/test_solar_array.py
-shows by the held angles) and the same step grid: phase 1 lands on t1 by a shortened
-last step, exactly as the one-call run's re-integrated partial step; phase 2 first
-takes one step to the next grid point, then steps of dt, as the one-call run does
-after an event."""
+Event times: the hand phases switch at the one-call run's located times t1 and t2,
+and check them: the event-free phase 1 reaches P's latch angle pi at t1, phase 2
+reaches R's pi/2 at t2, each to 1e-10 rad (the location tolerance, 1e-12 s, times
+rates of ~8 rad/s, plus RK4's error). Both take the same steps: phase 1 lands on t1
+by a shortened last step, as the one-call run's re-integrated partial step does;
+phase 2 first takes one step to the next grid point, then steps of dt, as the
+one-call run does after an event."""
 from __future__ import annotations
 
 import copy
@@ -127,8 +128,8 @@ def to_welded(solver, welded, q, v):
 
 
 def run_to(solver, q, v, t_from, t_to):
-    """From grid-aligned t_from: one step to the next multiple of DT if t_from is off
-    the grid, then steps of DT, the last one shortened to land on t_to."""
+    """From t_from: one step to the next multiple of DT if t_from is off the grid,
+    then steps of DT, the last one shortened to land on t_to."""
     k = np.ceil(t_from / DT - 1e-9)
     first = min(k * DT, t_to) - t_from
     if first > 1e-14:
@@ -194,6 +195,7 @@ def test_deployment_equals_the_run_by_hand_in_phases(compiled, welded):
     plain._event_set = lambda tol, rest: None               # phase 1: no events
     phase1 = plain.simulate(t_end=t1, dt=DT, method="rk4")
     q, v = state(plain, phase1)
+    assert abs(phase1["P.angle"][-1] - np.pi) <= 1e-10
 
     names = [n for n, _ in solver.plan.triples]
     at = {n: 3 * names.index(n) for n in ("R", "P", "panel2_center", "P_axis")}
@@ -211,6 +213,7 @@ def test_deployment_equals_the_run_by_hand_in_phases(compiled, welded):
     assert abs(v @ M @ v / 2 - row["kinetic_energy_after"]) <= 1e-9 * before
     q, v = to_welded(solver, welded, q, v)
     q, v, phase2 = run_to(welded, q, v, t1, t2)
+    assert abs(phase2["R.angle"][-1] - np.pi / 2) <= 1e-10
 
     t_rigid = t_end - t2                                     # impact 2, phase 3
     centres, w_end = rigid_motion(welded, phase2, t_rigid)
