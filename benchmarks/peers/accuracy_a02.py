@@ -62,9 +62,13 @@ class Track:
         return self.columns[name]
 
 
+FCCGEN_SOLVER = "auto"      # fccgen's linear_solver (--fccgen-solver)
+
+
 def run_fccgen(n, setting):
     import fccgen_models
-    model = fccgen_models.make("a02", n, setting.get("dt", 1e-3))
+    model = fccgen_models.make("a02", n, setting.get("dt", 1e-3),
+                               linear_solver=FCCGEN_SOLVER)
     options = {k: v for k, v in setting.items() if k != "dt"}
     dt = setting.get("dt")
 
@@ -155,7 +159,11 @@ def main(argv=None) -> int:
     ap.add_argument("--n", type=int, default=40, help="loops (the reference is N = 40)")
     ap.add_argument("--reps", type=int, default=3)
     ap.add_argument("--out-dir", type=Path, default=ROOT / "docs" / "performance")
+    ap.add_argument("--fccgen-solver", choices=("auto", "dense", "sparse"), default="auto",
+                    help="fccgen's linear_solver option (auto: sparse from 40 coordinates)")
     args = ap.parse_args(argv)
+    global FCCGEN_SOLVER
+    FCCGEN_SOLVER = args.fccgen_solver
     start = time.perf_counter()
 
     def log(message):
