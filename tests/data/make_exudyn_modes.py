@@ -52,7 +52,7 @@ def build(mbs, model):
     vecs = {k: np.array(v, float) for k, v in model["vectors"].items()}
     ground = mbs.AddObject(ObjectGround())
     previous = mbs.AddMarker(MarkerBodyRigid(bodyNumber=ground, localPosition=[0, 0, 0]))
-    on_body = {}                     # point name -> (body, centre) of the last bar holding it
+    on_body = {}                     # point name -> (body, centre) of the last bar on it
     for body in model["bodies"].values():
         a, b = (pts[p] for p in body["points"])
         R = body_frame(a, b, vecs[body["vector"]])
@@ -64,7 +64,8 @@ def build(mbs, model):
         obj = mbs.AddObject(ObjectRigidBody(mass=inertia.mass,
                                             inertia=inertia.GetInertia6D(),
                                             nodeNumber=node))
-        here = mbs.AddMarker(MarkerBodyRigid(bodyNumber=obj, localPosition=list(a - center)))
+        here = mbs.AddMarker(MarkerBodyRigid(bodyNumber=obj,
+                                             localPosition=list(a - center)))
         mbs.AddObject(ObjectJointSpherical(markerNumbers=[previous, here]))
         previous = mbs.AddMarker(MarkerBodyRigid(bodyNumber=obj,
                                                  localPosition=list(b - center)))
