@@ -25,7 +25,7 @@ OUT = Path(__file__).resolve().parent
 
 
 def point_xy(names, q, point):
-    """(x, y) of a point: a fixed one from the model file's table, else from q."""
+    """(x, y) of a moving point in the coordinates q (names: P.x, P.y, ...)."""
     return q[names.index(f"{point}.x")], q[names.index(f"{point}.y")]
 
 
