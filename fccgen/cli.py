@@ -6,7 +6,7 @@
     fccgen check MODEL.yaml           validate and report structure
     fccgen plot RESULT --columns ...  time histories of result columns
     fccgen animate MODEL.yaml --out F.html   the motion in 3-D, one offline page
-    fccgen sweep MODEL.yaml --set K=V1,V2 --out T.csv   many runs on Dask
+    fccgen sweep MODEL.yaml --set K=V1,V2 --out T.csv   many runs on Dask (.parquet too)
     fccgen statics MODEL.yaml         static equilibrium, reactions, stability
     fccgen modes MODEL.yaml           natural frequencies about the equilibrium
     fccgen inverse MODEL.yaml         driver forces and reactions along the drivers
@@ -205,7 +205,7 @@ def _viz_sweep_parsers(sub, common) -> None:
     sw.add_argument("--set", action="append", default=[], metavar="KEY=V1,V2,...",
                     required=True, help="numbers to try (repeatable: every combination "
                     "runs), e.g. bodies.arm.mass=1,2 or simulate.dt=1e-3,5e-4")
-    sw.add_argument("--out", required=True, help="the table to write (.csv)")
+    sw.add_argument("--out", required=True, help="the table to write (.csv, or .parquet with pyarrow)")
     sw.add_argument("--scheduler", metavar="ADDRESS", help="a running Dask scheduler, "
                     "e.g. tcp://host:8786 (default: a local cluster)")
     sw.add_argument("--method", help="integration method (default: the model's)")

@@ -92,17 +92,48 @@ class SweepTable:
         return sum(r["status"] != "ok" for r in self.rows)
 
     def save(self, path) -> Path:
-        """Write the table as CSV, header first, numbers in their shortest exact form."""
-        path = Path(path)
+        """Write the table as CSV (header first, numbers in their shortest exact form)
+        or Parquet (``.parquet``: one typed column per name, through pyarrow, the
+        optional extra ``parquet``), atomically."""
+        path = check_table_path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-        with open(tmp, "w", newline="", encoding="utf-8") as fh:
-            w = csv.writer(fh)
-            w.writerow(self.columns)
-            for row in self.rows:
-                w.writerow([_cell(row.get(c)) for c in self.columns])
-        os.replace(tmp, path)
+        try:
+            if path.suffix.lower() == ".parquet":
+                _write_parquet(tmp, self.columns, self.rows)
+            else:
+                with open(tmp, "w", newline="", encoding="utf-8") as fh:
+                    w = csv.writer(fh)
+                    w.writerow(self.columns)
+                    for row in self.rows:
+                        w.writerow([_cell(row.get(c)) for c in self.columns])
+            os.replace(tmp, path)
+        finally:
+            if tmp.exists():
+                tmp.unlink()
         return path
+
+
+def _pyarrow():
+    try:
+        import pyarrow
+        import pyarrow.parquet
+    except ImportError:
+        raise ValueError("a .parquet sweep table needs pyarrow: pip install "
+                         "'fccgen[parquet]' (or write .csv)") from None
+    return pyarrow
+
+
+def _write_parquet(path: Path, columns: list[str], rows: list[dict]) -> None:
+    pa = _pyarrow()
+    data = {}
+    for c in columns:
+        values = [row.get(c) for row in rows]
+        if any(isinstance(x, float) for x in values) and all(
+                x is None or isinstance(x, (int, float)) for x in values):
+            values = [None if x is None else float(x) for x in values]   # one type
+        data[c] = values
+    pa.parquet.write_table(pa.Table.from_pydict(data), str(path))
 
 
 def _cell(value) -> str:
@@ -113,9 +144,11 @@ def _cell(value) -> str:
 
 def check_table_path(path) -> Path:
     path = Path(path)
-    if path.suffix.lower() != ".csv":
-        raise ValueError(f"{path}: a sweep table is written as .csv (got "
+    if path.suffix.lower() not in (".csv", ".parquet"):
+        raise ValueError(f"{path}: a sweep table is written as .csv or .parquet (got "
                          f"{path.suffix or 'no suffix'!r})")
+    if path.suffix.lower() == ".parquet":
+        _pyarrow()                        # missing: say so before any run
     if path.is_dir():
         raise ValueError(f"{path} is a folder; give a file name, e.g. {path / 'sweep.csv'}")
     return path
