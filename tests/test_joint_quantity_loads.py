@@ -8,6 +8,7 @@ import pytest
 import sympy
 
 import fccgen
+from fccgen import api
 from fccgen.derive import derive_class
 from fccgen.errors import ModelError
 from fccgen.model.load import load_model_text
@@ -103,7 +104,7 @@ def runs(tmp_path_factory, build_dir):
         path = tmp_path_factory.mktemp(name) / f"{name}.yaml"
         path.write_text(text)
         out[name] = (fccgen.load(path, build_dir).simulate(),
-                     fccgen.load_numeric(path).simulate(t_end=0.1))
+                     fccgen.load_numeric(path).simulate(t_end=0.1), path)
     return out
 
 
@@ -125,10 +126,21 @@ def test_expression_loads_move_as_the_spring_elements(runs):
 def test_expression_loads_compiled_and_numeric_agree(runs):
     """0.1 s of the expression model in both versions: the same method on the same
     equations, agreement to rounding (1e-12 rad, m)."""
-    rc, rn = runs["expressions"]
+    rc, rn, _ = runs["expressions"]
     for col in ("O.angle", "S.position"):
         n = len(rn[col])
         assert np.max(np.abs(rc[col][:n] - rn[col])) <= 1e-12, col
+
+
+def test_expression_loads_have_the_spring_elements_tangents(runs, build_dir):
+    """Modes about the static equilibrium use df/dq and df/dq' (the compiled
+    Jacobians): the expression model's frequencies and damping ratios are the spring
+    elements' to 1e-9 relative (the equilibrium is solved to its tolerance, ~1e-12)."""
+    (a, _), (b, _) = (api.modes(runs[n][2], build_dir=build_dir)
+                      for n in ("elements", "expressions"))
+    assert np.allclose(a.frequency_hz, b.frequency_hz, rtol=1e-9, atol=0)
+    assert np.allclose(a.damping_ratio, b.damping_ratio, rtol=1e-9, atol=1e-12)
+    assert np.max(a.damping_ratio) > 0.01                 # the dampers are felt
 
 
 # -- the model file's rules -----------------------------------------------------------
