@@ -22,6 +22,9 @@ F, T = False, True
 # A.ri, A.rj, B.ri, B.rj, u)
 POSITION = ElementClass("force_q", (), (F, T, F, F, F, T), frozenset({"b2"}),
                         "S:position|-3*S.position - 0.2*S.speed;t*S.speed**2;1")
+# max and min are written with abs for the derivation (fccgen.derive.joint_loads)
+MINMAX = ElementClass("force_q", (), (F, T, F, F, F, T), frozenset(),
+                      "S:position|max(S.position, 0.1*t, S.speed);min(S.speed, 1);1")
 ANGLE = ElementClass("torque_q", (), (T, F, F, T, T, F, F, F), frozenset(),
                      "A:angle|0;-2*A.angle - 0.3*A.rate;sin(t)*A.rate**2")
 BOTH = ElementClass("force_q", (), (F, F, F, F, F, F, T, F, F, T, T), frozenset(),
@@ -35,19 +38,20 @@ def random_case(cls, seed):
     return rng.normal(size=cls.n_q), rng.normal(size=cls.n_q), p
 
 
-def test_sympy_and_numpy_kernels_agree():
+@pytest.mark.parametrize("cls", [POSITION, MINMAX], ids=["position", "min-max"])
+def test_sympy_and_numpy_kernels_agree(cls):
     """SymPy's kernels of a position-reading force against the NumPy version: 1e-12
     of each kernel's largest entry (rounding of sums of a few terms). The
     angle-reading classes are compared compiled against numeric in the runs below."""
-    d = derive_class(POSITION)
+    d = derive_class(cls)
     for seed in range(3):
-        q, v, p = random_case(POSITION, seed)
+        q, v, p = random_case(cls, seed)
         for name, m in d.kernels.items():
             if m is None:
                 continue
             got = np.array(sympy.lambdify((d.q, d.v, d.p), list(m), cse=True)(q, v, p),
                            float)
-            want = element_kernel(POSITION, name, q, v, p)
+            want = element_kernel(cls, name, q, v, p)
             assert np.max(np.abs(got - want)) <= 1e-12 * max(1.0, np.max(np.abs(want))), \
                 name
 

@@ -75,9 +75,23 @@ def components(s: ClassSymbols) -> tuple[sympy.Matrix, dict]:
             symbols[f"{joint}.{name}"] = sym
             values[sym] = expr
     text = s.cls.function.split("|", 1)[1]
-    return sympy.Matrix([parse_expression(x, symbols, source="<load class>", line=None,
-                                          item=s.cls.name).xreplace(values)
-                         for x in text.split(";")]), inter
+    return sympy.Matrix([_without_min_max(parse_expression(
+        x, symbols, source="<load class>", line=None, item=s.cls.name)).xreplace(values)
+        for x in text.split(";")]), inter
+
+
+def _without_min_max(e: sympy.Expr) -> sympy.Expr:
+    """max(a, b) = (a + b + |a - b|)/2, min(a, b) = (a + b - |a - b|)/2, folded over
+    more arguments: the same values, but SymPy's Max and Min compare their arguments
+    when rebuilt, which takes very long once they are polynomials of q."""
+    def fold(sign):
+        def pair(*args):
+            out = args[0]
+            for a in args[1:]:
+                out = (out + a + sign * sympy.Abs(out - a)) / 2
+            return out
+        return pair
+    return e.replace(sympy.Max, fold(1)).replace(sympy.Min, fold(-1))
 
 
 def _chained(s: ClassSymbols, f: list, inter: dict) -> Outputs:
