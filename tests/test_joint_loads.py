@@ -140,8 +140,8 @@ ERRORS = [
      "", -6.0),
     ("bad expression", ('"0.5*sin(3*t)"', '"__import__(3)"'), "loads[2].value[2]",
      "calls only", "__import__(3)"),
-    ("joint quantity", ('"0.5*sin(3*t)"', '"O.angle"'), "loads[2].value[2]",
-     "unknown name 'O.angle'", "O.angle"),
+    ("joint quantity", ('"0.5*sin(3*t)"', '"O.position"'), "loads[2].value[2]",
+     "O has no quantity 'position'", "O.position"),
     ("linear spring keys", ("length: 0.2", "angle: 0.2"), "loads[1].angle", "unknown key",
      None),
 ]

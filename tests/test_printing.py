@@ -18,8 +18,8 @@ import sympy
 from fccgen.build import build_derived, load_module, structure_hash
 from fccgen.build.cache import runtime_header
 from fccgen.build.compile import BUILD_LOG, compile_args, link_args
-from fccgen.plan.classes import (DRIVER_KINDS, KIND_ENDS, KIND_TRIPLES, TIMED_LOAD_KINDS,
-                                  ElementClass)
+from fccgen.plan.classes import (DRIVER_KINDS, JOINT_LOAD_KINDS, KIND_ENDS, KIND_TRIPLES,
+                                  TIMED_LOAD_KINDS, ElementClass)
 from fccgen.plan.kernels import KERNEL_NAMES, KERNELS
 from fccgen.printing import KernelPrinter, print_class, print_kernel, slot_map
 from fccgen.render import environment, render_sources
@@ -234,9 +234,12 @@ def test_every_element_kind_prints_clean_c(tmp_path):
         ends = tuple("body_point" if k % 2 == 0 else "point"
                      for k in range(len(KIND_ENDS[kind])))
         n_triples = len(KIND_TRIPLES[kind]) + sum(3 if e == "body_point" else 1 for e in ends)
-        fixed = (n_triples > 1,) + (False,) * (n_triples - 1)
         function = ("0.5*sin(3*t) + t**2" if kind in DRIVER_KINDS else
                     "sin(t);t**2;1" if kind in TIMED_LOAD_KINDS else "")
+        if kind in JOINT_LOAD_KINDS:                  # + the angle's 5, the slide's 3
+            n_triples += 8
+            function = "A:angle,S:position|A.rate;S.position*t;A.angle - S.speed"
+        fixed = (n_triples > 1,) + (False,) * (n_triples - 1)
         printed.append(print_class(derive_class(ElementClass(kind, ends, fixed,
                                                              frozenset(), function))))
     assert all(p.n_ops > 0 for p in printed)

@@ -179,6 +179,11 @@ class _Walker:
             return CONSTANTS[name]
         if name in FUNCTIONS:
             raise self.fail(f"{name!r} is a function: call it, as in {name}(t)")
+        owner = name.split(".")[0] + "."
+        has = sorted(n for n in self.symbols if n.startswith(owner))
+        if "." in name and has:
+            raise self.fail(f"{owner[:-1]} has no quantity {name.split('.', 1)[1]!r} "
+                            f"(it has {', '.join(has)})")
         known = sorted(self.symbols) + sorted(CONSTANTS)
         close = difflib.get_close_matches(name, known, n=1)
         hint = f"; did you mean {close[0]!r}?" if close else ""

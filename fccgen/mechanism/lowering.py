@@ -30,6 +30,7 @@ from ..model.types import (GROUND, Angle, Attached, BodyPoint, Distance, DriverR
                            TorsionSpring, Vector)
 from ..plan.geometry import body_rotation
 from .bodies import choose_frame, typical_body
+from .joint_loads import with_joint_uses
 
 # |nu3| (the component of a tied vector along the body's e3) from which its two-row
 # form (components on e1, e2) is used: below it the two rows lose rank as w nears
@@ -152,8 +153,8 @@ class _Lowerer:
         self.driver_rows()
         m = self.model
         pose = {n: (*self.rotations[n], b.center, b.frame) for n, b in m.pose_bodies.items()}
-        loads = [self.joint_load(ld) if isinstance(ld, JointSpring) else ld
-                 for ld in m.loads]
+        loads = [self.joint_load(ld) if isinstance(ld, JointSpring)
+                 else with_joint_uses(self, ld) for ld in m.loads]
         out = replace(m, points=self.points, vectors=self.vectors, bodies=self.bodies,
                       constraints=[*_converted(m.constraints, pose), *self.constraints],
                       loads=_converted(loads, pose),

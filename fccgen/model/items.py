@@ -173,15 +173,18 @@ class ItemReader(Reader):
 
     def load_value(self, node: YNode, item: str) -> tuple[np.ndarray, str]:
         """(value, "") for three numbers; (zeros, "ex;ex;ex") when a component is
-        text: expressions of the time t (restricted grammar, docs/expressions.md)."""
+        text: expressions of the time t and the joints' quantities (restricted grammar,
+        docs/expressions.md)."""
         if not (isinstance(node, YSeq) and any(
                 isinstance(n, YScalar) and isinstance(n.value, str) for n in node.items)):
             return self.vec3(node, item), ""
         import sympy                       # only for models with such loads
 
         from ..mechanism.expressions import parse_expression
+        from .events import joint_quantities
         seq = self.sequence(node, item, 3)
-        t = {"t": sympy.Symbol("t", real=True)}
+        names = ["t", *(q for j in self.joints.values() for q in joint_quantities(j))]
+        t = {n: sympy.Symbol(n, real=True) for n in names}
         parts = []
         for k, n in enumerate(seq.items):
             text = n.value if isinstance(n, YScalar) and isinstance(

@@ -119,6 +119,7 @@ class Force:
     where: Where
     type: str = "force"
     function: str = ""        # "ex;ex;ex": components as expressions of t (value unused)
+    joints: tuple = ()        # set by the lowering: JointUse per joint quantity family
 
 
 @dataclass
@@ -128,6 +129,7 @@ class Torque:
     where: Where
     type: str = "torque"
     function: str = ""        # "ex;ex;ex": components as expressions of t (value unused)
+    joints: tuple = ()        # set by the lowering: JointUse per joint quantity family
 
 
 @dataclass

@@ -13,6 +13,7 @@ from ..model.types import (Angle, Attached, BodyPoint, Distance, DriverRow, Forc
                            TorsionSpring, Where)
 from .classes import END_FOLDABLE, FOLDABLE, ElementClass
 from .geometry import body_frame_numbers, body_rotation, point_coefficients
+from .joint_loads import joint_load_element
 
 
 @dataclass
@@ -253,15 +254,20 @@ def make_plan(model: Model) -> Plan:
             own = {"b1": c[0], "b2": c[1], "b3": c[2]}
             own.update({"t": 0.0} if ld.function else
                        {"Fx": ld.value[0], "Fy": ld.value[1], "Fz": ld.value[2]})
-            el = b.body_load("force_t" if ld.function else "force", label, ld.where,
-                             ld.body, {k2: float(v) for k2, v in own.items()},
-                             ld.function)
+            if ld.joints:
+                el = joint_load_element(b, ld, label, "force_q",
+                                        {k2: float(v) for k2, v in own.items()})
+            else:
+                el = b.body_load("force_t" if ld.function else "force", label,
+                                 ld.where, ld.body, {k2: float(v) for k2, v in own.items()},
+                                 ld.function)
         elif isinstance(ld, Torque):
             own = ({"t": 0.0} if ld.function else
                    {"Tx": ld.value[0], "Ty": ld.value[1], "Tz": ld.value[2]})
-            el = b.body_load("torque_t" if ld.function else "torque", label, ld.where,
-                             ld.body, {k2: float(v) for k2, v in own.items()},
-                             ld.function)
+            el = (joint_load_element(b, ld, label, "torque_q", own) if ld.joints else
+                  b.body_load("torque_t" if ld.function else "torque", label, ld.where,
+                              ld.body, {k2: float(v) for k2, v in own.items()},
+                              ld.function))
         elif isinstance(ld, Spring):
             length = ld.length
             if length is None:

@@ -122,7 +122,20 @@ MECHANISM_KINDS.update(TIMED_LOAD_KINDS)
 # A linear spring-damper along a prismatic or cylindrical joint: s = u.(r_b - r_a) with
 # u the joint axis, force k (s - L) + c s' (docs/elements.md).
 MECHANISM_KINDS["linear_spring"] = (("k", "L", "c"), (), ("u", "ra", "rb"), {"L", "c"}, ())
-FUNCTION_KINDS = (*DRIVER_KINDS, *TIMED_LOAD_KINDS)
+# Loads whose expressions also use joint quantities (docs/elements.md, "Loads of joint
+# quantities"): the timed loads' scalars and triples plus, per joint quantity family the
+# expression names, the triples and scalars of :data:`JOINT_FAMILIES` under the prefix
+# "J.family." (J the joint). ``function`` is "J:family,...|ex;ex;ex".
+JOINT_LOAD_KINDS = {"force_q": "force_t", "torque_q": "torque_t"}
+for _kind, _base in JOINT_LOAD_KINDS.items():
+    MECHANISM_KINDS[_kind] = MECHANISM_KINDS[_base]
+# angle: the two sides' points i, j and the axis u, with lA, lB, cos0, sin0 as the
+# torsion spring's (free angle: the initial one); position: u.(r_b - r_a) - s0.
+JOINT_FAMILIES = {
+    "angle": (("lA", "lB", "cos0", "sin0"), ("A.ri", "A.rj", "B.ri", "B.rj", "u")),
+    "position": (("s0",), ("u", "ra", "rb")),
+}
+FUNCTION_KINDS = (*DRIVER_KINDS, *TIMED_LOAD_KINDS, *JOINT_LOAD_KINDS)
 for _kind, (_scalars, _ends, _triples, _foldable, _rows) in MECHANISM_KINDS.items():
     KIND_SCALARS[_kind] = _scalars
     KIND_ENDS[_kind] = _ends
@@ -157,8 +170,20 @@ class ElementClass:
                              "timed-load classes only, and every one of them has one")
 
     @cached_property
+    def joint_families(self) -> tuple[tuple[str, str], ...]:
+        """(joint, family) pairs of a joint-quantity load, from its ``function``."""
+        if self.kind not in JOINT_LOAD_KINDS:
+            return ()
+        header = self.function.split("|", 1)[0]
+        return tuple(tuple(e.split(":")) for e in header.split(","))
+
+    def _family_names(self, which: int) -> list[str]:
+        return [f"{j}.{fam}.{n}" for j, fam in self.joint_families
+                for n in JOINT_FAMILIES[fam][which]]
+
+    @cached_property
     def scalar_names(self) -> tuple[str, ...]:
-        names = list(KIND_SCALARS[self.kind])
+        names = list(KIND_SCALARS[self.kind]) + self._family_names(0)
         for end, end_kind in zip(KIND_ENDS[self.kind], self.ends):
             if end_kind == "body_point":
                 names += [f"{end}.{s}" for s in BODY_POINT_SCALARS]
@@ -166,7 +191,7 @@ class ElementClass:
 
     @cached_property
     def triple_names(self) -> tuple[str, ...]:
-        names = list(KIND_TRIPLES[self.kind])
+        names = list(KIND_TRIPLES[self.kind]) + self._family_names(1)
         for end, end_kind in zip(KIND_ENDS[self.kind], self.ends):
             if end_kind == "body_point":
                 names += [f"{end}.{t}" for t in BODY_TRIPLES]

@@ -27,8 +27,9 @@ class KernelSpec:
 
 
 _LOADED = ("body", "force", "torque", "spring", "torsion_spring", "force_t",
-           "torque_t", "linear_spring")                               # applied forces
-_DAMPED = ("spring", "torsion_spring", "linear_spring")   # forces that read speeds
+           "torque_t", "linear_spring", "force_q", "torque_q")        # applied forces
+_DAMPED = ("spring", "torsion_spring", "linear_spring",   # forces that read speeds
+           "force_q", "torque_q")
 
 
 def _body_only(n: int):

@@ -1,0 +1,90 @@
+"""Loads whose expressions use joint quantities (docs/elements.md, "Loads of joint
+quantities"): which joints a force or torque reads, and the triples that measure them.
+
+A load ``{type: torque, body: B, value: ["-2*A.angle - 0.1*A.rate", ...]}`` reads the
+joint A's angle family (angle and rate); ``S.position`` and ``S.speed`` read the
+position family. Per family the lowering names the triples the element class uses:
+
+* angle: the axis ``J_axis`` and two points (i, j) per side, whose directions
+  p = r_ij - (r_ij . u) u perpendicular to the axis measure the angle exactly as the
+  torsion spring does (ground: two fixed points ``J_load0`` on the axis and
+  ``J_load1`` off it);
+* position: ``J_axis``, ``J_a``, ``J_b`` as the linear spring-damper.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..model.types import GROUND, Force, Point, Torque
+from .joints import perpendiculars
+
+FAMILY = {"angle": "angle", "rate": "angle", "position": "position", "speed": "position"}
+
+
+@dataclass(frozen=True)
+class JointUse:
+    """One joint quantity family a load reads, with the model triples measuring it
+    (angle: A.ri, A.rj, B.ri, B.rj, u; position: u, r_a, r_b)."""
+    joint: str
+    family: str
+    triples: tuple[str, ...]
+
+
+def used_families(function: str, joint_names) -> list[tuple[str, str]]:
+    """(joint, family) pairs named in ``function`` ("ex;ex;ex", checked by the
+    grammar when the model was loaded), in order of first use; read again by the
+    grammar over every joint quantity, never evaluated."""
+    import sympy
+
+    from .expressions import parse_expression
+    names = {"t"} | {f"{j}.{q}" for j in joint_names for q in FAMILY}
+    symbols = {n: sympy.Symbol(n, real=True) for n in names}
+    out = []
+    for part in function.split(";"):
+        e = parse_expression(part, symbols, source="<load>", line=None, item="value")
+        for s in sorted(e.free_symbols, key=str):
+            if s.name == "t":
+                continue
+            joint, quantity = s.name.rsplit(".", 1)
+            pair = (joint, FAMILY[quantity])
+            if pair not in out:
+                out.append(pair)
+    return out
+
+
+def with_joint_uses(lowerer, ld):
+    """``ld`` (a Force or Torque) with its JointUse list set; other loads unchanged."""
+    if not isinstance(ld, (Force, Torque)) or not ld.function:
+        return ld
+    pairs = used_families(ld.function, lowerer.by_joint)
+    if not pairs:
+        return ld
+    uses = []
+    for joint, family in pairs:
+        j = lowerer.by_joint[joint].joint
+        if family == "position":
+            triples = (f"{j.name}_axis", f"{j.name}_a", f"{j.name}_b")
+        else:
+            sides = tuple(_side(lowerer, j, body) for body in j.bodies)
+            triples = (*sides[0], *sides[1], f"{j.name}_axis")
+        uses.append(JointUse(joint, family, triples))
+    return replace(ld, joints=tuple(uses))
+
+
+def _side(lowerer, j, body: str) -> tuple[str, str]:
+    """Two points of ``body`` whose difference is not along the joint axis."""
+    if body != GROUND:
+        if body in lowerer.frames:
+            return lowerer.frames[body][:2]
+        return (lowerer.bodies[body].i, lowerer.bodies[body].j)
+    names = (f"{j.name}_load0", f"{j.name}_load1")
+    if names[0] not in lowerer.points:
+        at = (j.at[0], j.at[0] + perpendiculars(j.axes[0])[0])
+        for name, value in zip(names, at):
+            if name in lowerer.taken or name in lowerer.points:
+                raise lowerer.clash(j.where.line, f"joints.{j.name}", name,
+                                    "a load reading this joint's angle")
+            lowerer.points[name] = Point(name, np.asarray(value, float), True, j.where)
+    return names
