@@ -205,7 +205,8 @@ def _viz_sweep_parsers(sub, common) -> None:
     sw.add_argument("--set", action="append", default=[], metavar="KEY=V1,V2,...",
                     required=True, help="numbers to try (repeatable: every combination "
                     "runs), e.g. bodies.arm.mass=1,2 or simulate.dt=1e-3,5e-4")
-    sw.add_argument("--out", required=True, help="the table to write (.csv, or .parquet with pyarrow)")
+    sw.add_argument("--out", required=True,
+                    help="the table to write (.csv, or .parquet with pyarrow)")
     sw.add_argument("--scheduler", metavar="ADDRESS", help="a running Dask scheduler, "
                     "e.g. tcp://host:8786 (default: a local cluster)")
     sw.add_argument("--method", help="integration method (default: the model's)")
