@@ -127,6 +127,17 @@ def test_expression_loads_move_as_the_spring_elements(runs):
     assert np.ptp(a["O.angle"]) > 0.3 and np.ptp(a["S.position"]) > 0.1   # it moves
 
 
+def test_reactions_are_refused_not_wrong_with_expression_loads(runs):
+    """The reaction balance takes constant load values: a model whose force or torque
+    is an expression gets no reaction columns and says which load, while the same
+    model with the spring elements gets them."""
+    expr, elem = runs["expressions"][0], runs["elements"][0]
+    assert not expr.info["reactions"]["computed"]
+    reason = expr.info["reactions"]["reason"]
+    assert "loads[0]" in reason and "expression" in reason and "O.angle" in reason
+    assert "O.fx" not in expr.columns and "O.fx" in elem.columns
+
+
 def test_expression_loads_compiled_and_numeric_agree(runs):
     """0.1 s of the expression model in both versions: the same method on the same
     equations, agreement to rounding (1e-12 rad, m)."""

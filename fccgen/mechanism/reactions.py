@@ -95,6 +95,12 @@ def check_attributable(plan) -> None:
         elif not isinstance(ld, (Force, Torque, TorsionSpring, LinearSpring)):
             raise _refuse(ld.where, f"loads[{k}]", "no body balance is known for this "
                           "load type", ld.type)
+        elif isinstance(ld, (Force, Torque)) and ld.function:
+            # its value depends on t or on joint quantities: the balance below takes
+            # constant force and torque values only
+            raise _refuse(ld.where, f"loads[{k}]", "its value is an expression (of t or "
+                          "of joint quantities), which the reaction balance does not "
+                          "evaluate yet", ld.function.split("|")[-1])
 
 
 def _moving(plan, body: str) -> bool:
