@@ -41,7 +41,7 @@ def test_tutorial_notebook_runs(tmp_path, compiled, build_dir, monkeypatch):
     client.execute()
     text = "\n".join(o.get("text", "") for c in nb.cells if c.cell_type == "code"
                      for o in c.get("outputs", []))
-    assert "DOF 1 (decided)" in text                     # the solver's summary, after the run
+    assert "DOF 1 (decided)" in text               # the solver summary, after the run
     assert "2 runs, 0 failed" in text                    # the sweep
     page = work / "docs" / "four_bar.html"
     assert page.stat().st_size > 1_000_000               # plotly.js is inlined (~3 MB)
