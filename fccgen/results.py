@@ -75,6 +75,16 @@ class Result:
     def names(self) -> list[str]:
         return ["t", *self.columns]
 
+    def __repr__(self) -> str:
+        """Rows, t range, columns (the first few named), method, events, partial."""
+        from .summary import result_repr
+        return result_repr(self)
+
+    def _repr_html_(self) -> str:
+        """The same summary as a small HTML table, for notebooks."""
+        from .summary import result_html
+        return result_html(self)
+
     def table(self) -> np.ndarray:
         """All columns side by side, ``t`` first: shape (n_out, 1 + n_columns)."""
         return np.column_stack([self.t, *self.columns.values()])

@@ -277,6 +277,12 @@ class NumericSolver:
         return {"rank_tol": self.rank_tol, "position_tol": self.position_tol,
                 "max_newton": self.max_newton}
 
+    def __repr__(self) -> str:
+        """Model, coordinates, constraint equations, DOF if decided, method and the
+        linear solver (NumPy: always the dense solve, no build)."""
+        from ..summary import solver_repr
+        return solver_repr(self, self._rank.rank, "dense (NumPy)", None)
+
     def decide_rank(self, q) -> rank_rule.RankDecision:
         """Decide the rank of B at q (fccgen.rank) and keep it until the next decision,
         as the compiled solver does."""

@@ -372,6 +372,16 @@ class CompiledSolver:
         from .params import with_parameters
         return with_parameters(self, values)
 
+    def __repr__(self) -> str:
+        """Model, coordinates, constraint equations, DOF if decided, method, linear
+        solver path and the build folder of the kernel module."""
+        from pathlib import Path
+        from ..summary import solver_repr
+        file = getattr(self.module, "__file__", None)
+        return solver_repr(self, self._engine.decided_rank,
+                           "sparse" if self.sparse else "dense",
+                           str(Path(file).parent) if file else None)
+
     def __reduce__(self):
         from .params import reduce_solver
         return reduce_solver(self)
