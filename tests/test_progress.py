@@ -7,6 +7,7 @@ import io
 import os
 import pickle
 import sys
+import time
 
 import pytest
 
@@ -127,7 +128,13 @@ def test_the_command_draws_and_clears_a_bar_on_a_terminal(build_dir, tmp_path):
     import subprocess
     import termios
     import threading
-    fccgen.load(DOUBLE, build_dir)                             # built: no compile here
+    solver = fccgen.load(DOUBLE, build_dir)                    # built: no compile here
+    # the run reports progress about every 0.5 s of wall time: make it last about 3 s
+    # on this machine, however fast it is (a fixed length drew no bar on a fast one)
+    start = time.perf_counter()
+    solver.simulate(t_end=10.0, output_dt=1.0)
+    per_second = (time.perf_counter() - start) / 10.0
+    t_end = max(60, int(round(3.0 / per_second)))
     master, slave = os.openpty()
     fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 100, 0, 0))
     chunks = []
@@ -148,7 +155,7 @@ def test_the_command_draws_and_clears_a_bar_on_a_terminal(build_dir, tmp_path):
     try:
         proc = subprocess.Popen(
             [sys.executable, "-m", "fccgen", "simulate", str(DOUBLE), "--build-dir",
-             str(build_dir), "--t-end", "60", "--output-dt", "1"],
+             str(build_dir), "--t-end", str(t_end), "--output-dt", "1"],
             stdout=subprocess.PIPE, stderr=slave, cwd=tmp_path, env=env, text=True)
     finally:
         os.close(slave)
@@ -157,6 +164,6 @@ def test_the_command_draws_and_clears_a_bar_on_a_terminal(build_dir, tmp_path):
     os.close(master)
     screen = b"".join(chunks).decode("utf-8", "replace")
     assert proc.returncode == 0, screen
-    assert "rk4: 60000 steps" in out
+    assert f"rk4: {1000 * t_end} steps" in out                 # dt 1e-3
     assert "simulate:" in screen and "s/s]" in screen, screen
     assert screen.rsplit("\r", 1)[-1].strip() == "", screen
