@@ -21,7 +21,7 @@ from fccgen.model.load import load_model
 from fccgen.numeric import element_kernel
 from fccgen.plan.classes import ElementClass
 
-from test_drivers import random_case
+from kernel_checks import random_case
 
 FOUR_BAR = (EXAMPLES / "four_bar_driven.yaml").read_text()
 ANGLE_LINE = 'angle: "10*t"'

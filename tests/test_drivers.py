@@ -17,7 +17,7 @@ from fccgen.model.load import load_model_text
 from fccgen.numeric import element_kernel
 from fccgen.plan.classes import ElementClass
 
-from test_numeric_kernels import d1
+from kernel_checks import assert_derived_matches_numeric, d1, random_case
 
 F, T = False, True
 FUNCTION = "0.3*sin(2*t) + 0.1*t**2 + 0.2"
@@ -34,32 +34,13 @@ CLASSES = [
 IDS = [f"{c.kind}-{''.join('F' if f else 'm' for f in c.fixed)}" for c in CLASSES]
 
 
-def random_case(cls, seed):
-    """Random q, v, p (p: t first, then the other scalars and the fixed triples'
-    coordinates)."""
-    rng = np.random.default_rng(seed)
-    p = np.concatenate([[rng.uniform(0.0, 2.0)], rng.normal(size=cls.n_p - 1)])
-    for name in cls.zeros:                      # structural zeros are zero
-        p[cls.param_names.index(name)] = 0.0
-    return rng.normal(size=cls.n_q), rng.normal(size=cls.n_q), p
-
-
 @pytest.mark.parametrize("cls", CLASSES, ids=IDS)
 def test_sympy_and_numpy_driver_kernels_agree(cls):
     """SymPy differentiation of g(q, t) against the hand-written chain rule of the
     numeric version, in doubles: 1e-12 of each kernel's largest entry (sums of a few
     terms of size 1)."""
-    d = derive_class(cls)
-    assert d.kernels["constraint_rate"] is not None
-    for seed in range(3):
-        q, v, p = random_case(cls, seed)
-        for name, m in d.kernels.items():
-            if m is None:
-                continue
-            got = np.array(sympy.lambdify((d.q, d.v, d.p), list(m))(q, v, p), float)
-            want = element_kernel(cls, name, q, v, p)
-            assert np.max(np.abs(got - want)) <= 1e-12 * max(1.0, np.max(np.abs(want))), \
-                name
+    assert derive_class(cls).kernels["constraint_rate"] is not None
+    assert_derived_matches_numeric(cls, rtol=1e-12)
 
 
 @pytest.mark.parametrize("cls", CLASSES, ids=IDS)

@@ -12,7 +12,7 @@ from fccgen.numeric import element_kernel
 from fccgen.plan.classes import ElementClass
 from fccgen.runtime._assemble import FLAGS
 
-from test_numeric_kernels import d1, random_case
+from kernel_checks import d1, random_case
 
 F, T = False, True
 CLASSES = [

@@ -8,16 +8,14 @@ import math
 
 import numpy as np
 import pytest
-import sympy
 
 import fccgen
-from fccgen.derive import derive_class
 from fccgen.errors import ModelError
 from fccgen.model.load import load_model_text
-from fccgen.numeric import element_kernel
 from fccgen.plan.classes import ElementClass
 
-from test_numeric_kernels import d1, random_params
+from kernel_checks import (assert_derived_matches_numeric, assert_force_jacobians_match,
+                           random_case)
 
 F, T = False, True
 CLASSES = [
@@ -29,44 +27,18 @@ CLASSES = [
 IDS = ["torque_t", "force_t", "linear_spring", "linear_spring-fixed"]
 
 
-def random_case(cls, seed):
-    rng = np.random.default_rng(seed)
-    p = random_params(cls, rng)
-    if "t" in cls.param_names:
-        p[cls.param_names.index("t")] = rng.uniform(0.0, 2.0)
-    return rng.normal(size=cls.n_q), rng.normal(size=cls.n_q), p
-
-
 @pytest.mark.parametrize("cls", CLASSES, ids=IDS)
 def test_sympy_and_numpy_load_kernels_agree(cls):
     """SymPy's kernels against the NumPy version written by hand: 1e-12 of each
     kernel's largest entry (double rounding of sums of a few terms)."""
-    d = derive_class(cls)
-    for seed in range(3):
-        q, v, p = random_case(cls, seed)
-        for name, m in d.kernels.items():
-            if m is None:
-                continue
-            got = np.array(sympy.lambdify((d.q, d.v, d.p), list(m))(q, v, p), float)
-            want = element_kernel(cls, name, q, v, p)
-            assert np.max(np.abs(got - want)) <= 1e-12 * max(1.0, np.max(np.abs(want))), \
-                name
+    assert_derived_matches_numeric(cls, rtol=1e-12)
 
 
 @pytest.mark.parametrize("cls", CLASSES[2:], ids=IDS[2:])
 def test_linear_spring_jacobians_match_finite_differences(cls):
     """df/dq, df/dq' of the NumPy version against five-point differences (h = 1e-3;
     f is quadratic in q and linear in q': exact up to rounding, checked at 1e-9)."""
-    q, v, p = random_case(cls, 1)
-    n = cls.n_q
-    jq = element_kernel(cls, "force_jacobian_q", q, v, p).reshape(n, n)
-    jv = element_kernel(cls, "force_jacobian_v", q, v, p).reshape(n, n)
-    fq = np.array([d1(lambda x: element_kernel(cls, "applied_forces", x, v, p), q, e)
-                   for e in np.eye(n)]).T
-    fv = np.array([d1(lambda x: element_kernel(cls, "applied_forces", q, x, p), v, e)
-                   for e in np.eye(n)]).T
-    assert np.max(np.abs(jq - fq)) <= 1e-9 * max(1.0, np.max(np.abs(fq)))
-    assert np.max(np.abs(jv - fv)) <= 1e-9 * max(1.0, np.max(np.abs(fv)))
+    assert_force_jacobians_match(cls, *random_case(cls, 1), h=1e-3, rtol=1e-9)
 
 
 # -- dynamics -------------------------------------------------------------------------

@@ -5,17 +5,15 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import sympy
 
 import fccgen
 from fccgen import api
-from fccgen.derive import derive_class
 from fccgen.errors import ModelError
 from fccgen.model.load import load_model_text
-from fccgen.numeric import element_kernel
 from fccgen.plan.classes import ElementClass
 
-from test_numeric_kernels import d1, random_params
+from kernel_checks import (assert_derived_matches_numeric, assert_force_jacobians_match,
+                           random_case)
 
 F, T = False, True
 # body (ri, rj, u), then the joint families' triples (position: u, ra, rb; angle:
@@ -31,29 +29,12 @@ BOTH = ElementClass("force_q", (), (F, F, F, F, F, F, T, F, F, T, T), frozenset(
                     "S:position,C:angle|S.speed*t;exp(-S.position)*C.angle;C.rate")
 
 
-def random_case(cls, seed):
-    rng = np.random.default_rng(seed)
-    p = random_params(cls, rng)
-    p[cls.param_names.index("t")] = rng.uniform(0.0, 2.0)
-    return rng.normal(size=cls.n_q), rng.normal(size=cls.n_q), p
-
-
 @pytest.mark.parametrize("cls", [POSITION, MINMAX], ids=["position", "min-max"])
 def test_sympy_and_numpy_kernels_agree(cls):
     """SymPy's kernels of a position-reading force against the NumPy version: 1e-12
     of each kernel's largest entry (rounding of sums of a few terms). The
     angle-reading classes are compared compiled against numeric in the runs below."""
-    d = derive_class(cls)
-    for seed in range(3):
-        q, v, p = random_case(cls, seed)
-        for name, m in d.kernels.items():
-            if m is None:
-                continue
-            got = np.array(sympy.lambdify((d.q, d.v, d.p), list(m), cse=True)(q, v, p),
-                           float)
-            want = element_kernel(cls, name, q, v, p)
-            assert np.max(np.abs(got - want)) <= 1e-12 * max(1.0, np.max(np.abs(want))), \
-                name
+    assert_derived_matches_numeric(cls, rtol=1e-12)
 
 
 @pytest.mark.parametrize("cls", [POSITION, ANGLE, BOTH], ids=["position", "angle", "both"])
@@ -62,16 +43,7 @@ def test_numeric_jacobians_match_finite_differences(cls):
     truncation ~h^4 f^(5) ~ 1e-14 times the local scale, rounding ~1e-16/h = 1e-12;
     checked at 1e-8 relative). Random q are off the rigid-body manifold, which the
     kernels do not need."""
-    q, v, p = random_case(cls, 2)
-    n = cls.n_q
-    jq = element_kernel(cls, "force_jacobian_q", q, v, p).reshape(n, n)
-    jv = element_kernel(cls, "force_jacobian_v", q, v, p).reshape(n, n)
-    fq = np.array([d1(lambda x: element_kernel(cls, "applied_forces", x, v, p), q, e, 1e-4)
-                   for e in np.eye(n)]).T
-    fv = np.array([d1(lambda x: element_kernel(cls, "applied_forces", q, x, p), v, e, 1e-4)
-                   for e in np.eye(n)]).T
-    assert np.max(np.abs(jq - fq)) <= 1e-8 * max(1.0, np.max(np.abs(fq)))
-    assert np.max(np.abs(jv - fv)) <= 1e-8 * max(1.0, np.max(np.abs(fv)))
+    assert_force_jacobians_match(cls, *random_case(cls, 2), h=1e-4, rtol=1e-8)
 
 
 # -- the same motion as the spring-damper elements -----------------------------------

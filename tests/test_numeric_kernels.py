@@ -18,6 +18,8 @@ from fccgen.plan.classes import ElementClass
 from fccgen.plan.geometry import point_coefficients
 from fccgen.plan.kernels import KERNEL_NAMES, KERNELS
 
+from kernel_checks import d1, gradient, random_case, random_params
+
 F, T = False, True
 CLASSES = [
     ElementClass("body", (), (F, F, F), frozenset()),
@@ -44,50 +46,6 @@ CLASSES = [
 IDS = [f"{c.kind}:{'/'.join(c.ends)}:{''.join('F' if f else 'm' for f in c.fixed)}"
        for c in CLASSES]
 SPECS = {k.name: k for k in KERNELS}
-
-
-def random_inertia(rng) -> np.ndarray:
-    """A positive definite inertia tensor with three different principal values."""
-    Rq, _ = np.linalg.qr(rng.normal(size=(3, 3)))
-    return Rq @ np.diag(rng.uniform(0.5, 2.0, 3)) @ Rq.T
-
-
-def random_params(cls: ElementClass, rng) -> np.ndarray:
-    """Random values of cls.param_names (zeros where cls.zeros says)."""
-    I = random_inertia(rng)
-    inertia = {"Ixx": I[0, 0], "Iyy": I[1, 1], "Izz": I[2, 2], "Ixy": I[0, 1],
-               "Ixz": I[0, 2], "Iyz": I[1, 2]}
-    values = []
-    for name in cls.param_names:
-        short = name.split(".")[-1]
-        if name in cls.zeros:
-            values.append(0.0)
-        elif short in ("l", "L", "L0", "k", "c"):
-            values.append(rng.uniform(0.5, 2.0))
-        elif short == "alpha":
-            values.append(rng.uniform(0.4, 1.0))
-        elif short == "m":
-            values.append(rng.uniform(1.0, 3.0))
-        elif short in inertia:
-            values.append(inertia[short])
-        else:
-            values.append(rng.normal())
-    return np.array(values)
-
-
-def random_case(cls, seed):
-    rng = np.random.default_rng(seed)
-    return rng.normal(size=cls.n_q), rng.normal(size=cls.n_q), random_params(cls, rng)
-
-
-def d1(f, x, direction, h=1e-3):
-    """Five-point first derivative of f along direction (exact for degree <= 4)."""
-    return (-f(x + 2 * h * direction) + 8 * f(x + h * direction)
-            - 8 * f(x - h * direction) + f(x - 2 * h * direction)) / (12 * h)
-
-
-def gradient(f, x, h=1e-3):
-    return np.array([d1(f, x, e, h) for e in np.eye(x.size)]).T
 
 
 def kernel(cls, name, q, v, p):

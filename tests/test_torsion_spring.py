@@ -7,18 +7,16 @@ import math
 
 import numpy as np
 import pytest
-import sympy
 
 import fccgen
 from fccgen.api import plan_model
-from fccgen.derive import derive_class
 from fccgen.errors import ModelError
 from fccgen.numeric import element_kernel
 from fccgen.plan.classes import ElementClass
 from fccgen.runtime import CompiledSolver
 
 from states import random_state
-from test_numeric_kernels import d1, gradient, random_case
+from kernel_checks import assert_derived_matches_numeric, d1, gradient, random_case
 
 F, T = False, True
 KIND = "torsion_spring"
@@ -80,16 +78,7 @@ def test_sympy_and_numpy_kernels_agree(cls):
     """(Classes that derive in seconds; the compiled module of every kind is also
     checked by test_printing and the compiled hinge model below.) Two derivations (SymPy differentiation, NumPy vector algebra) of the same
     functions, in doubles: 1e-12 of each kernel's largest entry."""
-    d = derive_class(cls)
-    for seed in range(2):
-        q, v, p = random_case(cls, seed)
-        for name, m in d.kernels.items():
-            if m is None:
-                continue
-            got = np.array(sympy.lambdify((d.q, d.v, d.p), list(m), cse=True)(q, v, p),
-                           float)
-            want = numeric(name, cls, q, v, p)
-            assert np.max(np.abs(got - want)) <= 1e-12 * max(1.0, np.max(np.abs(want))), name
+    assert_derived_matches_numeric(cls, seeds=range(2), numeric=numeric, rtol=1e-12)
 
 
 # -- models ---------------------------------------------------------------------------
