@@ -16,6 +16,8 @@ from fccgen.numeric import element_kernel
 from fccgen.plan.classes import ElementClass
 from fccgen.plan.geometry import body_frame_numbers, point_coefficients
 
+from kernel_checks import d1
+
 F, T = False, True
 CLASSES = [
     ElementClass("attached_point", (), (F, F, F, F), frozenset()),
@@ -58,12 +60,6 @@ def random_case(cls, seed):
         elif name.split(".")[-1] in ("l", "alpha"):
             p[k] = rng.uniform(0.5, 1.0)
     return rng.normal(size=cls.n_q), rng.normal(size=cls.n_q), p
-
-
-def d1(f, x, direction, h=1e-3):
-    """Five-point first derivative (exact for polynomials of degree <= 4)."""
-    return (-f(x + 2 * h * direction) + 8 * f(x + h * direction)
-            - 8 * f(x - h * direction) + f(x - 2 * h * direction)) / (12 * h)
 
 
 @pytest.mark.parametrize("cls", CLASSES, ids=IDS)
