@@ -259,7 +259,9 @@ def _run_summary(result) -> str:
             f"{info.get('newton_iterations', 0)} Newton iterations); "
             f"max constraint error {info.get('max_constraint_error', float('nan')):.3g}; "
             f"energy drift {info.get('energy_drift', float('nan')):.3g} "
-            f"(max |E - E0|, E0 = {e[0]:.6g})" + _dof_summary(info))
+            + (f"(max |E - E0|, E0 = {e[0]:.6g})" if "event_energy_loss" not in info else
+               f"(max |E + event losses - E0|, E0 = {e[0]:.6g}; events took "
+               f"{info['event_energy_loss']:.6g})") + _dof_summary(info))
 
 
 def _dof_summary(info) -> str:

@@ -272,10 +272,13 @@ class CompiledSolver:
         if report is not None:
             report.finish(result.t[-1])          # the run's end: 100%
         if events is not None:
-            from ..events.table import event_rows
+            from ..events.table import energy_balance, event_rows
             from ._events import ACTIONS
             result.events = event_rows(events.names, ACTIONS, events.log())
             result.info["events"] = result.events
+            (result.info["energy_drift"],
+             result.info["event_energy_loss"]) = energy_balance(result.t, result["energy"],
+                                                                result.events)
         add_driver_columns(self, result)
         used = self.dense_engine() if m.name == "ali3p" else self._engine
         rank_rule.report_run(result, decision, used.rank_statistics(),
