@@ -272,10 +272,12 @@ class CompiledSolver:
         if report is not None:
             report.finish(result.t[-1])          # the run's end: 100%
         if events is not None:
-            from ..events.table import event_rows
-            from ._events import ACTIONS
-            result.events = event_rows(events.names, ACTIONS, events.log())
+            from ..events.table import event_rows, report_switches
+            from ._events import ACTIONS, NOTES
+            log = events.log()
+            result.events = event_rows(events.names, ACTIONS, log)
             result.info["events"] = result.events
+            report_switches(result, log, NOTES)
         add_driver_columns(self, result)
         used = self.dense_engine() if m.name == "ali3p" else self._engine
         rank_rule.report_run(result, decision, used.rank_statistics(),
