@@ -77,3 +77,68 @@ def test_a_second_latch_on_a_one_dof_mechanism_is_redundant(four_bars):
         assert np.max(np.abs(twice[name.replace("angle", "rate")]
                              - once[name.replace("angle", "rate")])) <= 1e-9, name
     assert abs(twice["O.angle"][-1] - twice["O.angle"][held][0]) > 1e-3   # moves again
+
+
+# -- resting contacts that release ---------------------------------------------------
+G = 9.81
+THETA = 1.0                                   # the example's upper limit (rad)
+
+
+def _pendulum(name: str, torque: str) -> str:
+    """examples/pendulum_limit.yaml with restitution 0.2 (it rests on its upper limit
+    within 0.8 s) and a torque ``torque`` (about +y, an expression of t) on the arm."""
+    text = (EXAMPLES / "pendulum_limit.yaml").read_text()
+    text = text.replace("name: pendulum_limit", f"name: {name}")
+    text = text.replace("restitution: 0.5", "restitution: 0.2")
+    text = text.replace('events:\n  - {name: quarter, when: "A.angle >= 0.5", do: log}\n',
+                        "")
+    assert "quarter" not in text
+    return text + f'loads:\n  - {{type: torque, body: arm, value: [0, "{torque}", 0]}}\n'
+
+
+@pytest.fixture(scope="module")
+def pendulums(build_dir, tmp_path_factory):
+    folder = tmp_path_factory.mktemp("release")
+    out = {}
+    for name, torque in (("pull", "-t"), ("stay", "-2.6*t/(1 + t)")):
+        path = folder / f"pendulum_{name}.yaml"
+        path.write_text(_pendulum(f"pendulum_{name}", torque))
+        out[name] = api.load(path, build_dir)
+    return out
+
+
+@pytest.mark.parametrize("method, opts", [("rk4", dict(dt=1e-3)),
+                                          ("dopri5", dict(rtol=1e-10, atol=1e-10))])
+def test_a_resting_contact_releases_when_the_load_pulls_it_off(pendulums, method, opts):
+    """Gravity holds the arm (m = 1, centre 0.5 from the hinge) on its upper limit
+    theta = 1 with the torque m g 0.5 cos(theta) = 2.650 N m; the load's torque -t
+    (about +y, lifting the arm) exceeds it at T = 0.5 g cos(1) s. At rest v = 0, so the
+    row's multiplier is the static balance, linear in t: it turns tensile at T, and
+    the release is located there like any event. Its error: the location tolerance
+    (1e-12 s) plus the balance's own, the lever arm held to the position tolerance
+    (constraint error up to 3e-12 m on 0.5 m, times T): about 3e-11 s; checked at
+    1e-10 s (measured -2.8e-12 s with rk4, -1.8e-11 s with dopri5). After it the arm
+    leaves the limit (no new bounce) and the DOF is 1 again."""
+    result = pendulums["pull"].simulate(method=method, t_end=3.0, **opts)
+    actions = [r["action"] for r in result.events]
+    assert actions[-2:] == ["rest", "release"] and "release" not in actions[:-1]
+    rest, release = result.events[-2:]
+    assert rest["t"] < 1.0 and release["name"] == rest["name"] == "A_upper"
+    assert (rest["dof"], release["dof"]) == (0, 1)
+    assert abs(release["t"] - 0.5 * G * math.cos(THETA)) <= 1e-10
+    assert release["impulse"] == 0.0
+    held = (result.t > rest["t"]) & (result.t <= release["t"])
+    assert np.max(np.abs(result["A.angle"][held] - THETA)) <= 1e-11
+    after = result.t > release["t"] + 0.05
+    assert np.all(np.diff(result["A.angle"][result.t > release["t"]]) < 0)
+    assert np.all(result["A.angle"][after] < THETA - 1e-6)
+
+
+def test_a_resting_contact_stays_while_the_load_is_too_weak(pendulums):
+    """The torque -2.6 t / (1 + t) stays below gravity's 2.650 N m: no release, the arm
+    rests on its limit to the end (held to 1e-11 rad)."""
+    result = pendulums["stay"].simulate(method="rk4", t_end=3.0, dt=1e-3)
+    assert result.events[-1]["action"] == "rest"
+    assert all(r["action"] != "release" for r in result.events)
+    after = result.t > result.events[-1]["t"]
+    assert np.max(np.abs(result["A.angle"][after] - THETA)) <= 1e-11
