@@ -142,3 +142,65 @@ def test_a_resting_contact_stays_while_the_load_is_too_weak(pendulums):
     assert all(r["action"] != "release" for r in result.events)
     after = result.t > result.events[-1]["t"]
     assert np.max(np.abs(result["A.angle"][after] - THETA)) <= 1e-11
+
+
+# -- one event module for every initial configuration ---------------------------------
+def _pendulum_at(phi: float) -> str:
+    """examples/pendulum_limit.yaml with the arm starting phi below the horizontal
+    (turned about the hinge axis +y): its angle is 0 there, the limits relative to it."""
+    text = (EXAMPLES / "pendulum_limit.yaml").read_text()
+    c, s = math.cos(phi), math.sin(phi)
+    old = "center: [0.5, 0, 0],"
+    assert old in text
+    return text.replace(old, f"center: [{0.5 * c!r}, 0, {-0.5 * s!r}], "
+                             f"frame: {{x: [{c!r}, 0, {-s!r}], y: [0, 1, 0]}},")
+
+
+def test_initial_angles_share_one_event_module(build_dir, tmp_path, monkeypatch):
+    """Two pendulums that start at different angles: the numbers of the initial
+    configuration are runtime parameters of the event kernels, so the second load
+    compiles nothing (its event module is the first one's, from the cache) and its
+    angle still reads 0 at the start and follows the arm: the angle from the arm's
+    centre, atan2(-z, x) - phi, to 1e-12 rad (rounding of the atan2 of both)."""
+    import fccgen.events.build as events_build
+    compiles = []
+    real = events_build.compile_sources
+    monkeypatch.setattr(events_build, "compile_sources",
+                        lambda *a, **k: compiles.append(a[2]) or real(*a, **k))
+    built = []
+    for phi in (0.0, 0.3):
+        path = tmp_path / f"pendulum_{phi}.yaml"
+        path.write_text(_pendulum_at(phi))
+        built.append(events_build.build_events(api.plan_model(path), tmp_path / "gen"))
+    assert compiles == ["pendulum_limit_events"]
+    assert (built[0].cache_hit, built[1].cache_hit) == (False, True)
+    assert built[0].directory == built[1].directory
+    solver = api.load(tmp_path / "pendulum_0.3.yaml", build_dir)
+    result = solver.simulate(t_end=0.3, dt=1e-3, method="rk4")
+    geometric = np.arctan2(-result["arm_center.z"], result["arm_center.x"]) - 0.3
+    assert result["A.angle"][0] == 0.0
+    assert np.max(np.abs(result["A.angle"] - geometric)) <= 1e-12
+    assert result.events[0]["name"] == "quarter"
+
+
+def test_with_parameters_keeps_the_events(build_dir, tmp_path):
+    """with_parameters binds the same event module to the new numbers: the example
+    pendulum with the arm's mass doubled and its centre (the lowered model's point
+    arm_center) moved 0.3 rad down runs the events of a model file written with those
+    numbers, row for row: the same kernels and numbers, so equal to 1e-12 (rounding
+    of the pose's sine and cosine at most)."""
+    phi = 0.3
+    moved = tmp_path / "pendulum_moved.yaml"
+    moved.write_text(_pendulum_at(phi).replace("mass: 1.0", "mass: 2.0"))
+    direct = api.load(moved, build_dir)
+    base = api.load(EXAMPLES / "pendulum_limit.yaml", build_dir)
+    solver = base.with_parameters({"bodies.arm.mass": 2.0, "points.arm_center.at":
+                                   [0.5 * math.cos(phi), 0.0, -0.5 * math.sin(phi)]})
+    assert solver.events_module is base.events_module
+    a = solver.simulate(t_end=1.0, dt=1e-3, method="rk4").events
+    b = direct.simulate(t_end=1.0, dt=1e-3, method="rk4").events
+    assert len(a) == len(b) >= 3
+    for x, y in zip(a, b):
+        assert (x["name"], x["action"], x["dof"]) == (y["name"], y["action"], y["dof"])
+        for key in ("t", "impulse", "kinetic_energy_before", "kinetic_energy_after"):
+            assert abs(x[key] - y[key]) <= 1e-12 * max(1.0, abs(y[key])), key

@@ -306,6 +306,7 @@ class CompiledSolver:
         if self.events_module is None:
             raise ValueError(f"model {model.name!r} has events: give the solver its "
                              "event module (fccgen.events.build.load_events)")
+        from ..events.constants import values
         from ._events import EventSet
         qty = list(self.events_module.QUANTITY_NAMES)
 
@@ -318,10 +319,11 @@ class CompiledSolver:
         rows2 = [row(e.joint, ("position",)) if r >= 0 and qty[r].endswith(".angle")
                  else -1 for e, r in zip(model.events, rows)]
         angle_rows = [k for k, name in enumerate(qty) if name.endswith(".angle")]
+        constants = values(self.plan, [qty[k].split(".")[0] for k in angle_rows])
         return EventSet(self.events_module, self.n_q, [e.direction for e in model.events],
                         [e.action for e in model.events], rows, rows2,
                         [e.restitution for e in model.events], angle_rows, tol=tol,
-                        v_rest=rest_speed)
+                        v_rest=rest_speed, constants=constants)
 
     def decide_rank(self, q) -> rank_rule.RankDecision:
         """Decide the rank of B at q by the SVD gap test (fccgen.rank) and keep it in
