@@ -27,7 +27,8 @@ from fccgen.errors import SimulationError
 from ._assemble cimport ASM_G
 from ._engine cimport (AT_POSITIONS, AT_STAGE, AT_STEP, AT_VELOCITIES, ERR_NONE,
                        ERR_NONFINITE_INPUT, Engine, finite)
-from ._events cimport EvC, ev_apply, ev_constrain, ev_correct, ev_crossed, ev_crosses, \
+from ._events cimport Bracket, EvC, ev_apply, ev_bracket, ev_bracket_open, \
+    ev_bracket_trial, ev_bracket_update, ev_constrain, ev_correct, ev_crossed, ev_crosses, \
     ev_leaving, ev_refresh, ev_state, ev_watch
 from ._runloop cimport RUN_DONE, RUN_ERROR, RUN_PAUSE, now, write_record
 
@@ -190,34 +191,21 @@ cdef void _dense_at(Run *r, double th, double *out) noexcept nogil:
 
 
 cdef int _locate(Engine e, Run *r, int k, double h, double *theta) noexcept nogil:
-    """Illinois on th -> s_k(dense output at th) over [0, 1] of the step of size h
-    from r.t0 (s_k crosses between ev.s0 and ev.s1); stops when the bracket is below
-    tol / h. Returns the end of the bracket past the crossing."""
+    """Illinois (ev_bracket) on th -> s_k(dense output at th) over [0, 1] of the step
+    of size h from r.t0 (s_k crosses between ev.s0 and ev.s1); stops when the bracket
+    is below tol / h. Returns the end of the bracket past the crossing."""
     cdef EvC *ev = r.ev
-    cdef int n = r.n2 // 2, side = 0, it = 0
-    cdef double a = 0.0, b = 1.0, fa = ev.s0[k], fb = ev.s1[k], c, fc
-    if fabs(fa) < 1e-200:                 # a start just after an event (ev_leaving)
-        fa = -fb
-    while (b - a) * h > ev.tol and it < 200:
-        it += 1
-        c = b - fb * (b - a) / (fb - fa) if fb != fa else 0.5 * (a + b)
-        if not (a < c < b):
-            c = 0.5 * (a + b)
+    cdef int n = r.n2 // 2
+    cdef Bracket br
+    cdef double c
+    ev_bracket(ev, k, &br, 1.0)
+    while ev_bracket_open(ev, &br, h):
+        c = ev_bracket_trial(&br)
         _dense_at(r, c, r.yt)
         if ev_watch(e, ev, r.yt, r.yt + n, r.t0 + c * h, ev.s1 + 2 * ev.ne) < 0:
             return -1
-        fc = ev.s1[2 * ev.ne + k]
-        if ev_crosses(ev, k, fa, fc) or fc == 0.0 and ev_crosses(ev, k, fa, fb):
-            b, fb = c, fc
-            if side == -1:
-                fa *= 0.5
-            side = -1
-        else:
-            a, fa = c, fc
-            if side == 1:
-                fb *= 0.5
-            side = 1
-    theta[0] = b
+        ev_bracket_update(ev, k, &br, c, ev.s1[2 * ev.ne + k])
+    theta[0] = br.b
     return 0
 
 

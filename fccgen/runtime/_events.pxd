@@ -73,6 +73,17 @@ cdef struct EvC:
     long cap_log
     double *log               # cap_log x LOG_COLS
 
+cdef struct Bracket:          # Illinois (modified regula falsi) on one watched value
+    double a, b               # the bracket holding its crossing, b past it
+    double fa, fb
+    int side                  # the end kept last: -1 a, +1 b (0: none yet)
+    int it
+
+cdef void ev_bracket(EvC *ev, int k, Bracket *br, double b) noexcept nogil
+cdef bint ev_bracket_open(EvC *ev, Bracket *br, double scale) noexcept nogil
+cdef double ev_bracket_trial(Bracket *br) noexcept nogil
+cdef void ev_bracket_update(EvC *ev, int k, Bracket *br, double c,
+                            double fc) noexcept nogil
 cdef void ev_refresh(EvC *ev, const double *q) noexcept nogil
 cdef void ev_values(EvC *ev, const double *q, const double *v, double t,
                     double *out) noexcept nogil

@@ -90,6 +90,51 @@ cdef bint ev_crosses(EvC *ev, int k, double a, double b) noexcept nogil:
     return up or down
 
 
+cdef void ev_bracket(EvC *ev, int k, Bracket *br, double b) noexcept nogil:
+    """Start the Illinois iteration on watched value k over [0, b], where it crosses
+    between ev.s0[k] (at 0) and ev.s1[k] (at b). A start just after an event
+    (ev_leaving's +-1e-300) counts as before the crossing: bisect first."""
+    br.a, br.b, br.fa, br.fb = 0.0, b, ev.s0[k], ev.s1[k]
+    br.side, br.it = 0, 0
+    if fabs(br.fa) < 1e-200:
+        br.fa = -br.fb
+
+
+cdef bint ev_bracket_open(EvC *ev, Bracket *br, double scale) noexcept nogil:
+    """The bracket, times ``scale`` (its unit in seconds), is wider than the location
+    tolerance (and fewer than 200 trials were made)."""
+    return (br.b - br.a) * scale > ev.tol and br.it < 200
+
+
+cdef double ev_bracket_trial(Bracket *br) noexcept nogil:
+    """The next trial point: the secant's zero, b - f_b (b - a) / (f_b - f_a), or
+    the midpoint where that is not inside (a, b)."""
+    cdef double c
+    br.it += 1
+    c = br.b - br.fb * (br.b - br.a) / (br.fb - br.fa) if br.fb != br.fa else \
+        0.5 * (br.a + br.b)
+    if not (br.a < c < br.b):
+        c = 0.5 * (br.a + br.b)
+    return c
+
+
+cdef void ev_bracket_update(EvC *ev, int k, Bracket *br, double c,
+                            double fc) noexcept nogil:
+    """Keep the half of the bracket that holds the crossing, given the value fc at
+    the trial c; the end kept twice in a row has its value halved (Illinois), so
+    that the secant does not stall on one side."""
+    if ev_crosses(ev, k, br.fa, fc) or fc == 0.0 and ev_crosses(ev, k, br.fa, br.fb):
+        br.b, br.fb = c, fc
+        if br.side == -1:
+            br.fa *= 0.5
+        br.side = -1
+    else:
+        br.a, br.fa = c, fc
+        if br.side == 1:
+            br.fb *= 0.5
+        br.side = 1
+
+
 cdef bint _locked(EvC *ev, int k) noexcept nogil:
     """A lock, or a bounce that came to rest, whose rows hold (its function hovers at
     zero: no new event)."""
