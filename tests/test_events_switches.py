@@ -199,3 +199,21 @@ def test_with_parameters_keeps_the_events(build_dir, tmp_path):
         assert (x["name"], x["action"], x["dof"]) == (y["name"], y["action"], y["dof"])
         for key in ("t", "impulse", "kinetic_energy_before", "kinetic_energy_after"):
             assert abs(x[key] - y[key]) <= 1e-12 * max(1.0, abs(y[key])), key
+
+
+def test_switch_notes_become_warnings():
+    """The runtime's note bits (log columns 9, 10) give one text each: a redundant
+    lock, and a rank after a switch decided in the uncertain band with its singular
+    value; rows without notes give none."""
+    from fccgen.events.table import event_rows, switch_warnings
+    from fccgen.runtime._events import ACTIONS, LOG_COLUMNS, NOTES
+    assert LOG_COLUMNS[9:] == ("note", "sigma")
+    log = np.zeros((3, len(LOG_COLUMNS)))
+    log[:, 0] = [0.1, 0.2, 0.3]
+    log[:, 2] = ACTIONS.index("lock")
+    log[1, 9], log[2, 9], log[2, 10] = NOTES["redundant"], NOTES["uncertain"], 3e-8
+    rows = event_rows(["latch"], ACTIONS, log)
+    texts = switch_warnings(rows, log, NOTES)
+    assert len(texts) == 2
+    assert "t = 0.2" in texts[0] and "adds no" in texts[0]
+    assert "t = 0.3" in texts[1] and "3e-08" in texts[1] and "uncertain" in texts[1]

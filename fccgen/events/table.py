@@ -7,6 +7,7 @@ import warnings
 import numpy as np
 
 from ..errors import RunWarning
+from ..rank import AMBIGUOUS_LOW, GROW_TOL
 
 # Columns of result.events (DESIGN section 4): time, event name, action, impulse (the
 # multiplier of the impact: along ds/dq for a bounce, the norm over the locked rows for
@@ -47,8 +48,8 @@ def switch_warnings(rows: list[dict], log: np.ndarray, notes: dict) -> list[str]
             texts.append(
                 f"{where}: the degrees of freedom after the switch are uncertain: a "
                 f"relative singular value {float(rec[10]):.2g} of the constraint Jacobian "
-                "with the locked rows lies between 1e-10 and 1e-06 (near a singular "
-                f"position); the run counts {row['dof']}")
+                f"with the locked rows lies between {AMBIGUOUS_LOW:g} and {GROW_TOL:g} "
+                f"(near a singular position); the run counts {row['dof']}")
     return texts
 
 

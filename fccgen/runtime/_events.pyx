@@ -41,6 +41,8 @@ from scipy.linalg.cython_lapack cimport dgesvd
 
 import numpy as np
 
+from fccgen import rank as _rank
+
 from ._assemble cimport ASM_B, ASM_E, ASM_G
 from ._engine cimport ERR_SINGULAR, Engine
 from ._solve cimport csolve_apply
@@ -51,13 +53,13 @@ LOG_COLUMNS = ("t", "event", "action", "impulse", "kinetic_energy_before",
                "sigma")
 NOTES = {"redundant": NOTE_REDUNDANT, "uncertain": NOTE_UNCERTAIN}
 
-# The rank rule of fccgen/rank.py (kept in step): independent above DECIDE_TOL sigma_1,
-# uncertain in [AMBIGUOUS_LOW, GROW_TOL] sigma_1; rows scaled to unit length, B's rows
-# not below ROW_FLOOR times the largest row of their element.
-cdef double DECIDE_TOL = 1e-8
-cdef double AMBIGUOUS_LOW = 1e-10
-cdef double GROW_TOL = 1e-6
-cdef double ROW_FLOOR = 1e-4
+# The rank rule of fccgen/rank.py, its own numbers: independent above DECIDE_TOL
+# sigma_1, uncertain in [AMBIGUOUS_LOW, GROW_TOL] sigma_1; rows scaled to unit length,
+# B's rows not below ROW_FLOOR times the largest row of their element.
+cdef double DECIDE_TOL = _rank.DECIDE_TOL
+cdef double AMBIGUOUS_LOW = _rank.AMBIGUOUS_LOW
+cdef double GROW_TOL = _rank.GROW_TOL
+cdef double ROW_FLOOR = _rank.ROW_FLOOR
 
 
 cdef void ev_refresh(EvC *ev, const double *q) noexcept nogil:
