@@ -14,19 +14,23 @@ this is fccgen.mechanism.outputs's angle. Parameters: p[3k:3k+3] = (theta_r, cos
 theta_r, sin theta_r) of the k-th angle quantity. Slides: position = (r_b - r_a) . a
 of the joint's carried points and axis. Rates and speeds are d/dt = grad_q . v.
 
+Numbers of the initial configuration (body constants, fixed points and vectors, the
+directions a_A, n1, w of each angle) are runtime parameters too, after the angle
+references, in the order of fccgen.events.constants.layout: one module serves every
+initial configuration of a model.
+
 Switchable rows (lock and unlock) are the joint quantities r(q) held at a value; their
 Jacobian grad_q r and bias (d/dt grad_q r) . v = v^T (d^2 r / dq^2) v are kernels too.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
-import numpy as np
 import sympy
 
-from ..mechanism.joints import ANGLE_TYPES, perpendiculars
+from ..mechanism.joints import ANGLE_TYPES
 from ..model.types import GROUND
+from .constants import SIZES, layout
 
 
 @dataclass
@@ -92,10 +96,11 @@ class EventSystem:
 
 
 class _Frames:
-    """Triples and body rotations in terms of q, constants where fixed."""
+    """Triples and body rotations in terms of q and the constants' symbols."""
 
-    def __init__(self, plan, q, v):
+    def __init__(self, plan, q, v, consts: dict):
         self.plan, self.q, self.v = plan, q, v
+        self.consts = consts             # (kind, name) -> its parameter symbols
 
     def jet(self, name: str) -> tuple:
         """(r, r', r'') of a triple along v: (q slots, v slots, 0); fixed: constants."""
@@ -113,7 +118,7 @@ class _Frames:
             return sympy.eye(3), sympy.zeros(3, 3), sympy.zeros(3, 3)
         b = self.plan.model.bodies[body]
         (ri, vi, _), (rj, vj, _), (u, vu, _) = (self.jet(x) for x in (b.i, b.j, b.u))
-        l, alpha, beta = (sympy.Float(x, 17) for x in self.constants(body))
+        l, alpha, beta = self.consts[("body", body)]
         r, rd = rj - ri, vj - vi
 
         def frame(e1, u_, e3):
@@ -126,9 +131,7 @@ class _Frames:
         if name in self.plan.index:
             k = 3 * self.plan.index[name]
             return sympy.Matrix(self.q[k:k + 3])
-        m = self.plan.model
-        value = m.points[name].at if name in m.points else m.vectors[name].along
-        return sympy.Matrix([sympy.Float(float(x), 17) for x in value])
+        return sympy.Matrix(self.consts[("triple", name)])
 
     def rotation(self, body: str) -> sympy.Matrix:
         """R = [e1 e2 e3] of a body from its i, j, u (ground: the identity), with the
@@ -136,59 +139,22 @@ class _Frames:
         section 1): e1 = r_ij / l, e2 = (u - beta e1) / alpha, e3 = r_ij x u / (alpha
         l). Polynomial in q (exact on the constraint manifold, which the runs keep to
         their position tolerance), so that derivatives stay small."""
-        if body == GROUND:
-            return sympy.eye(3)
-        b = self.plan.model.bodies[body]
-        ri, rj, u = (self.triple(x) for x in (b.i, b.j, b.u))
-        l, alpha, beta = (sympy.Float(x, 17) for x in self.constants(body))
-        rij = rj - ri
-        e1 = rij / l
-        return sympy.Matrix.hstack(e1, (u - beta * e1) / alpha, rij.cross(u) / (alpha * l))
-
-    def constants(self, body: str) -> tuple[float, float, float]:
-        """(l, alpha, beta) of a body at the initial configuration."""
-        m = self.plan.model
-        b = m.bodies[body]
-        pos = {**{n: p.at for n, p in m.points.items()},
-               **{n: v.along for n, v in m.vectors.items()}}
-        rij = np.asarray(pos[b.j], float) - np.asarray(pos[b.i], float)
-        l = float(np.linalg.norm(rij))
-        beta = float(rij @ np.asarray(pos[b.u], float)) / l
-        return l, math.sqrt(1.0 - beta * beta), beta
-
-    def rotation0(self, body: str) -> np.ndarray:
-        """R of a body at the initial configuration, numerically."""
-        if body == GROUND:
-            return np.eye(3)
-        m = self.plan.model
-        b = m.bodies[body]
-        pos = {**{n: p.at for n, p in m.points.items()},
-               **{n: v.along for n, v in m.vectors.items()}}
-        e1 = np.asarray(pos[b.j], float) - np.asarray(pos[b.i], float)
-        e1 /= np.linalg.norm(e1)
-        e3 = np.cross(e1, pos[b.u])
-        e3 /= np.linalg.norm(e3)
-        return np.column_stack([e1, np.cross(e3, e1), e3])
-
-
-def _num(x) -> sympy.Matrix:
-    return sympy.Matrix([sympy.Float(float(c), 17) for c in x])
+        return self.rotation_jet(body)[0]
 
 
 def _angle(f: _Frames, joint, p) -> tuple:
     """(theta_r, y, x, (y', x'), (y'', x'')) of the joint's angle theta_r + atan2(y, x),
-    rates and biases along v by the product rule on the frames' jets."""
+    rates and biases along v by the product rule on the frames' jets; the directions
+    a_A, n1, a_A x n1, w are the joint's constants (fccgen.events.constants)."""
     A, B = joint.bodies
-    RA0, RB0 = f.rotation0(A), f.rotation0(B)
-    a_A = RA0.T @ joint.axes[0]
-    n1 = perpendiculars(a_A)[0]
-    w = (RA0.T @ RB0).T @ n1
+    c12 = f.consts[("angle", joint.name)]
+    a_A, n1, an1, w = (sympy.Matrix(c12[k:k + 3]) for k in (0, 3, 6, 9))
     JA, JB = f.rotation_jet(A), f.rotation_jet(B)
     theta, c, s = p
-    m_A = c * _num(n1) + s * _num(np.cross(a_A, n1))
-    a = [R * _num(a_A) for R in JA]
+    m_A = c * n1 + s * an1
+    a = [R * a_A for R in JA]
     m = [R * m_A for R in JA]
-    x = [R * _num(w) for R in JB]
+    x = [R * w for R in JB]
     y0 = a[0].dot(m[0].cross(x[0]))
     y1 = a[1].dot(m[0].cross(x[0])) + a[0].dot(m[1].cross(x[0])) + a[0].dot(m[0].cross(x[1]))
     y2 = (a[2].dot(m[0].cross(x[0])) + a[0].dot(m[2].cross(x[0]))
@@ -216,14 +182,22 @@ def event_system(plan) -> EventSystem:
     t = sympy.Symbol("t", real=True)
     lowering = getattr(model, "mechanism", None)
     joints = {jl.joint.name: jl.joint for jl in lowering.joints} if lowering else {}
-    frames = _Frames(plan, q, v)
     wanted = _wanted_quantities(model.events, joints)
-    p, quantities = [], []
+    angles = [jname for jname, kind in wanted if kind == "angle"]
+    p = []
+    for k in range(len(angles)):
+        p += list(sympy.symbols(f"theta{k} cos{k} sin{k}", real=True))
+    consts = {}
+    for kind, name in layout(plan, angles):
+        k = len(p)
+        consts[(kind, name)] = list(sympy.symbols(f"c{k}:{k + SIZES[kind]}", real=True))
+        p += consts[(kind, name)]
+    frames = _Frames(plan, q, v, consts)
+    quantities = []
     for jname, kind in wanted:
         if kind == "angle":
-            k = len(p) // 3
-            p += list(sympy.symbols(f"theta{k} cos{k} sin{k}", real=True))
-            theta, y, x, rates, biases = _angle(frames, joints[jname], p[-3:])
+            k = len([x for x in quantities if x.kind == "angle"])
+            theta, y, x, rates, biases = _angle(frames, joints[jname], p[3 * k:3 * k + 3])
             quantities.append(Quantity(jname, kind, theta + sympy.atan2(y, x), k,
                                        (y, x, rates, biases)))
         else:

@@ -2,7 +2,12 @@
 so that every result file format carries it), and its text summary for the CLI."""
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
+
+from ..errors import RunWarning
+from ..rank import AMBIGUOUS_LOW, GROW_TOL
 
 # Columns of result.events (DESIGN section 4): time, event name, action, impulse (the
 # multiplier of the impact: along ds/dq for a bounce, the norm over the locked rows for
@@ -13,8 +18,8 @@ COLUMNS = ("t", "name", "action", "impulse", "kinetic_energy_before",
 
 
 def event_rows(names, actions, log: np.ndarray) -> list[dict]:
-    """Rows of the event table from the runtime's log ((n, 9): t, event index, action
-    code, impulse, ke before, ke after, constraint error, dof, speed before)."""
+    """Rows of the event table from the runtime's log ((n, 9) or more: t, event index,
+    action code, impulse, ke before, ke after, constraint error, dof, speed before)."""
     rows = []
     for rec in log:
         rows.append({"t": float(rec[0]), "name": names[int(rec[1])],
@@ -39,6 +44,37 @@ def energy_balance(t, energy, rows: list[dict]) -> tuple[float, float]:
         lost[t >= r["t"]] += r["kinetic_energy_before"] - r["kinetic_energy_after"]
     drift = float(np.max(np.abs(e + lost - e[0]))) if e.size else 0.0
     return drift, float(lost[-1]) if e.size else 0.0
+
+
+def switch_warnings(rows: list[dict], log: np.ndarray, notes: dict) -> list[str]:
+    """Texts of the runtime's notes on switches (log columns 9, 10: NOTE_ bits and
+    the smallest relative singular value in the uncertain band): a lock whose rows
+    add no constraint on the motion, a rank after a switch that is uncertain."""
+    texts = []
+    for row, rec in zip(rows, log):
+        bits = int(rec[9]) if len(rec) > 9 else 0
+        where = f"event {row['name']!r} ({row['action']}) at t = {row['t']:.12g}"
+        if bits & notes["redundant"]:
+            texts.append(
+                f"{where}: the locked joint's rows follow from the constraints and the "
+                f"rows already locked (it was rigid already): the lock adds no "
+                f"constraint, the degrees of freedom stay {row['dof']}")
+        if bits & notes["uncertain"]:
+            texts.append(
+                f"{where}: the degrees of freedom after the switch are uncertain: a "
+                f"relative singular value {float(rec[10]):.2g} of the constraint Jacobian "
+                f"with the locked rows lies between {AMBIGUOUS_LOW:g} and {GROW_TOL:g} "
+                f"(near a singular position); the run counts {row['dof']}")
+    return texts
+
+
+def report_switches(result, log: np.ndarray, notes: dict) -> None:
+    """Add :func:`switch_warnings` to ``result.info["warnings"]`` and issue each as a
+    :class:`~fccgen.errors.RunWarning`."""
+    texts = switch_warnings(result.events, log, notes)
+    result.info.setdefault("warnings", []).extend(texts)
+    for text in texts:
+        warnings.warn(text, RunWarning, stacklevel=3)
 
 
 def summary(rows: list[dict], limit: int = 20) -> str:

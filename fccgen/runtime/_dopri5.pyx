@@ -27,8 +27,9 @@ from fccgen.errors import SimulationError
 from ._assemble cimport ASM_G
 from ._engine cimport (AT_POSITIONS, AT_STAGE, AT_STEP, AT_VELOCITIES, ERR_NONE,
                        ERR_NONFINITE_INPUT, Engine, finite)
-from ._events cimport EvC, ev_apply, ev_constrain, ev_correct, ev_crossed, ev_crosses, \
-    ev_leaving, ev_refresh, ev_state, ev_values
+from ._events cimport Bracket, EvC, ev_apply, ev_bracket, ev_bracket_open, \
+    ev_bracket_trial, ev_bracket_update, ev_constrain, ev_correct, ev_crossed, ev_crosses, \
+    ev_leaving, ev_refresh, ev_state, ev_watch
 from ._runloop cimport RUN_DONE, RUN_ERROR, RUN_PAUSE, now, write_record
 
 from ._messages import error_message
@@ -189,51 +190,42 @@ cdef void _dense_at(Run *r, double th, double *out) noexcept nogil:
             r.rc[2][i] + th * (r.rc[3][i] + th1 * r.rc[4][i])))
 
 
-cdef int _locate(Run *r, int k, double h, double *theta) noexcept nogil:
-    """Illinois on th -> s_k(dense output at th) over [0, 1] of the step of size h
-    from r.t0 (s_k crosses between ev.s0 and ev.s1); stops when the bracket is below
-    tol / h. Returns the end of the bracket past the crossing."""
+cdef int _locate(Engine e, Run *r, int k, double h, double *theta) noexcept nogil:
+    """Illinois (ev_bracket) on th -> s_k(dense output at th) over [0, 1] of the step
+    of size h from r.t0 (s_k crosses between ev.s0 and ev.s1); stops when the bracket
+    is below tol / h. Returns the end of the bracket past the crossing."""
     cdef EvC *ev = r.ev
-    cdef int n = r.n2 // 2, side = 0, it = 0
-    cdef double a = 0.0, b = 1.0, fa = ev.s0[k], fb = ev.s1[k], c, fc
-    if fabs(fa) < 1e-200:                 # a start just after an event (ev_leaving)
-        fa = -fb
-    while (b - a) * h > ev.tol and it < 200:
-        it += 1
-        c = b - fb * (b - a) / (fb - fa) if fb != fa else 0.5 * (a + b)
-        if not (a < c < b):
-            c = 0.5 * (a + b)
+    cdef int n = r.n2 // 2
+    cdef Bracket br
+    cdef double c
+    ev_bracket(ev, k, &br, 1.0)
+    while ev_bracket_open(ev, &br, h):
+        c = ev_bracket_trial(&br)
         _dense_at(r, c, r.yt)
-        ev_values(ev, r.yt, r.yt + n, r.t0 + c * h, ev.s1 + ev.ne)
-        fc = ev.s1[ev.ne + k]
-        if ev_crosses(ev, k, fa, fc) or fc == 0.0 and ev_crosses(ev, k, fa, fb):
-            b, fb = c, fc
-            if side == -1:
-                fa *= 0.5
-            side = -1
-        else:
-            a, fa = c, fc
-            if side == 1:
-                fb *= 0.5
-            side = 1
-    theta[0] = b
+        if ev_watch(e, ev, r.yt, r.yt + n, r.t0 + c * h, ev.s1 + 2 * ev.ne) < 0:
+            return -1
+        ev_bracket_update(ev, k, &br, c, ev.s1[2 * ev.ne + k])
+    theta[0] = br.b
     return 0
 
 
-cdef int _first_event(Run *r, double h, double t1, double *theta) noexcept nogil:
-    """The earliest event that crosses in the step r.t0 -> t1 (-1: none), and where."""
+cdef int _first_event(Engine e, Run *r, double h, double t1, double *theta) noexcept nogil:
+    """The earliest event that crosses in the step r.t0 -> t1 (-1: none; -2: a solve
+    failed), and where."""
     cdef EvC *ev = r.ev
     cdef int n = r.n2 // 2, k, j, first
     cdef double th
-    ev_values(ev, r.y1, r.y1 + n, t1, ev.s1)
+    if ev_watch(e, ev, r.y1, r.y1 + n, t1, ev.s1) < 0:
+        return -2
     k = ev_crossed(ev, ev.s0, ev.s1)
     if k < 0:
         return -1
     theta[0], first = 1.0, k
-    for j in range(k, ev.ne):
+    for j in range(k, 2 * ev.ne):
         if j > k and not ev_crosses(ev, j, ev.s0[j], ev.s1[j]):
             continue
-        _locate(r, j, h, &th)
+        if _locate(e, r, j, h, &th) < 0:
+            return -2
         if th < theta[0] or j == k:
             theta[0], first = th, j
     return first
@@ -257,7 +249,8 @@ cdef int _after_event(Engine e, Run *r, int k) noexcept nogil:
                 r.n_out += 1
             return 0
     ev_refresh(ev, r.y)
-    ev_values(ev, r.y, r.y + n, r.t, ev.s0)
+    if ev_watch(e, ev, r.y, r.y + n, r.t, ev.s0) < 0:
+        return -1
     if k >= 0 and rc == 0:
         ev.s0[k] = ev_leaving(ev, k, r.y, r.y + n, r.t)
     return 0
@@ -293,7 +286,9 @@ cdef int _accept(Engine e, Run *r, double h) noexcept nogil:
     r.t0 = r.t
     t1 = r.t + h if r.t_end - (r.t + h) > 4 * UROUND * r.t_end else r.t_end
     if r.ev != NULL:
-        k = _first_event(r, h, t1, &th)
+        k = _first_event(e, r, h, t1, &th)
+        if k == -2:
+            return -1
         if k >= 0:                            # the step ends at the event
             t1 = r.t0 + th * h
             _dense_at(r, th, r.y1)
@@ -449,9 +444,9 @@ def simulate_dopri5(Engine engine, q0, v0, double t_end, double output_dt, doubl
         if not project:
             raise ValueError("events need the projected DOPRI5 (projection on)")
         r.ev = ev_state(events)
-        events.reset(qv)
+        events.reset(qv, engine)
         with nogil:
-            ev_values(r.ev, r.y, r.y + n, 0.0, r.ev.s0)
+            ev_watch(engine, r.ev, r.y, r.y + n, 0.0, r.ev.s0)
     cdef int status
     cdef double deadline
     engine.running = True

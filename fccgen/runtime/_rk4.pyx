@@ -18,8 +18,9 @@ from fccgen.errors import SimulationError
 from ._assemble cimport ASM_G
 from libc.math cimport fabs
 
-from ._events cimport EvC, ev_apply, ev_constrain, ev_correct, ev_crossed, ev_crosses, \
-    ev_leaving, ev_refresh, ev_state, ev_values
+from ._events cimport Bracket, EvC, ev_apply, ev_bracket, ev_bracket_open, \
+    ev_bracket_trial, ev_bracket_update, ev_constrain, ev_correct, ev_crossed, ev_crosses, \
+    ev_leaving, ev_refresh, ev_state, ev_watch
 from ._engine cimport (AT_POSITIONS, AT_STAGE, AT_STEP, AT_VELOCITIES, ERR_DIVERGED,
                        ERR_NONE, ERR_NONFINITE_INPUT, Engine, finite)
 from ._runloop cimport RUN_DONE, RUN_ERROR, RUN_PAUSE, now, write_record
@@ -190,35 +191,22 @@ cdef int _state_at(Engine e, Run *r, double t0, double tau) noexcept nogil:
 
 
 cdef int _locate(Engine e, Run *r, int k, double t0, double h, double *tau) noexcept nogil:
-    """Illinois (modified regula falsi) on tau -> s_k(state(t0 + tau)) over [0, h],
-    where s_k crosses between the saved start (ev.s0) and the step's end (ev.s1): the
-    bracket [a, b] always holds the crossing; stops when b - a <= tol. Returns b, the
-    earliest time found past the crossing."""
+    """Illinois (modified regula falsi, ev_bracket) on tau -> s_k(state(t0 + tau)) over
+    [0, h], where s_k crosses between the saved start (ev.s0) and the step's end
+    (ev.s1): the bracket [a, b] always holds the crossing; stops when b - a <= tol.
+    Returns b, the earliest time found past the crossing."""
     cdef EvC *ev = r.ev
-    cdef double a = 0.0, b = h, fa = ev.s0[k], fb = ev.s1[k], c, fc
-    cdef int side = 0, it = 0
-    if fabs(fa) < 1e-200:                 # a start just after an event (ev_leaving)
-        fa = -fb                          # counts as before the crossing: bisect first
-    while b - a > ev.tol and it < 200:
-        it += 1
-        c = b - fb * (b - a) / (fb - fa) if fb != fa else 0.5 * (a + b)
-        if not (a < c < b):
-            c = 0.5 * (a + b)
+    cdef Bracket br
+    cdef double c
+    ev_bracket(ev, k, &br, h)
+    while ev_bracket_open(ev, &br, 1.0):
+        c = ev_bracket_trial(&br)
         if _state_at(e, r, t0, c) < 0:
             return -1
-        ev_values(ev, r.q, r.v, t0 + c, ev.s1 + ev.ne)     # work: after s1's ne
-        fc = ev.s1[ev.ne + k]
-        if ev_crosses(ev, k, fa, fc) or fc == 0.0 and ev_crosses(ev, k, fa, fb):
-            b, fb = c, fc
-            if side == -1:
-                fa *= 0.5
-            side = -1
-        else:
-            a, fa = c, fc
-            if side == 1:
-                fb *= 0.5
-            side = 1
-    tau[0] = b
+        if ev_watch(e, ev, r.q, r.v, t0 + c, ev.s1 + 2 * ev.ne) < 0:   # work after s1
+            return -1
+        ev_bracket_update(ev, k, &br, c, ev.s1[2 * ev.ne + k])
+    tau[0] = br.b
     return 0
 
 
@@ -230,15 +218,15 @@ cdef int _events(Engine e, Run *r, double t0, double h) noexcept nogil:
     cdef int k, j, first, rc, count = 0, loops = 0
     cdef double tau, best
     while True:
-        ev_values(ev, r.q, r.v, t0 + h, ev.s1)
+        if ev_watch(e, ev, r.q, r.v, t0 + h, ev.s1) < 0:
+            return -1
         k = ev_crossed(ev, ev.s0, ev.s1)
         loops += 1
         if k < 0 or loops > 4 * ev.max_per_step:    # none (more) in this step
             ev_refresh(ev, r.q)
-            ev_values(ev, r.q, r.v, t0 + h, ev.s0)
-            return 0
+            return ev_watch(e, ev, r.q, r.v, t0 + h, ev.s0)
         best, first = h, k
-        for j in range(k, ev.ne):               # the earliest of those that crossed
+        for j in range(k, 2 * ev.ne):           # the earliest of those that crossed
             if j > k and not ev_crosses(ev, j, ev.s0[j], ev.s1[j]):
                 continue
             if _locate(e, r, j, t0, h, &tau) < 0:
@@ -258,7 +246,8 @@ cdef int _events(Engine e, Run *r, double t0, double h) noexcept nogil:
             r.stopped, r.t_stop = True, t0 + best
             return 0
         ev_refresh(ev, r.q)
-        ev_values(ev, r.q, r.v, t0 + best, ev.s0)
+        if ev_watch(e, ev, r.q, r.v, t0 + best, ev.s0) < 0:
+            return -1
         ev.s0[first] = ev_leaving(ev, first, r.q, r.v, t0 + best)
         t0, h = t0 + best, h - best
         memcpy(r.eq, r.q, e.n * sizeof(double))
@@ -389,9 +378,9 @@ def _simulate(Engine engine, q0, v0, double t_end, double dt, long n_steps,
         saved = np.zeros(2 * n)
         r.eq, r.evv = _data(saved), _data(saved) + n
         r.ev = ev_state(events)
-        events.reset(qv)
+        events.reset(qv, engine)
         with nogil:
-            ev_values(r.ev, r.q, r.v, 0.0, r.ev.s0)
+            ev_watch(engine, r.ev, r.q, r.v, 0.0, r.ev.s0)
     cdef int status
     cdef double deadline
     engine.running = True

@@ -256,12 +256,14 @@ def solver_options(solver) -> dict:
 
 
 def with_parameters(solver, values: dict):
-    """A new solver of the same compiled module with the numbers in ``values`` set
-    (keys: see the module docstring), the other numbers and tolerances kept."""
+    """A new solver of the same compiled module (and event module: its numbers of the
+    initial configuration are runtime parameters too) with the numbers in ``values``
+    set (keys: see the module docstring), the other numbers and tolerances kept."""
     from ..plan import make_plan
     new_plan = make_plan(set_parameters(solver.plan.model, dict(values)))
     same_structure(solver.plan, new_plan, values)
-    return type(solver)(new_plan, solver.module, **solver_options(solver))
+    return type(solver)(new_plan, solver.module, **solver_options(solver),
+                        events_module=getattr(solver, "events_module", None))
 
 
 def module_directory(module) -> Path:

@@ -272,10 +272,12 @@ class CompiledSolver:
         if report is not None:
             report.finish(result.t[-1])          # the run's end: 100%
         if events is not None:
-            from ..events.table import energy_balance, event_rows
-            from ._events import ACTIONS
-            result.events = event_rows(events.names, ACTIONS, events.log())
+            from ..events.table import energy_balance, event_rows, report_switches
+            from ._events import ACTIONS, NOTES
+            log = events.log()
+            result.events = event_rows(events.names, ACTIONS, log)
             result.info["events"] = result.events
+            report_switches(result, log, NOTES)
             (result.info["energy_drift"],
              result.info["event_energy_loss"]) = energy_balance(result.t, result["energy"],
                                                                 result.events)
@@ -307,6 +309,7 @@ class CompiledSolver:
         if self.events_module is None:
             raise ValueError(f"model {model.name!r} has events: give the solver its "
                              "event module (fccgen.events.build.load_events)")
+        from ..events.constants import values
         from ._events import EventSet
         qty = list(self.events_module.QUANTITY_NAMES)
 
@@ -319,10 +322,11 @@ class CompiledSolver:
         rows2 = [row(e.joint, ("position",)) if r >= 0 and qty[r].endswith(".angle")
                  else -1 for e, r in zip(model.events, rows)]
         angle_rows = [k for k, name in enumerate(qty) if name.endswith(".angle")]
+        constants = values(self.plan, [qty[k].split(".")[0] for k in angle_rows])
         return EventSet(self.events_module, self.n_q, [e.direction for e in model.events],
                         [e.action for e in model.events], rows, rows2,
                         [e.restitution for e in model.events], angle_rows, tol=tol,
-                        v_rest=rest_speed)
+                        v_rest=rest_speed, constants=constants)
 
     def decide_rank(self, q) -> rank_rule.RankDecision:
         """Decide the rank of B at q by the SVD gap test (fccgen.rank) and keep it in
