@@ -133,6 +133,7 @@ def test_latch_time_and_impact_against_the_energy_equation(boom):
     # before the latch, rounding after it), not the 73 J the latch took.
     assert r.info["event_energy_loss"] == pytest.approx(row["kinetic_energy_before"], abs=1e-18)
     assert r.info["energy_drift"] < 1e-8
+    assert (r.info["dof"], r.info["final_dof"]) == (1, 0)  # the run ends latched
 
 
 def test_after_the_latch_the_boom_stays_at_full_length(boom):

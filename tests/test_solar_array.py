@@ -74,6 +74,7 @@ def test_both_latches_fire_in_order_at_their_angles(array):
     assert [(r["name"], r["action"]) for r in rows] == [
         ("panel_latch", "lock"), ("root_latch", "lock")]
     assert [r["dof"] for r in rows] == [7, 6]
+    assert (result.info["dof"], result.info["final_dof"]) == (8, 6)   # ends latched
     assert 0 < rows[0]["t"] < rows[1]["t"] < result.t[-1]
     for r in rows:
         joint, angle = LATCH[r["name"]]

@@ -77,6 +77,21 @@ def report_switches(result, log: np.ndarray, notes: dict) -> None:
         warnings.warn(text, RunWarning, stacklevel=3)
 
 
+def final_dof(info: dict, rows: list[dict]) -> int:
+    """The degrees of freedom at the end of a run with events. The rank findings
+    (info["final_dof"], info["dof_changes"]) count the constraint Jacobian's rank only;
+    the last switch's row counts the locked rows too (docs/events.md). Its DOF, moved
+    by the rank changes found after it, is the DOF at the end."""
+    if not rows:
+        return info["final_dof"]
+    last = rows[-1]
+    base = info["dof"]
+    for change in info.get("dof_changes", ()):
+        if change["t"] <= last["t"]:
+            base = change["dof_after"]
+    return last["dof"] + info["final_dof"] - base
+
+
 def summary(rows: list[dict], limit: int = 20) -> str:
     """A few lines for the CLI: how many events, then the first ``limit`` of them."""
     if not rows:

@@ -285,6 +285,9 @@ class CompiledSolver:
         used = self.dense_engine() if m.name == "ali3p" else self._engine
         rank_rule.report_run(result, decision, used.rank_statistics(),
                              driven=bool(driver_rows(self.plan)))
+        if events is not None:
+            from ..events.table import final_dof
+            result.info["final_dof"] = final_dof(result.info, result.events)
         return add_reactions(self, result) if reactions else result
 
     def dense_engine(self):
