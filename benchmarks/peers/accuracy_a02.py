@@ -160,7 +160,7 @@ def main(argv=None) -> int:
     ap.add_argument("--reps", type=int, default=3)
     ap.add_argument("--out-dir", type=Path, default=ROOT / "docs" / "performance")
     ap.add_argument("--fccgen-solver", choices=("auto", "dense", "sparse"), default="auto",
-                    help="fccgen's linear_solver option (auto: sparse from 40 coordinates)")
+                    help="fccgen's linear_solver option (auto: sparse from 25 coordinates)")
     args = ap.parse_args(argv)
     global FCCGEN_SOLVER
     FCCGEN_SOLVER = args.fccgen_solver

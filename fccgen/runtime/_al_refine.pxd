@@ -20,6 +20,7 @@ cdef class ALRefinement(SparseBlocks):
 
     cdef void residual_pass(self, const double *x, const double *b, bint pending,
                             bint penalised, double *y, double *r2) noexcept nogil
+    cdef void first_pass(self, const double *b, double *y) noexcept nogil
     cdef int correction(self) noexcept nogil
     cdef void kkt_solve(self, const double *Q, const double *w, const double *b,
                         double *x) noexcept nogil

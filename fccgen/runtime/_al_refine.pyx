@@ -124,6 +124,37 @@ cdef class ALRefinement(SparseBlocks):
             for a in range(nq):
                 y[idx[a]] -= yl[a]
 
+    cdef void first_pass(self, const double *b, double *y) noexcept nogil:
+        """residual_pass at x = 0 and lambda = 0 (not pending, penalised): y = base +
+        B^T alpha b, without the products with M and B that vanish there; the same
+        operations in the same order as residual_pass on what is left (the same
+        rounding)."""
+        cdef int e, a, r, nq, ng, row
+        cdef const int *idx
+        cdef const double *bb
+        cdef double *yl = self.ly
+        cdef double z
+        memcpy(y, self.base, <size_t>self.n * sizeof(double))
+        if b == NULL:
+            return
+        for e in range(self.asm.n_el):
+            ng = self.asm.cls[e].n_g
+            if ng == 0:
+                continue
+            nq = self.asm.cls[e].n_q
+            idx = self.asm.qidx + self.asm.qptr[e]
+            bb = self.Bblk + self.bptr[e]
+            row = self.asm.gptr[e]
+            for a in range(nq):
+                yl[a] = 0.0
+            for r in range(ng):
+                z = 0.0 - self.alpha[row + r] * b[row + r]
+                if z != 0.0:
+                    for a in range(nq):
+                        yl[a] += bb[r * nq + a] * z
+            for a in range(nq):
+                y[idx[a]] -= yl[a]
+
     cdef int correction(self) noexcept nogil:
         """(dx, dlam) of M dx + B^T dlam = r1, B dx = r2: conjugate gradients on the
         multipliers' Schur system S mu = B x0 - r2, S = B A^{-1} B^T, preconditioned by
@@ -207,7 +238,10 @@ cdef class ALRefinement(SparseBlocks):
                     self.lam[i] += self.bdx[i]
                 cg += 1
             else:
-                self.residual_pass(x, b, pending, True, self.dx, NULL)
+                if it == 0:
+                    self.first_pass(b, self.dx)
+                else:
+                    self.residual_pass(x, b, pending, True, self.dx, NULL)
                 self.solve_a(self.dx)
                 pending = True
                 solves += 1

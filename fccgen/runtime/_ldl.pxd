@@ -2,9 +2,12 @@
 
 cdef void ldl_symbolic(int n, const int *Ap, const int *Ai, int *Lp, int *parent,
                        int *Lnz, int *flag) noexcept nogil
+cdef void ldl_rows(int n, const int *Ap, const int *Ai, const int *Lp, const int *parent,
+                   int *Lnz, int *Li, int *Rp, int *Rj, int *Rpos, int *pattern,
+                   int *flag) noexcept nogil
 cdef int ldl_numeric(int n, const int *Ap, const int *Ai, const double *Ax,
-                     const int *Lp, const int *parent, int *Lnz, int *Li, double *Lx,
-                     double *D, double *Y, int *pattern, int *flag,
+                     const int *Lp, const int *Li, const int *Rp, const int *Rj,
+                     const int *Rpos, double *Lx, double *D, double *Y,
                      double pivot_tol) noexcept nogil
 cdef void ldl_solve(int n, const int *Lp, const int *Li, const double *Lx,
                     const double *D, double *x) noexcept nogil

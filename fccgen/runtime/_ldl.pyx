@@ -3,12 +3,17 @@
 
 After T. A. Davis, "Algorithm 849: a concise sparse Cholesky factorization package"
 (LDL): the matrix is given by the upper triangle of its (already permuted) columns,
-Ap/Ai/Ax in compressed sparse columns. ldl_symbolic computes the elimination tree and
-the column counts of L once; ldl_numeric is the up-looking factorisation: row k of L
-is found by a sparse triangular solve L[:k, :k] y = A[:k, k] whose nonzero pattern is
-the set of elimination-tree paths from the entries of A[:k, k] towards the root;
-D_k = A_kk - sum_j L_kj^2 D_j. Every array is allocated by the caller: the per-step
-work is allocation-free.
+Ap/Ai/Ax in compressed sparse columns. The factorisation is up-looking: row k of L is
+found by a sparse triangular solve L[:k, :k] y = A[:k, k], whose nonzero pattern is the
+set of elimination-tree paths from the entries of A[:k, k] towards the root, and
+D_k = A_kk - sum_j L_kj^2 D_j.
+
+The pattern is the same at every factorisation, so all of the symbolic work is done
+once (ldl_symbolic, ldl_rows): the elimination tree, the column pointers Lp and row
+indices Li of L, and for every row k the columns j of its entries in the order of the
+triangular solve (Rp/Rj) with the place of L_kj in Lx (Rpos). ldl_numeric then only
+does arithmetic, in the same order as Davis' ldl_numeric (the same rounding). Every
+array is allocated by the caller: the per-step work is allocation-free.
 """
 
 
@@ -34,27 +39,24 @@ cdef void ldl_symbolic(int n, const int *Ap, const int *Ai, int *Lp, int *parent
         Lp[k + 1] = Lp[k] + Lnz[k]
 
 
-cdef int ldl_numeric(int n, const int *Ap, const int *Ai, const double *Ax,
-                     const int *Lp, const int *parent, int *Lnz, int *Li, double *Lx,
-                     double *D, double *Y, int *pattern, int *flag,
-                     double pivot_tol) noexcept nogil:
-    """L (unit lower, strict part in Lp/Li/Lx) and D of A = L D L^T. Returns 0, or
-    k + 1 for the first pivot D_k not above pivot_tol A_kk (not positive definite)."""
-    cdef int i, k, p, p2, length, top
-    cdef double yi, l_ki, akk
+cdef void ldl_rows(int n, const int *Ap, const int *Ai, const int *Lp, const int *parent,
+                   int *Lnz, int *Li, int *Rp, int *Rj, int *Rpos, int *pattern,
+                   int *flag) noexcept nogil:
+    """The row patterns of L (after ldl_symbolic): Li, and for row k the columns
+    Rj[Rp[k]:Rp[k + 1]] in the order the up-looking solve visits them (the reversed
+    elimination-tree paths, as in Davis' ldl_numeric) with Rpos the index of L_kj in
+    Li/Lx. Work: Lnz, pattern, flag (n each)."""
+    cdef int i, k, p, length, top, t = 0
     for k in range(n):
-        Y[k] = 0.0
+        Lnz[k] = 0
+    Rp[0] = 0
+    for k in range(n):
         top = n
         flag[k] = k
-        Lnz[k] = 0
-        akk = 0.0
         for p in range(Ap[k], Ap[k + 1]):
             i = Ai[p]
             if i > k:
                 continue
-            Y[i] += Ax[p]
-            if i == k:
-                akk += Ax[p]
             length = 0
             while flag[i] != k:
                 pattern[length] = i
@@ -65,22 +67,46 @@ cdef int ldl_numeric(int n, const int *Ap, const int *Ai, const double *Ax,
                 top -= 1
                 length -= 1
                 pattern[top] = pattern[length]
-        D[k] = Y[k]
-        Y[k] = 0.0
         while top < n:
             i = pattern[top]
             top += 1
+            Rj[t] = i
+            Rpos[t] = Lp[i] + Lnz[i]
+            Li[Rpos[t]] = k
+            Lnz[i] += 1
+            t += 1
+        Rp[k + 1] = t
+
+
+cdef int ldl_numeric(int n, const int *Ap, const int *Ai, const double *Ax,
+                     const int *Lp, const int *Li, const int *Rp, const int *Rj,
+                     const int *Rpos, double *Lx, double *D, double *Y,
+                     double pivot_tol) noexcept nogil:
+    """L (unit lower, strict part in Lp/Li/Lx) and D of A = L D L^T over the pattern of
+    ldl_rows. Y (n) must be zero on entry and is left zero. Returns 0, or k + 1 for the
+    first pivot D_k not above pivot_tol A_kk (not positive definite)."""
+    cdef int i, k, p, p2, t
+    cdef double yi, l_ki, akk, dk
+    for k in range(n):
+        for p in range(Ap[k], Ap[k + 1]):
+            i = Ai[p]
+            if i <= k:
+                Y[i] += Ax[p]
+        akk = Y[k]
+        dk = akk
+        Y[k] = 0.0
+        for t in range(Rp[k], Rp[k + 1]):
+            i = Rj[t]
             yi = Y[i]
             Y[i] = 0.0
-            p2 = Lp[i] + Lnz[i]
+            p2 = Rpos[t]
             for p in range(Lp[i], p2):
                 Y[Li[p]] -= Lx[p] * yi
             l_ki = yi / D[i]
-            D[k] -= l_ki * yi
-            Li[p2] = k
+            dk -= l_ki * yi
             Lx[p2] = l_ki
-            Lnz[i] += 1
-        if not D[k] > pivot_tol * akk:
+        D[k] = dk
+        if not dk > pivot_tol * akk:            # (Y is zero: row k is done)
             return k + 1
     return 0
 

@@ -25,6 +25,9 @@ cdef class SparseBlocks(Engine):
     cdef int *emap
     cdef int *Lp
     cdef int *Li
+    cdef int *Rp                  # row patterns of L (_ldl.ldl_rows)
+    cdef int *Rj
+    cdef int *Rpos
     cdef double *Lx
     cdef double *D
     cdef int *parent

@@ -21,7 +21,7 @@ import numpy as np
 
 from ._assemble cimport ASM_B, ASM_C, ASM_F, ASM_G, ASM_H, ASM_M, Assembler
 from ._engine cimport ERR_LAPACK, ERR_NONFINITE_INPUT, ERR_SINGULAR, Engine, finite
-from ._ldl cimport ldl_numeric, ldl_solve, ldl_symbolic
+from ._ldl cimport ldl_numeric, ldl_rows, ldl_solve, ldl_symbolic
 from ._model_table cimport fcc_element_class
 
 
@@ -92,7 +92,7 @@ cdef class SparseBlocks(Engine):
         free(self.perm); free(self.Ap); free(self.Ai); free(self.Ax); free(self.emap_ptr)
         free(self.emap); free(self.Lp); free(self.Li); free(self.Lx); free(self.D)
         free(self.parent); free(self.Lnz); free(self.flag); free(self.pattern)
-        free(self.Y)
+        free(self.Y); free(self.Rp); free(self.Rj); free(self.Rpos)
 
     def set_structure(self, perm, Ap, Ai, emap_ptr, emap):
         """Take the pattern of A and the scatter maps (fccgen.runtime.sparsity.Structure)
@@ -139,6 +139,11 @@ cdef class SparseBlocks(Engine):
         self.nnz_l = self.Lp[n]
         self.Li = <int *>alloc_zeroed(self.nnz_l, sizeof(int))
         self.Lx = <double *>alloc_zeroed(self.nnz_l, sizeof(double))
+        self.Rp = <int *>alloc_zeroed(n + 1, sizeof(int))
+        self.Rj = <int *>alloc_zeroed(self.nnz_l, sizeof(int))
+        self.Rpos = <int *>alloc_zeroed(self.nnz_l, sizeof(int))
+        ldl_rows(n, self.Ap, self.Ai, self.Lp, self.parent, self.Lnz, self.Li, self.Rp,
+                 self.Rj, self.Rpos, self.pattern, self.flag)
         self.ready = True
 
     @property
@@ -309,9 +314,8 @@ cdef class SparseBlocks(Engine):
                         val += bb[r * nq + a] * al[r] * bb[r * nq + b]
                     self.Ax[pos] += val
         self.n_factor += 1
-        info = ldl_numeric(self.n, self.Ap, self.Ai, self.Ax, self.Lp, self.parent,
-                           self.Lnz, self.Li, self.Lx, self.D, self.Y, self.pattern,
-                           self.flag, PIVOT_TOL)
+        info = ldl_numeric(self.n, self.Ap, self.Ai, self.Ax, self.Lp, self.Li, self.Rp,
+                           self.Rj, self.Rpos, self.Lx, self.D, self.Y, PIVOT_TOL)
         if info == 0:
             return 0
         bad = self.nonfinite_input(q, NULL, ASM_M | ASM_B)

@@ -1,11 +1,14 @@
 """The dense or the sparse path of the compiled engine, chosen by the model's size.
 
 Dense (runtime/_engine.pyx with _solve.pyx): a pivoted QR of B and a null-space basis
-per factorisation, O(n^3); fastest for small models. Sparse (runtime/_sparse.pyx): an
+per factorisation, O(n^3). Sparse (runtime/_sparse.pyx): an
 LDL^T of M + B^T alpha B over a pattern fixed at load time (runtime/sparsity.py), linear
 in the size for chains and trees. "auto" takes the sparse path from
-SPARSE_MIN_COORDINATES moving coordinates on (measured by benchmarks/scaling.py: see
-docs/performance.md, "Dense and sparse paths").
+SPARSE_MIN_COORDINATES moving coordinates on (docs/performance.md, "Dense and sparse
+paths"): the sparse step measured faster than the dense one at every size, from 3
+coordinates on, but the small models keep the dense path's longer-tested rank logic
+(Bricard, 24 coordinates, follows its motion over 10 s only on the dense path), so the
+threshold sits just above the largest example below it.
 """
 from __future__ import annotations
 
@@ -14,7 +17,7 @@ from ._sparse import SparseEngine
 from ._sparse_blocks import element_structure
 from .sparsity import structure
 
-SPARSE_MIN_COORDINATES = 40
+SPARSE_MIN_COORDINATES = 25
 
 
 def use_sparse(linear_solver: str, n_q: int) -> bool:
