@@ -9,7 +9,8 @@ blocks and the LDL^T of A = M + B^T diag(alpha) B of _sparse_blocks.pyx:
   B a = -c - 2 alpha g' - beta^2 g, formed in :meth:`SparseEngine.baumgarte_targets`);
 * velocity projection: M w + B^T mu = M v, B w = b with b from
   :meth:`SparseEngine.velocity_targets` (-dg/dt of time-dependent constraints);
-* each Newton step of the position projection: M dq + B^T mu = 0, B dq = -g.
+* each Newton step of the position projection (Engine.project_positions_at, with
+  this engine's assembly, residual and solve): M dq + B^T mu = 0, B dq = -g.
 
 Solves whose constraint residual did not converge (a singular position: b outside the
 range of B) are counted as the dense path's dropped rows are.
@@ -33,7 +34,7 @@ leaving 0) shows in full. One extra solve with A per tracked direction and proje
 An SVD that does not confirm growth moves the trigger to ten times the bound (the
 dense path's rule for its pivot), so SVDs stay rare near singular positions.
 """
-from libc.math cimport INFINITY, isfinite, sqrt
+from libc.math cimport INFINITY, sqrt
 from libc.stdlib cimport free
 from libc.string cimport memcpy, memset
 
@@ -43,7 +44,7 @@ from fccgen import rank as rank_rule
 
 from ._al_refine cimport ALRefinement
 from ._assemble cimport ASM_B, ASM_C, ASM_F, ASM_G, ASM_H, ASM_M, ASM_T
-from ._engine cimport (ERR_DIVERGED, ERR_NONFINITE_INPUT, ERR_NONFINITE_RESULT, Engine,
+from ._engine cimport (ERR_NONFINITE_INPUT, ERR_NONFINITE_RESULT, Engine,
                        RANK_LOG_SIZE, finite)
 from ._solve cimport csolve_svd_rank
 from ._sparse_blocks cimport alloc_zeroed
@@ -155,43 +156,20 @@ cdef class SparseEngine(ALRefinement):
         for i in range(self.m):
             b[i] = -self.asm.c[i] - 2.0 * alpha * b[i] - beta * beta * self.asm.g[i]
 
-    cdef int project_positions_at(self, double *q, int *iterations) noexcept nogil:
-        cdef int i, it = 0
-        cdef double res
-        self.asm.assemble(q, NULL, ASM_G)
-        self.assemble_mb(q, ASM_B)
-        res = self.scaled_residual_sparse()
-        while True:
-            if not isfinite(res):
-                iterations[0] = it
-                return self.fail(ERR_NONFINITE_INPUT, 0,
-                                 self.nonfinite_input(q, NULL, ASM_G | ASM_B) or 8)
-            if res <= self.position_tol:
-                break
-            if it == 0 and res > self.diverge_residual:
-                iterations[0] = it
-                self.err_value = res
-                self.err_bound = self.diverge_residual
-                return self.fail(ERR_DIVERGED, 0, 3)
-            if it >= self.max_newton:
-                iterations[0] = it
-                return 1
-            if it == 0:
-                self.assemble_mb(q, ASM_M)
-            if self.factor(q) < 0:
-                iterations[0] = it
-                return -1
-            for i in range(self.m):
-                self.nb[i] = -self.asm.g[i]
-            self.kkt_solve(NULL, NULL, self.nb, self.dq)
-            for i in range(self.n):
-                q[i] += self.dq[i]
-            it += 1
+    # -- the varying parts of Engine.project_positions_at ---------------------------
+    cdef void assemble_constraints(self, const double *q, int flags) noexcept nogil:
+        """g into the assembler, M and B as element blocks."""
+        if flags & ASM_G:
             self.asm.assemble(q, NULL, ASM_G)
-            self.assemble_mb(q, ASM_B)
-            res = self.scaled_residual_sparse()
-        iterations[0] = it
-        return 0
+        if flags & (ASM_M | ASM_B):
+            self.assemble_mb(q, flags & (ASM_M | ASM_B))
+
+    cdef double constraint_residual(self) noexcept nogil:
+        return self.scaled_residual_sparse()
+
+    cdef void solve_constrained(self, const double *Q, const double *w, const double *b,
+                                double *x) noexcept nogil:
+        self.kkt_solve(Q, w, b, x)
 
     cdef int project_velocities_at(self, const double *q, double *v,
                                    bint have_B) noexcept nogil:
