@@ -70,6 +70,9 @@ cdef class SparseEngine(ALRefinement):
     cdef double grow_trigger          # the bound that starts an SVD check
     cdef double bound_max             # largest ||B_s N||_F met
     cdef long n_svd
+    cdef object start_key             # (rank, q bytes) of the basis in start_basis
+    cdef object start_basis           # the watch's basis from the SVD at that start
+    cdef int start_n_track
 
     def __cinit__(self, *args, **kwargs):
         self.track = <double *>alloc_zeroed(self.n * TRACK_MAX, sizeof(double))
@@ -84,15 +87,29 @@ cdef class SparseEngine(ALRefinement):
         """Keep the decision for the reports (the solve itself needs no rank), start
         the statistics anew, and start the rank-growth watch (module docstring) from
         the null space of the row-scaled B at q when the rank can grow (rank below
-        min(n, m)) and n - rank <= TRACK_MAX."""
+        min(n, m)) and n - rank <= TRACK_MAX; deciding again at the same q and rank
+        (a run from its initial state) reuses that start's basis instead of a new SVD."""
+        cdef double[::1] saved
         Engine.decide_rank(self, q, rank)
         self.n_factor = self.n_solves = self.n_iterations = self.n_unconverged = 0
         self.most_iterations = 0
         self.n_svd = 0
         self.bound_max = 0.0
         self.n_track = 0
-        if q is not None:
+        if q is None:
+            return
+        key = (rank, np.asarray(q, dtype=float).tobytes())
+        if key != self.start_key:           # a run decides again at its initial state
+            self.start_key = None
             self.start_watch(self.asm.quantity(ASM_B, q), rank)
+            self.start_basis = np.array(<double[:self.n * TRACK_MAX]>self.track)
+            self.start_n_track = self.n_track
+            self.start_key = key
+        else:
+            saved = self.start_basis
+            memcpy(self.track, &saved[0], <size_t>self.n * TRACK_MAX * sizeof(double))
+            self.grow_trigger = GROW_TOL
+            self.n_track = self.start_n_track
 
     def rank_statistics(self):
         """As Engine.rank_statistics; drops are solves whose constraint residual did
@@ -308,7 +325,11 @@ cdef class SparseEngine(ALRefinement):
         if rank < 0 or rank >= min(self.n, self.m) or k > TRACK_MAX:
             return
         groups = [self.sol.group[i] for i in range(self.m)]
-        _, _, vt = np.linalg.svd(B / rank_rule.row_scales(B, groups)[:, None])
+        try:
+            _, _, vt = np.linalg.svd(B / rank_rule.row_scales(B, groups)[:, None],
+                                     full_matrices=self.m < self.n)   # vt: n x n
+        except np.linalg.LinAlgError:        # no basis: the start's rank is kept
+            return
         for j in range(k):
             for i in range(self.n):
                 self.track[j * self.n + i] = vt[rank + j, i]
