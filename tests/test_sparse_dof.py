@@ -73,6 +73,36 @@ def test_the_bound_that_starts_the_check_is_not_below_the_singular_value(flat_fo
     assert result.info["largest_dropped_pivot"] >= relative * (1 - 1e-12)
 
 
+def test_a_slow_departure_is_reported_soon_after_the_crossing(tmp_path, build_dir):
+    """Released from the flat position at 1e-4 m/s: sigma_5 / sigma_1 passes GROW_TOL
+    only after ~20 steps. Both paths confirm by the SVD at the state, so neither
+    reports early; the sparse path's next check comes when its bound has grown as
+    much as sigma_5 must (at least 2x), so it reports within twice the crossing
+    time (measured 0.031 s for a crossing at 0.020 s; the dense path's decade rule
+    reports at 0.101 s)."""
+    path = tmp_path / "slow_four_bar.yaml"
+    path.write_text(FLAT_FOUR_BAR.replace("name: flat_four_bar", "name: slow_four_bar")
+                    .replace("{P: [0, 1, 0], Q: [0, 1, 0]}",
+                             "{P: [0, 1.0e-4, 0], Q: [0, 1.0e-4, 0]}"))
+    dense, sparse = paths(fccgen.load(path, build_dir))
+    rs, _ = run(sparse, t_end=0.1, output_dt=0.001)
+    rd, _ = run(dense, t_end=0.12, output_dt=0.12)
+    t_cross = None
+    for i, t in enumerate(rs.t):
+        q = np.array([rs[f"{p}.{x}"][i] for p in "PQ" for x in "xyz"])
+        sigma = rank_rule.scaled_singular_values(sparse.constraint_jacobian(q),
+                                                 sparse.row_groups)
+        if sigma[4] > rank_rule.GROW_TOL * sigma[0]:
+            t_cross = t
+            break
+    assert t_cross is not None and 0.01 < t_cross < 0.05
+    [change] = rs.info["dof_changes"]
+    assert (change["dof_before"], change["dof_after"]) == (2, 1)
+    assert t_cross <= change["t"] <= 2 * t_cross + 1e-12
+    [change_dense] = rd.info["dof_changes"]
+    assert change_dense["t"] >= t_cross
+
+
 def test_an_uncertain_start_is_said_alike_on_both_paths(tmp_path, build_dir):
     """The parallelogram 1e-8 rad from flat (test_rank_decision): both paths warn that
     the start is close to a singular position and report the same change."""

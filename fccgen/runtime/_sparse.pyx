@@ -31,8 +31,12 @@ exactly (A x = M x when B x = 0), a component along a row direction of singular 
 sigma shrinks by about 1 / (1 + RHO sigma^2), so the motion of the constraint manifold
 between steps leaves ||B_s N|| near 1e-10 while a new independent row (sigma_{r+1}
 leaving 0) shows in full. One extra solve with A per tracked direction and projection.
-An SVD that does not confirm growth moves the trigger to ten times the bound (the
-dense path's rule for its pivot), so SVDs stay rare near singular positions.
+An SVD that does not confirm growth, finding sigma_{r+1} = x sigma_1 (x <= GROW_TOL),
+moves the trigger to the bound times GROW_TOL / x, kept within [2, 10]: the next SVD
+comes when the bound has grown as much as sigma_{r+1} must to pass GROW_TOL (the bound
+follows sigma_{r+1} within a constant on a mechanism leaving a singular position),
+at least twice, so that SVDs stay rare near singular positions, and at most ten
+times (the dense path's rule for its pivot).
 """
 from libc.math cimport INFINITY, sqrt
 from libc.stdlib cimport free
@@ -57,6 +61,14 @@ cdef double GROW_TOL = rank_rule.GROW_TOL
 # A tracked direction whose length falls below this in the orthonormalisation has been
 # taken by the constraints: check at once.
 cdef double COLLAPSE = 1e-6
+
+
+cdef inline double next_check_factor(double x) noexcept nogil:
+    """The factor between the bound of an SVD check that found sigma_{r+1} = x sigma_1
+    (below GROW_TOL) and the bound that starts the next one: GROW_TOL / x in [2, 10]."""
+    if not x > 0.0 or GROW_TOL / x > 10.0:
+        return 10.0
+    return GROW_TOL / x if GROW_TOL / x > 2.0 else 2.0
 
 
 cdef class SparseEngine(ALRefinement):
@@ -286,7 +298,7 @@ cdef class SparseEngine(ALRefinement):
         the same scaling and GROW_TOL); more singular values above GROW_TOL sigma_1
         than the decided rank raise it, logged with the time like Engine.factor, and
         the watch starts again from the null space there (also after a collapse);
-        otherwise the trigger becomes ten times the bound."""
+        otherwise the trigger moves up (next_check_factor)."""
         cdef int e, r, a, nq, row, svd, old = self.sol.rank_fixed, n = self.n
         cdef const int *idx
         cdef const double *blk
@@ -309,7 +321,9 @@ cdef class SparseEngine(ALRefinement):
             self.n_rank_log += 1
             self.sol.rank_fixed = svd
         elif not collapsed:
-            self.grow_trigger = 10.0 * bound
+            self.grow_trigger = bound * next_check_factor(
+                self.sol.sigma[old] / self.sol.sigma[0]
+                if old < min(n, self.m) and self.sol.sigma[0] > 0.0 else 0.0)
             return
         with gil:                           # rare: once per change of the rank
             self.start_watch(np.array(<double[:self.m * n]>self.sol.A).reshape(self.m, n),
