@@ -143,3 +143,15 @@ def test_check_reports_the_rank_of_a_model_on_the_sparse_path(compiled):
     assert (report.n_q, report.rank, report.dof) == (123, 122, 1)
     decision = solver.decide_rank(solver.initial_state().q)
     assert (decision.rank, decision.dof) == (report.rank, report.dof)
+
+
+def test_the_command_line_says_the_change_on_the_sparse_path(flat_four_bar, tmp_path,
+                                                             build_dir, capsys):
+    from fccgen.cli import main
+    path = tmp_path / "flat_four_bar.yaml"
+    path.write_text(FLAT_FOUR_BAR)
+    assert main(["simulate", str(path), "--build-dir", str(build_dir), "-q",
+                 "--t-end", "0.1", "--linear-solver", "sparse"]) == 0
+    out, err = capsys.readouterr()
+    assert "degrees of freedom 2 by rank, 1 at the end" in out
+    assert "fccgen: warning: the degrees of freedom changed from 2 to 1 at t = 0.001" in err
