@@ -59,6 +59,10 @@ cdef class Engine:
                               bint reuse) noexcept nogil
     cdef int baumgarte_at(self, const double *q, const double *v, double *a,
                           double alpha, double beta) noexcept nogil
+    cdef void assemble_constraints(self, const double *q, int flags) noexcept nogil
+    cdef double constraint_residual(self) noexcept nogil
+    cdef void solve_constrained(self, const double *Q, const double *w, const double *b,
+                                double *x) noexcept nogil
     cdef int project_positions_at(self, double *q, int *iterations) noexcept nogil
     cdef int project_velocities_at(self, const double *q, double *v,
                                    bint have_B) noexcept nogil

@@ -208,15 +208,33 @@ cdef class Engine:
             return self.fail(ERR_NONFINITE_INPUT if i else ERR_NONFINITE_RESULT, 0, i)
         return 0
 
+    cdef void assemble_constraints(self, const double *q, int flags) noexcept nogil:
+        """Assemble at q what the position projection asks for: g (ASM_G), B (ASM_B)
+        and M (ASM_M), where this engine's solves read them (here: the assembler's
+        dense arrays; the sparse path keeps M and B as element blocks)."""
+        self.asm.assemble(q, NULL, flags)
+
+    cdef double constraint_residual(self) noexcept nogil:
+        """max_k |g_k| / ||B_k|| with the g and B assembled last."""
+        return self.asm.scaled_residual()
+
+    cdef void solve_constrained(self, const double *Q, const double *w, const double *b,
+                                double *x) noexcept nogil:
+        """x of M x + B^T lambda = Q + M w, B x = b (Q, w, b may be NULL: zero) with
+        the factorisation at hand."""
+        csolve_apply(&self.sol, Q, w, b, x)
+
     cdef int project_positions_at(self, double *q, int *iterations) noexcept nogil:
         """Newton on g(q) = 0, in place: dq = argmin dq^T M dq / 2 subject to
         B dq = -g, with g and B at every iterate and the metric M at the starting
         point. Returns 0 (converged), 1 (not within max_newton) or -1 (error). Leaves g
-        and B assembled at the final q."""
+        and B assembled at the final q. One loop for both paths: the assembly, the
+        residual and the solve are the engine's own (assemble_constraints,
+        constraint_residual, solve_constrained)."""
         cdef int i, it = 0
         cdef double res
-        self.asm.assemble(q, NULL, ASM_G | ASM_B)
-        res = self.asm.scaled_residual()
+        self.assemble_constraints(q, ASM_G | ASM_B)
+        res = self.constraint_residual()
         while True:
             if not isfinite(res):
                 iterations[0] = it
@@ -233,18 +251,18 @@ cdef class Engine:
                 iterations[0] = it
                 return 1
             if it == 0:
-                self.asm.assemble(q, NULL, ASM_M)
+                self.assemble_constraints(q, ASM_M)
             if self.factor(q) < 0:
                 iterations[0] = it
                 return -1
             for i in range(self.m):
                 self.nb[i] = -self.asm.g[i]
-            csolve_apply(&self.sol, NULL, NULL, self.nb, self.dq)
+            self.solve_constrained(NULL, NULL, self.nb, self.dq)
             for i in range(self.n):
                 q[i] += self.dq[i]
             it += 1
-            self.asm.assemble(q, NULL, ASM_G | ASM_B)
-            res = self.asm.scaled_residual()
+            self.assemble_constraints(q, ASM_G | ASM_B)
+            res = self.constraint_residual()
         iterations[0] = it
         return 0
 
@@ -359,7 +377,7 @@ cdef class Engine:
             rc = self.project_positions_at(&qv[0], &it)
         if rc < 0:
             self.raise_error(AT_POSITIONS)
-        return np.asarray(qv), it, rc == 0, self.asm.scaled_residual()
+        return np.asarray(qv), it, rc == 0, self.constraint_residual()
 
     def project_velocities(self, q, v):
         """The M-orthogonal projection of v onto B(q) v = 0: a fresh array."""

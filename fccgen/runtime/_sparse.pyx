@@ -9,37 +9,128 @@ blocks and the LDL^T of A = M + B^T diag(alpha) B of _sparse_blocks.pyx:
   B a = -c - 2 alpha g' - beta^2 g, formed in :meth:`SparseEngine.baumgarte_targets`);
 * velocity projection: M w + B^T mu = M v, B w = b with b from
   :meth:`SparseEngine.velocity_targets` (-dg/dt of time-dependent constraints);
-* each Newton step of the position projection: M dq + B^T mu = 0, B dq = -g.
+* each Newton step of the position projection (Engine.project_positions_at, with
+  this engine's assembly, residual and solve): M dq + B^T mu = 0, B dq = -g.
 
 Solves whose constraint residual did not converge (a singular position: b outside the
 range of B) are counted as the dense path's dropped rows are.
+
+Changes of the degrees of freedom. The solves need no rank, but the reports do: the
+rank r decided at the start (fccgen.rank) is kept, and raised, as on the dense path,
+when an SVD at a projected state finds sigma_{r+1} > GROW_TOL sigma_1 (rows scaled as
+fccgen.rank.row_scales). What starts that SVD is a bound, not a guess: for any n x k
+matrix N with orthonormal columns, k = n - r,
+
+    sigma_{r+1}(B_s) <= ||B_s N||_2 <= ||B_s N||_F        (Courant-Fischer)
+
+and sigma_1 >= 1 (each element's largest scaled row has unit length), so no growth
+past GROW_TOL goes unseen while ||B_s N||_F stays at or below it. N tracks the null
+space of B: set from the SVD at the start, then at every velocity projection replaced
+by A^{-1} M N (orthonormalised) with the factor at hand: a null-space direction is kept
+exactly (A x = M x when B x = 0), a component along a row direction of singular value
+sigma shrinks by about 1 / (1 + RHO sigma^2), so the motion of the constraint manifold
+between steps leaves ||B_s N|| near 1e-10 while a new independent row (sigma_{r+1}
+leaving 0) shows in full. One extra solve with A per tracked direction and projection.
+An SVD that does not confirm growth, finding sigma_{r+1} = x sigma_1 (x <= GROW_TOL),
+moves the trigger to the bound times GROW_TOL / x, kept within [2, 10]: the next SVD
+comes when the bound has grown as much as sigma_{r+1} must to pass GROW_TOL (the bound
+follows sigma_{r+1} within a constant on a mechanism leaving a singular position),
+at least twice, so that SVDs stay rare near singular positions, and at most ten
+times (the dense path's rule for its pivot).
 """
-from libc.math cimport isfinite
+from libc.math cimport INFINITY, sqrt
+from libc.stdlib cimport free
 from libc.string cimport memcpy, memset
+
+import numpy as np
+
+from fccgen import rank as rank_rule
 
 from ._al_refine cimport ALRefinement
 from ._assemble cimport ASM_B, ASM_C, ASM_F, ASM_G, ASM_H, ASM_M, ASM_T
-from ._engine cimport (ERR_DIVERGED, ERR_NONFINITE_INPUT, ERR_NONFINITE_RESULT, Engine,
-                       finite)
+from ._engine cimport (ERR_NONFINITE_INPUT, ERR_NONFINITE_RESULT, Engine,
+                       RANK_LOG_SIZE, finite)
+from ._solve cimport csolve_svd_rank
+from ._sparse_blocks cimport alloc_zeroed
+
+# The rank-growth watch tracks at most this many null-space directions (degrees of
+# freedom); models with more degrees of freedom and redundant rows keep the start's rank.
+DEF TRACK_MAX = 16
+# sigma_{r+1} > GROW_TOL sigma_1 raises the rank (fccgen.rank.GROW_TOL, the dense rule).
+cdef double GROW_TOL = rank_rule.GROW_TOL
+# A tracked direction whose length falls below this in the orthonormalisation has been
+# taken by the constraints: check at once.
+cdef double COLLAPSE = 1e-6
+
+
+cdef inline double next_check_factor(double x) noexcept nogil:
+    """The factor between the bound of an SVD check that found sigma_{r+1} = x sigma_1
+    (below GROW_TOL) and the bound that starts the next one: GROW_TOL / x in [2, 10]."""
+    if not x > 0.0 or GROW_TOL / x > 10.0:
+        return 10.0
+    return GROW_TOL / x if GROW_TOL / x > 2.0 else 2.0
 
 
 cdef class SparseEngine(ALRefinement):
     """An Engine whose solves use the sparse augmented-Lagrangian refinement (module
     docstring). Call :meth:`set_structure` (fccgen.runtime.sparsity) before use."""
+    cdef int n_track                  # tracked null-space directions (0: no watch)
+    cdef double *track                # n x TRACK_MAX: their orthonormal basis N
+    cdef double *bn                   # m x TRACK_MAX: B_s N, column by column
+    cdef double *xw                   # n: work
+    cdef double *rs                   # m: 1 / the scaled row norms
+    cdef double grow_trigger          # the bound that starts an SVD check
+    cdef double bound_max             # largest ||B_s N||_F met
+    cdef long n_svd
+    cdef object start_key             # (rank, q bytes) of the basis in start_basis
+    cdef object start_basis           # the watch's basis from the SVD at that start
+    cdef int start_n_track
+
+    def __cinit__(self, *args, **kwargs):
+        self.track = <double *>alloc_zeroed(self.n * TRACK_MAX, sizeof(double))
+        self.bn = <double *>alloc_zeroed(self.m * TRACK_MAX, sizeof(double))
+        self.xw = <double *>alloc_zeroed(self.n, sizeof(double))
+        self.rs = <double *>alloc_zeroed(self.m, sizeof(double))
+
+    def __dealloc__(self):
+        free(self.track); free(self.bn); free(self.xw); free(self.rs)
 
     def decide_rank(self, q, rank):
-        """Keep the decision for the reports (the solve itself needs no rank) and start
-        the statistics anew."""
+        """Keep the decision for the reports (the solve itself needs no rank), start
+        the statistics anew, and start the rank-growth watch (module docstring) from
+        the null space of the row-scaled B at q when the rank can grow (rank below
+        min(n, m)) and n - rank <= TRACK_MAX; deciding again at the same q and rank
+        (a run from its initial state) reuses that start's basis instead of a new SVD."""
+        cdef double[::1] saved
         Engine.decide_rank(self, q, rank)
         self.n_factor = self.n_solves = self.n_iterations = self.n_unconverged = 0
         self.most_iterations = 0
+        self.n_svd = 0
+        self.bound_max = 0.0
+        self.n_track = 0
+        if q is None:
+            return
+        key = (rank, np.asarray(q, dtype=float).tobytes())
+        if key != self.start_key:           # a run decides again at its initial state
+            self.start_key = None
+            self.start_watch(self.asm.quantity(ASM_B, q), rank)
+            self.start_basis = np.array(<double[:self.n * TRACK_MAX]>self.track)
+            self.start_n_track = self.n_track
+            self.start_key = key
+        else:
+            saved = self.start_basis
+            memcpy(self.track, &saved[0], <size_t>self.n * TRACK_MAX * sizeof(double))
+            self.grow_trigger = GROW_TOL
+            self.n_track = self.start_n_track
 
     def rank_statistics(self):
         """As Engine.rank_statistics; drops are solves whose constraint residual did
-        not converge (a singular position)."""
+        not converge (a singular position), largest_dropped the largest bound
+        ||B_s N||_F on sigma_{r+1} / sigma_1 met by the rank-growth watch."""
         stats = Engine.rank_statistics(self)
         stats.update(factorisations=self.n_factor, drops=self.n_unconverged,
-                     svd_checks=0, smallest_kept=1.0, largest_dropped=0.0)
+                     svd_checks=self.n_svd, smallest_kept=1.0,
+                     largest_dropped=self.bound_max)
         return stats
 
     cdef int finish(self, const double *q, const double *v, const double *a,
@@ -94,43 +185,20 @@ cdef class SparseEngine(ALRefinement):
         for i in range(self.m):
             b[i] = -self.asm.c[i] - 2.0 * alpha * b[i] - beta * beta * self.asm.g[i]
 
-    cdef int project_positions_at(self, double *q, int *iterations) noexcept nogil:
-        cdef int i, it = 0
-        cdef double res
-        self.asm.assemble(q, NULL, ASM_G)
-        self.assemble_mb(q, ASM_B)
-        res = self.scaled_residual_sparse()
-        while True:
-            if not isfinite(res):
-                iterations[0] = it
-                return self.fail(ERR_NONFINITE_INPUT, 0,
-                                 self.nonfinite_input(q, NULL, ASM_G | ASM_B) or 8)
-            if res <= self.position_tol:
-                break
-            if it == 0 and res > self.diverge_residual:
-                iterations[0] = it
-                self.err_value = res
-                self.err_bound = self.diverge_residual
-                return self.fail(ERR_DIVERGED, 0, 3)
-            if it >= self.max_newton:
-                iterations[0] = it
-                return 1
-            if it == 0:
-                self.assemble_mb(q, ASM_M)
-            if self.factor(q) < 0:
-                iterations[0] = it
-                return -1
-            for i in range(self.m):
-                self.nb[i] = -self.asm.g[i]
-            self.kkt_solve(NULL, NULL, self.nb, self.dq)
-            for i in range(self.n):
-                q[i] += self.dq[i]
-            it += 1
+    # -- the varying parts of Engine.project_positions_at ---------------------------
+    cdef void assemble_constraints(self, const double *q, int flags) noexcept nogil:
+        """g into the assembler, M and B as element blocks."""
+        if flags & ASM_G:
             self.asm.assemble(q, NULL, ASM_G)
-            self.assemble_mb(q, ASM_B)
-            res = self.scaled_residual_sparse()
-        iterations[0] = it
-        return 0
+        if flags & (ASM_M | ASM_B):
+            self.assemble_mb(q, flags & (ASM_M | ASM_B))
+
+    cdef double constraint_residual(self) noexcept nogil:
+        return self.scaled_residual_sparse()
+
+    cdef void solve_constrained(self, const double *Q, const double *w, const double *b,
+                                double *x) noexcept nogil:
+        self.kkt_solve(Q, w, b, x)
 
     cdef int project_velocities_at(self, const double *q, double *v,
                                    bint have_B) noexcept nogil:
@@ -144,7 +212,142 @@ cdef class SparseEngine(ALRefinement):
         self.watch_kinetic_energy(v, self.vtmp)
         memcpy(v, self.vtmp, self.n * sizeof(double))
         self.factor_valid = True
+        self.watch_rank()
         return 0
+
+    cdef void watch_rank(self) noexcept nogil:
+        """The rank-growth watch at a projected state, with A factored there (module
+        docstring): N <- orth(A^{-1} M N), then an SVD check when ||B_s N||_F passes
+        the trigger."""
+        cdef int i, j, k = self.n_track, n = self.n
+        cdef double bound = 0.0
+        cdef double *col
+        cdef bint collapsed
+        if k <= 0:
+            return
+        for j in range(k):
+            col = self.track + j * n
+            self.mult_m(col, self.xw, False)
+            self.solve_a(self.xw)
+            memcpy(col, self.xw, <size_t>n * sizeof(double))
+        collapsed = not self.orthonormalise()
+        if collapsed:
+            bound = INFINITY
+        else:
+            self.scaled_rows()
+            for j in range(k):
+                self.mult_b(self.track + j * n, self.bn + j * self.m)
+                for i in range(self.m):
+                    self.bn[j * self.m + i] *= self.rs[i]
+                    bound += self.bn[j * self.m + i] * self.bn[j * self.m + i]
+            bound = sqrt(bound)
+        if bound > self.bound_max:
+            self.bound_max = bound
+        if bound > self.grow_trigger:
+            self.check_growth(bound, collapsed)
+
+    cdef bint orthonormalise(self) noexcept nogil:
+        """Modified Gram-Schmidt, twice, on the tracked columns; False when one of them
+        shrinks below COLLAPSE of its length (the constraints took that direction)."""
+        cdef int j, l, i, sweep, n = self.n
+        cdef double d, before, after
+        cdef double *a
+        cdef double *b
+        for j in range(self.n_track):
+            a = self.track + j * n
+            before = 0.0
+            for i in range(n):
+                before += a[i] * a[i]
+            for sweep in range(2):
+                for l in range(j):
+                    b = self.track + l * n
+                    d = 0.0
+                    for i in range(n):
+                        d += a[i] * b[i]
+                    for i in range(n):
+                        a[i] -= d * b[i]
+            after = 0.0
+            for i in range(n):
+                after += a[i] * a[i]
+            if not after > COLLAPSE * COLLAPSE * before:
+                return False
+            after = 1.0 / sqrt(after)
+            for i in range(n):
+                a[i] *= after
+        return True
+
+    cdef void scaled_rows(self) noexcept nogil:
+        """rs_k = 1 / max(||B_k||, ROW_FLOOR * the largest row of B_k's element), the
+        row scaling of fccgen.rank, from alpha_k = RHO m_ref / s_k^2 of the factor."""
+        cdef int k
+        cdef double largest = 0.0
+        for k in range(self.m):
+            if self.alpha[k] > largest:
+                largest = self.alpha[k]
+        for k in range(self.m):             # alpha_k / largest = (s_min / s_k)^2
+            self.rs[k] = sqrt(self.alpha[k] / largest) if largest > 0.0 else 1.0
+        largest = 0.0
+        for k in range(self.m):
+            if self.rnorm[k] * self.rs[k] > largest:
+                largest = self.rnorm[k] * self.rs[k]
+        for k in range(self.m):
+            self.rs[k] = self.rs[k] / largest if largest > 0.0 else 1.0
+
+    cdef void check_growth(self, double bound, bint collapsed) noexcept nogil:
+        """The dense path's confirmation: the SVD of the row-scaled B (csolve_svd_rank,
+        the same scaling and GROW_TOL); more singular values above GROW_TOL sigma_1
+        than the decided rank raise it, logged with the time like Engine.factor, and
+        the watch starts again from the null space there (also after a collapse);
+        otherwise the trigger moves up (next_check_factor)."""
+        cdef int e, r, a, nq, row, svd, old = self.sol.rank_fixed, n = self.n
+        cdef const int *idx
+        cdef const double *blk
+        self.n_svd += 1
+        memset(self.sol.A, 0, <size_t>self.m * n * sizeof(double))
+        for e in range(self.asm.n_el):      # dense B (m x n, row-major) from the blocks
+            nq = self.asm.cls[e].n_q
+            idx = self.asm.qidx + self.asm.qptr[e]
+            blk = self.Bblk + self.bptr[e]
+            row = self.asm.gptr[e]
+            for r in range(self.asm.cls[e].n_g):
+                for a in range(nq):
+                    self.sol.A[(row + r) * n + idx[a]] = blk[r * nq + a]
+        svd = csolve_svd_rank(&self.sol, self.sol.A, GROW_TOL)
+        if svd > old:
+            if self.n_rank_log < RANK_LOG_SIZE:
+                self.rank_log[self.n_rank_log][0] = self.err_t
+                self.rank_log[self.n_rank_log][1] = old
+                self.rank_log[self.n_rank_log][2] = svd
+            self.n_rank_log += 1
+            self.sol.rank_fixed = svd
+        elif not collapsed:
+            self.grow_trigger = bound * next_check_factor(
+                self.sol.sigma[old] / self.sol.sigma[0]
+                if old < min(n, self.m) and self.sol.sigma[0] > 0.0 else 0.0)
+            return
+        with gil:                           # rare: once per change of the rank
+            self.start_watch(np.array(<double[:self.m * n]>self.sol.A).reshape(self.m, n),
+                             self.sol.rank_fixed)
+
+    def start_watch(self, B, int rank):
+        """N = the right singular vectors of the row-scaled B beyond the first rank
+        (its null space when rank is B's), when the rank can grow (rank below
+        min(n, m)) and n - rank <= TRACK_MAX; otherwise no watch."""
+        cdef int k = self.n - rank, i, j
+        self.n_track = 0
+        self.grow_trigger = GROW_TOL
+        if rank < 0 or rank >= min(self.n, self.m) or k > TRACK_MAX:
+            return
+        groups = [self.sol.group[i] for i in range(self.m)]
+        try:
+            _, _, vt = np.linalg.svd(B / rank_rule.row_scales(B, groups)[:, None],
+                                     full_matrices=self.m < self.n)   # vt: n x n
+        except np.linalg.LinAlgError:        # no basis: the start's rank is kept
+            return
+        for j in range(k):
+            for i in range(self.n):
+                self.track[j * self.n + i] = vt[rank + j, i]
+        self.n_track = k
 
     cdef void velocity_targets(self, const double *q, double *b) noexcept nogil:
         """b of the velocity projection's B w = b: -dg/dt at the time set last
