@@ -126,6 +126,12 @@ def decide(B: np.ndarray, n_q: int | None = None, groups=None) -> RankDecision:
     return dense_decision(scaled_singular_values(B, groups), n_q)
 
 
+def dense_columns_max() -> int:
+    """The most columns :func:`decide` takes through one dense SVD."""
+    from .rank_sparse import DENSE_COMPONENT
+    return DENSE_COMPONENT
+
+
 def dense_decision(sigma: np.ndarray, n_q: int) -> RankDecision:
     """The decision from all the scaled singular values (largest first)."""
     if not sigma.size or not np.all(np.isfinite(sigma)) or sigma[0] <= 0.0:

@@ -99,8 +99,8 @@ def decide_large(B, n_q: int, groups=None) -> RankDecision:
         dropped.append(bound)
         sigma += [sigma_r, bound] if d else [sigma_r]
     sigma = tuple(float(s) for s in sorted(sigma + [s1], reverse=True))
-    return PartialRankDecision(rank, n_q, sigma, kept=min(kept) / s1,
-                               dropped=max(dropped) / s1)
+    return PartialRankDecision(rank, n_q, sigma, kept=float(min(kept) / s1),
+                               dropped=float(max(dropped) / s1))
 
 
 def _all_dense(C, n_q: int) -> RankDecision:
@@ -134,7 +134,8 @@ def largest(G) -> float:
     """sigma_1 = sqrt(the largest eigenvalue of G) (Lanczos, a fixed start vector)."""
     if G.shape[0] <= 2:
         return float(np.sqrt(np.linalg.eigvalsh(G.toarray())[-1]))
-    value = eigsh(G, k=1, which="LA", v0=np.ones(G.shape[0]), return_eigenvectors=False)
+    value = eigsh(G, k=1, which="LA", v0=np.ones(G.shape[0]), tol=1e-10,
+                  return_eigenvectors=False)            # sigma_1 to ~1e-10 relative
     return float(np.sqrt(value[0]))
 
 

@@ -60,6 +60,19 @@ def test_a_singular_value_in_the_uncertain_band_is_left_to_the_dense_rule():
     assert decision.uncertain == pytest.approx(reference.uncertain, rel=1e-6)
 
 
+@pytest.mark.parametrize("name", ["bricard", "scissor_boom", "rsup"])
+def test_the_sparse_jacobian_is_the_dense_one(compiled, name):
+    """B from the element blocks (what large models use) equals the dense assembly:
+    the same sums of the same kernel outputs, so to the last bit up to the order of
+    the additions (1e-15 of the largest entry)."""
+    solver = compiled(name)
+    q = solver.initial_state().q
+    dense = solver.constraint_jacobian(q)
+    sparse = solver.constraint_jacobian_sparse(q)
+    assert sparse.shape == dense.shape
+    assert np.max(np.abs(sparse.toarray() - dense)) <= 1e-15 * np.max(np.abs(dense))
+
+
 def _mast(bays: int) -> str:
     spec = importlib.util.spec_from_file_location("make_scissor_mast",
                                                   EXAMPLES / "make_scissor_mast.py")
