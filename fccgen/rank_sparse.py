@@ -114,15 +114,14 @@ def components(C) -> list[tuple[np.ndarray, np.ndarray]]:
     coordinate without rows is a component with no rows and contributes no sigma)."""
     n = C.shape[1]
     pattern = abs(C).astype(bool).astype(float)
+    if not n:
+        return []
     _, label = connected_components(pattern.T @ pattern, directed=False)
-    row_label = label[C.indices[C.indptr[:-1]]] if C.nnz else np.zeros(0, int)
-    has = np.diff(C.indptr) > 0
-    out = []
-    for c in np.unique(label):
-        cols = np.flatnonzero(label == c)
-        rows = np.flatnonzero(has & (row_label == c)) if has.any() else np.zeros(0, int)
-        out.append((rows, cols))
-    return out if n else []
+    has = np.diff(C.indptr) > 0                        # rows with an entry
+    first = C.indices[np.minimum(C.indptr[:-1], max(C.nnz - 1, 0))] if C.nnz else 0
+    row_label = np.where(has, label[first] if C.nnz else -1, -1)
+    return [(np.flatnonzero(row_label == c), np.flatnonzero(label == c))
+            for c in np.unique(label)]
 
 
 def gram(C):

@@ -45,6 +45,16 @@ def test_a_large_component_is_decided_as_the_dense_rule_decides():
     assert dropped <= rank_rule.AMBIGUOUS_LOW
 
 
+def test_zero_rows_and_coordinates_without_rows_count_as_the_dense_rule_counts():
+    n = 600
+    B = np.vstack([_difference_rows(n), np.zeros((2, n))])   # two zero rows at the end
+    B[:, 10] = 0.0                  # coordinate 10 in no row: its own component; the
+    decision = rank_rule.decide(B, n)   # chain splits into 10 and 589 coordinates, each
+    reference = _dense_rule(B)          # held at the cut: all 599 rows independent
+    assert isinstance(decision, rank_sparse.PartialRankDecision)
+    assert decision.rank == reference.rank == n - 1 and decision.uncertain == []
+
+
 def test_a_singular_value_in_the_uncertain_band_is_left_to_the_dense_rule():
     n = 600
     chain = _difference_rows(n)
