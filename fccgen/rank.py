@@ -84,7 +84,12 @@ def row_scales(B: np.ndarray, groups=None) -> np.ndarray:
     component of point_on_line's cross product along its line) is a redundant
     combination of its element's other rows: scaled to unit length it would turn the
     position error into an apparent independent row."""
-    norms = np.linalg.norm(np.asarray(B, float), axis=1)
+    return scales_from_norms(np.linalg.norm(np.asarray(B, float), axis=1), groups)
+
+
+def scales_from_norms(norms: np.ndarray, groups=None) -> np.ndarray:
+    """:func:`row_scales` from the row norms ||B_k||."""
+    norms = np.asarray(norms, float)
     if groups is not None and norms.size:
         groups = np.asarray(groups)
         largest = np.zeros(norms.size)
@@ -105,12 +110,30 @@ def scaled_singular_values(B: np.ndarray, groups=None) -> np.ndarray:
 
 def decide(B: np.ndarray, n_q: int | None = None, groups=None) -> RankDecision:
     """The rank of B by the SVD gap test (see the module docstring); groups: the
-    element of each row (:func:`row_scales`)."""
-    B = np.asarray(B, float)
+    element of each row (:func:`row_scales`). B of more than
+    fccgen.rank_sparse.DENSE_COMPONENT columns (dense or SciPy sparse) is decided a
+    connected component at a time, the large ones without a dense SVD
+    (:func:`fccgen.rank_sparse.decide_large`: the same rule, certified)."""
+    from . import rank_sparse
+    if not hasattr(B, "shape"):
+        B = np.asarray(B, float)
     n_q = B.shape[1] if n_q is None else n_q
+    if B.shape[1] > rank_sparse.DENSE_COMPONENT:
+        return rank_sparse.decide_large(B, n_q, groups)
+    B = np.asarray(B, float)
     if not np.all(np.isfinite(B)):        # the run's own checks name the bad input
         return RankDecision(-1, n_q, ())
-    sigma = scaled_singular_values(B, groups)
+    return dense_decision(scaled_singular_values(B, groups), n_q)
+
+
+def dense_columns_max() -> int:
+    """The most columns :func:`decide` takes through one dense SVD."""
+    from .rank_sparse import DENSE_COMPONENT
+    return DENSE_COMPONENT
+
+
+def dense_decision(sigma: np.ndarray, n_q: int) -> RankDecision:
+    """The decision from all the scaled singular values (largest first)."""
     if not sigma.size or not np.all(np.isfinite(sigma)) or sigma[0] <= 0.0:
         return RankDecision(0, n_q, tuple(float(s) for s in sigma))
     rank = int(np.sum(sigma > DECIDE_TOL * sigma[0]))

@@ -333,6 +333,42 @@ cdef class Assembler:
         if flag == ASM_T: return _copy(self.gt, self.n_g, (self.n_g,))
         raise ValueError(f"flag {flag} names no single quantity")
 
+    def jacobian_triplets(self, q):
+        """(rows, columns, values) of the constraint Jacobian B at q, one triplet per
+        entry of each element's block (a coordinate shared by elements repeats: a COO
+        matrix sums the repeats), without the dense n_g x n_q array."""
+        cdef double[::1] qv = self._state(q, "q")
+        cdef int e, i, r, n, n_g, total = 0, at = 0
+        cdef const fcc_element_class *k
+        if self.n_q == 0:
+            return np.zeros(0, np.intc), np.zeros(0, np.intc), np.zeros(0)
+        for e in range(self.n_el):
+            k = self.cls[e]
+            if k.constraint_jacobian != NULL:
+                total += k.n_g * k.n_q
+        rows = np.empty(total, dtype=np.intc)
+        cols = np.empty(total, dtype=np.intc)
+        vals = np.empty(total, dtype=float)
+        cdef int[::1] rv = rows, cv = cols
+        cdef double[::1] vv = vals
+        cdef const int *idx
+        with nogil:
+            for e in range(self.n_el):
+                k = self.cls[e]
+                if k.constraint_jacobian == NULL:
+                    continue
+                n, n_g, idx = k.n_q, k.n_g, self.qidx + self.qptr[e]
+                for i in range(n):
+                    self.lq[i] = qv[idx[i]]
+                k.constraint_jacobian(self.lq, self.params + self.pptr[e], self.out)
+                for r in range(n_g):
+                    for i in range(n):
+                        rv[at] = self.gptr[e] + r
+                        cv[at] = idx[i]
+                        vv[at] = self.out[r * n + i]
+                        at += 1
+        return rows, cols, vals
+
     cdef double[::1] _state(self, object x, str name):
         a = np.ascontiguousarray(x, dtype=float)          # read only: no copy needed
         if not a.flags.writeable:                         # typed views need writeable

@@ -161,6 +161,19 @@ class CompiledSolver:
     def constraint_jacobian(self, q) -> np.ndarray:
         return self._get("constraint_jacobian", q)
 
+    def constraint_jacobian_sparse(self, q):
+        """B at q as a SciPy CSR matrix, assembled from the element blocks (no dense
+        n_g x n_q array: what large models use)."""
+        from scipy.sparse import coo_matrix
+        rows, cols, values = self._asm.jacobian_triplets(q)
+        return coo_matrix((values, (rows, cols)), shape=(self.n_g, self.n_q)).tocsr()
+
+    def _jacobian_for_rank(self, q):
+        """B for fccgen.rank.decide: sparse for models it decides a component at a time."""
+        if self.n_q > rank_rule.dense_columns_max():
+            return self.constraint_jacobian_sparse(q)
+        return self.constraint_jacobian(q)
+
     def constraint_bias(self, q, v) -> np.ndarray:
         return self._get("constraint_bias", q, v)
 
@@ -223,7 +236,7 @@ class CompiledSolver:
                             position_residual=_amax(self.constraints(q)),
                             newton_iterations=iterations,
                             velocity_change=_amax(v - plan.v_target),
-                            velocity_residual=_amax(self.constraint_jacobian(q) @ v
+                            velocity_residual=_amax(self._jacobian_for_rank(q) @ v
                                                     + self.constraint_rate(q)))
 
     # -- simulation ---------------------------------------------------------------------
@@ -336,7 +349,7 @@ class CompiledSolver:
         the engine's factorisations (runs and direct calls) until the next decision.
         Every run decides at its start; before the first decision the factorisations
         count QR pivots above rank_tol."""
-        decision = rank_rule.decide(self.constraint_jacobian(q), self.n_q, self.row_groups)
+        decision = rank_rule.decide(self._jacobian_for_rank(q), self.n_q, self.row_groups)
         self._engine.decide_rank(q, decision.rank)
         if self._dense_engine is not None and self._dense_engine is not self._engine:
             self._dense_engine.decide_rank(q, decision.rank)
