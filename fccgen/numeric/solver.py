@@ -118,6 +118,31 @@ class NumericSolver:
     def constraint_jacobian(self, q) -> np.ndarray:
         return self._assemble(q, None, ("constraint_jacobian",))["constraint_jacobian"]
 
+    def constraint_jacobian_sparse(self, q):
+        """B at q as a SciPy CSR matrix from the element blocks (no dense n_g x n_q
+        array; the compiled solver's method of the same name)."""
+        from scipy.sparse import coo_matrix
+        rows, cols, values = [], [], []
+        for _, idx, r, k in self._kernels(q, None):
+            block = k.evaluate("constraint_jacobian")
+            if block is None or not len(r):
+                continue
+            rows.append(np.repeat(r, len(idx)))
+            cols.append(np.tile(idx, len(r)))
+            values.append(np.asarray(block, float).ravel())
+        if not rows:
+            return coo_matrix((self.n_g, self.n_q)).tocsr()
+        return coo_matrix((np.concatenate(values), (np.concatenate(rows),
+                                                    np.concatenate(cols))),
+                          shape=(self.n_g, self.n_q)).tocsr()
+
+    def _jacobian_for_rank(self, q):
+        """B for fccgen.rank.decide: sparse for models it decides a component at a
+        time (no dense SVD, no dense array)."""
+        if self.n_q > rank_rule.dense_columns_max():
+            return self.constraint_jacobian_sparse(q)
+        return self.constraint_jacobian(q)
+
     def constraint_bias(self, q, v) -> np.ndarray:
         return self._assemble(q, v, ("constraint_bias",))["constraint_bias"]
 
@@ -163,7 +188,14 @@ class NumericSolver:
 
     def project_velocities(self, q, v) -> np.ndarray:
         """The speeds nearest to v in the kinetic-energy metric with B v = -dg/dt
-        (0 without drivers)."""
+        (0 without drivers). For a large model (more coordinates than
+        fccgen.rank.dense_columns_max()), v = 0 with dg/dt = 0 is its own projection
+        (the minimum of v^T M v / 2) and is returned without the O(n^3) dense solve
+        (a structure deployed from rest)."""
+        v = np.asarray(v, float)
+        if (self.n_q > rank_rule.dense_columns_max() and not np.any(v)
+                and not np.any(self.constraint_rate(q))):
+            return np.zeros(self.n_q)
         a = self._assemble(q, None, ("mass_matrix", "constraint_jacobian",
                                      "constraint_rate"))
         M = a["mass_matrix"]
@@ -286,7 +318,7 @@ class NumericSolver:
     def decide_rank(self, q) -> rank_rule.RankDecision:
         """Decide the rank of B at q (fccgen.rank) and keep it until the next decision,
         as the compiled solver does."""
-        decision = rank_rule.decide(self.constraint_jacobian(q), self.n_q, self.row_groups)
+        decision = rank_rule.decide(self._jacobian_for_rank(q), self.n_q, self.row_groups)
         self._rank.decide(decision.rank)
         return decision
 
