@@ -1,0 +1,74 @@
+"""``fccgen check`` of a model above fccgen.rank_sparse.DENSE_COMPONENT coordinates: a
+connected component at a time, from the sparse B, the redundant rows from a certified LU
+(fccgen.check, fccgen.rank_sparse.independent_rows)."""
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+import scipy.sparse as sp
+
+from fccgen import rank as rank_rule
+from fccgen import rank_sparse
+from fccgen.api import load_numeric
+from fccgen.check import check_model
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+
+
+def _mast(bays: int) -> str:
+    spec = importlib.util.spec_from_file_location("make_scissor_mast",
+                                                  EXAMPLES / "make_scissor_mast.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.model_text(bays)
+
+
+def _dense_rank(B) -> int:
+    """fccgen.rank's rule on all the singular values of B (rows scaled)."""
+    return rank_rule.dense_decision(rank_rule.scaled_singular_values(B), B.shape[1]).rank
+
+
+def test_check_of_a_33_bay_mast_counts_as_the_run_decides(tmp_path):
+    """198 bars, 612 coordinates, 1005 rows: the report's rank, degrees of freedom and
+    number of redundant rows are the run's decision, and the rows it names are
+    exactly redundant (the others have full rank: the dense SVD of them)."""
+    path = tmp_path / "mast_33.yaml"
+    path.write_text(_mast(33))
+    events = []
+    report = check_model(path, progress=events.append)
+    solver = load_numeric(path)
+    init = solver.initial_state()
+    decision = solver.decide_rank(init.q)
+    assert solver.n_q > rank_sparse.DENSE_COMPONENT
+    assert isinstance(decision, rank_sparse.PartialRankDecision)
+    assert (report.n_q, report.n_g) == (612, 1005)
+    assert report.rank == decision.rank == 611 and report.dof == decision.dof == 1
+    assert len(report.redundant) == report.n_g - decision.rank == 394
+    assert report.uncertain == [] and report.rank_gap == decision.gap
+    B = solver.constraint_jacobian(init.q)
+    named = set(report.redundant)
+    kept = [k for k, label in enumerate(report.rows) if label not in named]
+    assert len(kept) == decision.rank and len(set(report.rows)) == len(report.rows)
+    assert _dense_rank(B[kept]) == len(kept) == _dense_rank(B)
+    # the rows taking part in dependencies are named at this size (1005 rows)
+    assert report.dependent.startswith("joints XAB0, base_A, XAB1")
+    assert "not named" not in report.text()
+    assert {e.stage for e in events} == {"check"} and len(events) >= 3
+
+
+def test_the_lu_choice_of_independent_rows_is_a_basis_of_the_rows():
+    """Rows w_i e_i - w_(i+1) e_(i+1) of 600 coordinates (weights w between 0.5 and
+    1.5) and 50 sums of neighbouring ones: 599 independent rows chosen, the 50 left
+    over depend on them."""
+    n = 600
+    weights = 1.0 + 0.5 * np.sin(np.arange(n))
+    chain = (np.eye(n - 1, n) - np.eye(n - 1, n, k=1)) * weights
+    B = np.vstack([chain[:50] + chain[1:51], chain])     # the dependent rows first
+    C = rank_sparse.scaled(sp.csr_matrix(B))
+    rows = rank_sparse.independent_rows(C, n - 1)
+    assert rows is not None and rows.size == n - 1
+    assert _dense_rank(B[rows]) == n - 1
+    # a rank the rows do not have is refused, not forced
+    assert rank_sparse.independent_rows(C, n - 2) is None
