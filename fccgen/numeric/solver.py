@@ -26,6 +26,7 @@ from ..results import InitialState, Result, keep_rows, timed_run
 from .constrained import RankKeeper, constrained_solve, scaled_residual
 from .dopri5 import simulate_dopri5
 from .elements import element_kernels
+from . import sparse_projection
 
 
 # kernels whose output is an n_q x n_q block of the element's coordinates
@@ -188,14 +189,20 @@ class NumericSolver:
 
     def project_velocities(self, q, v) -> np.ndarray:
         """The speeds nearest to v in the kinetic-energy metric with B v = -dg/dt
-        (0 without drivers). For a large model (more coordinates than
-        fccgen.rank.dense_columns_max()), v = 0 with dg/dt = 0 is its own projection
-        (the minimum of v^T M v / 2) and is returned without the O(n^3) dense solve
-        (a structure deployed from rest)."""
+        (0 without drivers). A large model (more coordinates than
+        fccgen.rank.dense_columns_max()) with its rank decided takes the sparse KKT
+        solve (numeric/sparse_projection.py) instead of the O(n^3) dense one, and
+        v = 0 with dg/dt = 0 is returned as its own projection."""
         v = np.asarray(v, float)
-        if (self.n_q > rank_rule.dense_columns_max() and not np.any(v)
-                and not np.any(self.constraint_rate(q))):
-            return np.zeros(self.n_q)
+        if self.n_q > rank_rule.dense_columns_max():
+            rate = self.constraint_rate(q)
+            if not np.any(v) and not np.any(rate):
+                return np.zeros(self.n_q)
+            if self._rank.rank >= 0:
+                done = sparse_projection.project_velocities(self, q, v, -rate,
+                                                            self._rank.rank)
+                if done is not None:
+                    return done
         a = self._assemble(q, None, ("mass_matrix", "constraint_jacobian",
                                      "constraint_rate"))
         M = a["mass_matrix"]
