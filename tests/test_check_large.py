@@ -89,6 +89,9 @@ def test_the_sparse_velocity_projection_is_the_dense_one(tmp_path):
     assert sparse is not None                            # certified: not the fallback
     assert np.array_equal(solver.project_velocities(q, v), sparse)
     M, B = solver.mass_matrix(q), solver.constraint_jacobian(q)
+    # the sparse assembly is the dense one (repeats summed in another order: rounding)
+    assert np.max(np.abs(solver.constraint_jacobian_sparse(q).toarray() - B)) <= \
+        1e-15 * np.max(np.abs(B))
     dense = constrained_solve(M, B, M @ v, np.zeros(solver.n_g), solver.rank_tol)
     scale = np.max(np.abs(dense))
     # measured 5e-13: the condition of the KKT matrix (sigma_r / sigma_1 = 3.6e-4,

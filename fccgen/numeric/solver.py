@@ -122,20 +122,7 @@ class NumericSolver:
     def constraint_jacobian_sparse(self, q):
         """B at q as a SciPy CSR matrix from the element blocks (no dense n_g x n_q
         array; the compiled solver's method of the same name)."""
-        from scipy.sparse import coo_matrix
-        rows, cols, values = [], [], []
-        for _, idx, r, k in self._kernels(q, None):
-            block = k.evaluate("constraint_jacobian")
-            if block is None or not len(r):
-                continue
-            rows.append(np.repeat(r, len(idx)))
-            cols.append(np.tile(idx, len(r)))
-            values.append(np.asarray(block, float).ravel())
-        if not rows:
-            return coo_matrix((self.n_g, self.n_q)).tocsr()
-        return coo_matrix((np.concatenate(values), (np.concatenate(rows),
-                                                    np.concatenate(cols))),
-                          shape=(self.n_g, self.n_q)).tocsr()
+        return sparse_projection.sparse_jacobian(self, q)
 
     def _jacobian_for_rank(self, q):
         """B for fccgen.rank.decide: sparse for models it decides a component at a

@@ -1,4 +1,4 @@
-"""The velocity projection of a large model with sparse matrices (the dense one,
+"""The velocity projection of a large model with sparse matrices (the dense solve,
 numeric/constrained.py, costs O(n^3): 40 s at 3024 coordinates).
 
     v = argmin (v - v_t)^T M (v - v_t) / 2   subject to   B v = b
@@ -30,6 +30,25 @@ from ..rank import scales_from_norms
 REFINEMENTS = 2          # steps of iterative refinement of the KKT solve
 
 
+def sparse_jacobian(solver, q):
+    """B at q as CSR from the element blocks (a coordinate shared by rows of one
+    element repeats: the COO sum adds the repeats, as the dense assembly does)."""
+    rows, cols, values = [], [], []
+    for _, idx, r, k in solver._kernels(q, None):
+        block = k.evaluate("constraint_jacobian")
+        if block is None or not len(r):
+            continue
+        rows.append(np.repeat(r, len(idx)))
+        cols.append(np.tile(idx, len(r)))
+        values.append(np.asarray(block, float).ravel())
+    shape = (solver.n_g, solver.n_q)
+    if not rows:
+        return sp.csr_matrix(shape)
+    return sp.coo_matrix((np.concatenate(values), (np.concatenate(rows),
+                                                    np.concatenate(cols))),
+                         shape=shape).tocsr()
+
+
 def sparse_square(solver, q, v, name: str):
     """The n_q x n_q kernel ``name`` (mass_matrix, ...) as CSR from the element blocks."""
     rows, cols, values = [], [], []
@@ -51,6 +70,14 @@ def sparse_square(solver, q, v, name: str):
 def project_velocities(solver, q, v, b, rank: int) -> np.ndarray | None:
     """The projection of the module docstring at q of the speeds v onto B v = b, with
     the decided ``rank`` of B; None when it cannot be certified."""
+    M = sparse_square(solver, q, None, "mass_matrix")
+    return constrained_step(solver, q, M, M @ np.asarray(v, float), b, rank)
+
+
+def constrained_step(solver, q, M, Q, b, rank: int) -> np.ndarray | None:
+    """x minimising x^T M x / 2 - Q^T x subject to B(q) x = b (the KKT solve of the
+    module docstring; M sparse), with ``rank`` the rank of B(q); None when it cannot be
+    certified."""
     B = solver.constraint_jacobian_sparse(q)
     norms = np.sqrt(np.asarray(B.multiply(B).sum(axis=1)).ravel())
     scale = scales_from_norms(norms, solver.row_groups)
@@ -58,10 +85,9 @@ def project_velocities(solver, q, v, b, rank: int) -> np.ndarray | None:
     keep = rank_sparse.independent_rows(C, rank) if rank > 0 else np.zeros(0, int)
     if keep is None or not np.all(np.isfinite(C.data)):
         return None
-    M = sparse_square(solver, q, None, "mass_matrix")
     CS = C[keep]
     K = sp.bmat([[M, CS.T], [CS, None]], format="csc")
-    rhs = np.concatenate([M @ v, np.asarray(b, float)[keep] / scale[keep]])
+    rhs = np.concatenate([Q, np.asarray(b, float)[keep] / scale[keep]])
     try:
         lu = splu(K)
     except RuntimeError:                  # exactly singular: the dense solve says why
