@@ -10,9 +10,10 @@ A model of more than fccgen.rank_sparse.DENSE_COMPONENT coordinates is checked a
 connected component of its constraint Jacobian at a time (the rows of one component
 depend only on each other), from B assembled sparse: a small component as a small
 model is; a large one takes the rank decision of fccgen.rank_sparse, its redundant
-rows from a certified LU (rank_sparse.independent_rows) and leaves the rows taking
-part in its dependencies unnamed above DEPENDENCY_ROWS_MAX rows (a note says so: they
-need an orthonormal basis of its left null space, O(m^3) in its rows).
+rows from a certified LU (rank_sparse.independent_rows) and the rows taking part in
+its dependencies from the weights of rank_sparse.dependency_weights (the same rule as
+small models' SVD), left unnamed with a note above DEPENDENCY_REDUNDANT_MAX redundant
+rows.
 """
 from __future__ import annotations
 
@@ -21,16 +22,21 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.linalg
+import scipy.sparse as sp
 
-from .mechanism.report import dependency_text, dependent_rows, rows_text
+from .mechanism.report import DEPENDENT_TOL, dependency_text, dependent_rows, rows_text
 from . import rank as rank_rule
 from . import rank_sparse
 from .errors import SimulationError
 from .progress import Reporter
+from .threads import single_threaded_blas
 
-# The rows taking part in the dependencies of a component come from a dense SVD of its
-# rows (U: m x m, O(m^3)): about 1.5 s at 1000 rows, 90 s at 5000. Above this many rows
-# they are left unnamed, with a note.
+# The rows taking part in the dependencies of a large component: from the weights of
+# rank_sparse.dependency_weights, O(R^3 + R^2 n) in its R redundant rows (10 s at the
+# 1000-bar mast's 2002), left unnamed with a note above DEPENDENCY_REDUNDANT_MAX; where
+# the LU's basis is not certified, from the dense SVD of small models (U: m x m, about
+# 1.5 s at 1000 rows, 90 s at 5000), up to DEPENDENCY_ROWS_MAX rows.
+DEPENDENCY_REDUNDANT_MAX = 3000
 DEPENDENCY_ROWS_MAX = 1500
 
 
@@ -121,7 +127,8 @@ def check_model(path, progress=None) -> CheckReport:
     solver = load_numeric(path)
     source = str(solver.plan.model.source)
     try:
-        return _report(solver, Reporter(progress, "check"))
+        with single_threaded_blas():     # a spinning OpenBLAS doubled the CPU time of
+            return _report(solver, Reporter(progress, "check"))   # the 1000-bar check
     except SimulationError as exc:
         if str(exc).startswith(f"{source}:"):
             raise
@@ -187,33 +194,51 @@ def _large_rows(B, labels, rank, groups, notes, say) -> tuple[list[str], str]:
         Bc = B[rows][:, cols]
         if cols.size <= rank_rule.dense_columns_max():
             Bc = Bc.toarray()
-            found = redundant_indices(Bc, r, part_groups)
-            dependent += [int(rows[k]) for k in dependent_rows(Bc, r)]
+            found, taking = redundant_indices(Bc, r, part_groups), dependent_rows(Bc, r)
         else:
-            say(f"check: redundant equations of a component of {rows.size} x "
-                f"{cols.size} (LU)")
-            keep = rank_sparse.independent_rows(rank_sparse.scaled(Bc, part_groups), r)
-            if keep is None:
-                say(f"check: redundant equations of a component of {rows.size} x "
-                    f"{cols.size} (dense QR: the LU's choice was not certified)")
-                found = redundant_indices(Bc.toarray(), r, part_groups)
-            else:
-                found = np.setdiff1d(np.arange(rows.size), keep)
-            if rows.size <= DEPENDENCY_ROWS_MAX:
-                say(f"check: rows taking part in the dependencies ({rows.size} rows)")
-                dependent += [int(rows[k]) for k in dependent_rows(Bc.toarray(), r)]
-            else:
-                unnamed.append(f"{rows.size} x {cols.size}")
+            found, taking = _large_component(Bc, r, part_groups, say)
+        if taking is None:
+            unnamed.append(f"{rows.size} x {cols.size}")
+        else:
+            dependent += [int(rows[k]) for k in taking]
         redundant += [int(rows[k]) for k in found]
     if unnamed:
         notes.append(
             "the rows taking part in the dependencies of the component(s) of "
-            f"{', '.join(unnamed)} equations x coordinates are not named: that needs an "
-            "orthonormal basis of each one's left null space (a dense SVD, O(m^3) in its "
-            "equations); the redundant equations listed are exact. To see which joints "
-            "take part, check a smaller model of the same structure (fewer repeated "
-            "units) or the one part of interest")
+            f"{', '.join(unnamed)} equations x coordinates are not named: with more than "
+            f"{DEPENDENCY_REDUNDANT_MAX} redundant rows that costs O(m^3) in them (an "
+            "orthonormal basis of the left null space); the redundant equations listed "
+            "are exact. To see which joints take part, check a smaller model of the same "
+            "structure (fewer repeated units) or the one part of interest")
     return [labels[k] for k in sorted(redundant)], rows_text(sorted(dependent), labels)
+
+
+def _large_component(Bc, r: int, groups, say):
+    """(redundant rows, rows taking part in the dependencies or None when not
+    computed) of one component of more than DENSE_COMPONENT coordinates, indices of
+    its rows: the certified LU's basis (rank_sparse.independent_rows) and the weights
+    of rank_sparse.dependency_weights; the dense QR and SVD of small models where the
+    LU's choice is not certified."""
+    m, n = Bc.shape
+    say(f"check: redundant equations of a component of {m} x {n} (LU)")
+    keep = rank_sparse.independent_rows(rank_sparse.scaled(Bc, groups), r)
+    if keep is None:
+        say(f"check: redundant equations of a component of {m} x {n} (dense QR: the "
+            "LU's choice was not certified)")
+        dense = Bc.toarray()
+        found = redundant_indices(dense, r, groups)
+        if m > DEPENDENCY_ROWS_MAX:
+            return found, None
+        say(f"check: rows taking part in the dependencies (dense SVD of {m} rows)")
+        return found, dependent_rows(dense, r)
+    found = np.setdiff1d(np.arange(m), keep)
+    if found.size > DEPENDENCY_REDUNDANT_MAX:
+        return found, None
+    say(f"check: rows taking part in the dependencies ({found.size} redundant rows)")
+    norms = np.sqrt(np.asarray(Bc.multiply(Bc).sum(axis=1)).ravel())
+    Bs = (sp.diags(1.0 / np.where(norms > 0.0, norms, 1.0)) @ Bc).tocsr()
+    weights = rank_sparse.dependency_weights(Bs, keep)
+    return found, np.flatnonzero(weights > DEPENDENT_TOL)
 
 
 def _require_finite(source: str, arrays: dict):

@@ -13,6 +13,7 @@ from fccgen import rank as rank_rule
 from fccgen import rank_sparse
 from fccgen.api import load_numeric
 from fccgen.check import check_model
+from fccgen.mechanism.report import dependency_text
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
@@ -52,7 +53,10 @@ def test_check_of_a_33_bay_mast_counts_as_the_run_decides(tmp_path):
     kept = [k for k, label in enumerate(report.rows) if label not in named]
     assert len(kept) == decision.rank and len(set(report.rows)) == len(report.rows)
     assert _dense_rank(B[kept]) == len(kept) == _dense_rank(B)
-    # the rows taking part in dependencies are named at this size (1005 rows)
+    # the rows taking part in dependencies: from rank_sparse.dependency_weights, the
+    # same rows as the small models' SVD of all the rows (weights 0.2 and more against
+    # 1e-15 and less: the rule's 1e-6 is far from both)
+    assert report.dependent == dependency_text(B, decision.rank, report.rows)
     assert report.dependent.startswith("joints XAB0, base_A, XAB1")
     assert "not named" not in report.text()
     assert {e.stage for e in events} == {"check"} and len(events) >= 3
