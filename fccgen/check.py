@@ -180,11 +180,17 @@ def _large_rows(B, labels, rank, groups, notes, say) -> tuple[list[str], str]:
     groups = None if groups is None else np.asarray(groups)
     parts = [(rows, cols) for rows, cols in rank_sparse.components(B.tocsr())
              if rows.size]
-    ranks = [rank_rule.decide(B[rows][:, cols], cols.size,
+    small = rank_rule.dense_columns_max()
+    ranks = [rank_rule.decide(B[rows][:, cols].toarray() if cols.size <= small
+                              else B[rows][:, cols], cols.size,
                               None if groups is None else groups[rows]).rank
              for rows, cols in parts]
     if sum(ranks) != rank or min(ranks, default=0) < 0:
         say(f"check: redundant equations by a dense QR of {B.shape[0]} x {B.shape[1]}")
+        notes.append("the ranks of the connected components of the constraint "
+                     "Jacobian do not add up to its rank (singular values near the "
+                     "rule's threshold): the redundant equations are those of the "
+                     "whole, the rows taking part in the dependencies are not named")
         return redundant_rows(B.toarray(), labels, rank, groups), ""
     redundant, dependent, unnamed = [], [], []          # row indices of B
     for (rows, cols), r in zip(parts, ranks):

@@ -103,3 +103,29 @@ def test_the_sparse_velocity_projection_is_the_dense_one(tmp_path):
     assert np.max(np.abs(sparse - dense)) <= 1e-10 * scale
     assert np.max(np.abs(B @ sparse)) <= 1e-13 * scale      # measured 7e-16
     assert np.max(np.abs(sparse)) > 1e-3 * np.max(np.abs(v))  # the motion is kept
+
+
+def test_components_large_and_small_are_reported_as_the_whole_would_be():
+    """A 600-coordinate chain with 50 redundant sums and a 2-coordinate component with
+    one doubled row: the redundant rows are a complement of a basis (the kept rows have
+    full rank), 51 of them, and the rows taking part in the dependencies are those of
+    the SVD of the whole."""
+    from fccgen.check import _large_rows
+    from fccgen.mechanism.report import dependent_rows
+    n = 600
+    weights = 1.0 + 0.5 * np.sin(np.arange(n))
+    chain = (np.eye(n - 1, n) - np.eye(n - 1, n, k=1)) * weights
+    small = np.array([[1.0, 1.0], [2.0, 2.0]])
+    B = sp.block_diag([sp.csr_matrix(np.vstack([chain, chain[:50] + chain[1:51]])),
+                       small]).tocsr()
+    dense = B.toarray()
+    rank = _dense_rank(dense)
+    labels = [f"bodies.r{k} (length)" for k in range(B.shape[0])]
+    notes = []
+    redundant, dependent = _large_rows(B, labels, rank, None, notes, lambda *a, **k: None)
+    assert rank == n - 1 + 1 and len(redundant) == B.shape[0] - rank == 51
+    kept = [k for k, label in enumerate(labels) if label not in set(redundant)]
+    assert _dense_rank(dense[kept]) == len(kept) == rank
+    expected = [labels[k] for k in dependent_rows(dense, rank)]
+    assert dependent == "other rows " + ", ".join(expected) and notes == []
+    assert len(expected) == 50 + 51 + 2      # the sums, the rows they add, both doubled
