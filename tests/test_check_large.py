@@ -129,3 +129,22 @@ def test_components_large_and_small_are_reported_as_the_whole_would_be():
     expected = [labels[k] for k in dependent_rows(dense, rank)]
     assert dependent == "other rows " + ", ".join(expected) and notes == []
     assert len(expected) == 50 + 51 + 2      # the sums, the rows they add, both doubled
+
+
+def test_the_command_line_shows_the_steps_of_a_large_check(tmp_path, capsys):
+    """stderr not a terminal: one line per step ("fccgen: check: ..."), the report on
+    stdout."""
+    from fccgen.cli import main
+    path = tmp_path / "mast_17.yaml"
+    path.write_text(_mast(17))                       # 102 bars, 324 x 525: still small
+    assert main(["check", str(path)]) == 0
+    out, err = capsys.readouterr()
+    assert "coordinates 324" in out and err == ""    # small: no progress lines
+    path = tmp_path / "mast_33.yaml"
+    path.write_text(_mast(33))
+    assert main(["check", str(path)]) == 0
+    out, err = capsys.readouterr()
+    assert "coordinates 612, constraint equations 1005, rank 611" in out
+    assert "redundant constraint equations: 394" in out
+    assert "fccgen: check: rank decision" in err
+    assert "fccgen: check: rows taking part in the dependencies (394" in err
