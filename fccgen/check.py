@@ -178,8 +178,9 @@ def _large_rows(B, labels, rank, groups, notes, say) -> tuple[list[str], str]:
     whole), else the whole is taken as one dense component (slow, the small models'
     rule)."""
     groups = None if groups is None else np.asarray(groups)
-    parts = [(rows, cols) for rows, cols in rank_sparse.components(B.tocsr())
-             if rows.size]
+    B = sp.csr_matrix(B, copy=True)
+    B.eliminate_zeros()          # components() labels a row by its first stored column
+    parts = [(rows, cols) for rows, cols in rank_sparse.components(B) if rows.size]
     small = rank_rule.dense_columns_max()
     ranks = [rank_rule.decide(B[rows][:, cols].toarray() if cols.size <= small
                               else B[rows][:, cols], cols.size,

@@ -107,7 +107,7 @@ def test_the_sparse_velocity_projection_is_the_dense_one(tmp_path):
 
 def test_components_large_and_small_are_reported_as_the_whole_would_be():
     """A 600-coordinate chain with 50 redundant sums and a 2-coordinate component with
-    one doubled row: the redundant rows are a complement of a basis (the kept rows have
+    one doubled row, a zero stored across the two: the redundant rows are a complement of a basis (the kept rows have
     full rank), 51 of them, and the rows taking part in the dependencies are those of
     the SVD of the whole."""
     from fccgen.check import _large_rows
@@ -117,7 +117,13 @@ def test_components_large_and_small_are_reported_as_the_whole_would_be():
     chain = (np.eye(n - 1, n) - np.eye(n - 1, n, k=1)) * weights
     small = np.array([[1.0, 1.0], [2.0, 2.0]])
     B = sp.block_diag([sp.csr_matrix(np.vstack([chain, chain[:50] + chain[1:51]])),
-                       small]).tocsr()
+                       small]).tocoo()
+    # a stored zero of the last row in the chain's first column (element blocks store
+    # the zeros of planar elements): it must not join the two components
+    B = sp.coo_matrix((np.append(B.data, 0.0), (np.append(B.row, B.shape[0] - 1),
+                                                np.append(B.col, 0))), shape=B.shape)
+    B = B.tocsr()
+    assert np.any(B.data == 0.0)
     dense = B.toarray()
     rank = _dense_rank(dense)
     labels = [f"bodies.r{k} (length)" for k in range(B.shape[0])]

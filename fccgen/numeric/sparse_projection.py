@@ -44,9 +44,10 @@ def sparse_jacobian(solver, q):
     shape = (solver.n_g, solver.n_q)
     if not rows:
         return sp.csr_matrix(shape)
-    return sp.coo_matrix((np.concatenate(values), (np.concatenate(rows),
-                                                    np.concatenate(cols))),
-                         shape=shape).tocsr()
+    B = sp.coo_matrix((np.concatenate(values), (np.concatenate(rows),
+                                                 np.concatenate(cols))), shape=shape).tocsr()
+    B.eliminate_zeros()               # the zeros of the blocks (planar elements, ...)
+    return B
 
 
 def sparse_square(solver, q, v, name: str):
