@@ -32,7 +32,7 @@ from .progress import Reporter
 from .threads import single_threaded_blas
 
 # The rows taking part in the dependencies of a large component: from the weights of
-# rank_sparse.dependency_weights, O(R^3 + R^2 n) in its R redundant rows (10 s at the
+# rank_sparse.dependency_weights, O(R^3 + R^2 n) in its R redundant rows (2 s at the
 # 1000-bar mast's 2002), left unnamed with a note above DEPENDENCY_REDUNDANT_MAX; where
 # the LU's basis is not certified, from the dense SVD of small models (U: m x m, about
 # 1.5 s at 1000 rows, 90 s at 5000), up to DEPENDENCY_ROWS_MAX rows.
@@ -154,11 +154,13 @@ def _report(solver, report) -> CheckReport:
     decision = rank_rule.decide(B, B.shape[1], plan.row_groups)
     rank = max(decision.rank, 0)
     notes = list(plan.notes)
+    joints = model.mechanism is not None         # the dependencies are named by joint
     if large:
-        redundant, dependent = _large_rows(B, labels, rank, plan.row_groups, notes, say)
+        redundant, dependent = _large_rows(B, labels, rank, plan.row_groups, notes, say,
+                                           joints)
     else:
         redundant = redundant_rows(B, labels, rank, plan.row_groups)
-        dependent = dependency_text(B, rank, labels)
+        dependent = dependency_text(B, rank, labels) if joints else ""
     return CheckReport(
         name=model.name, source=str(model.source),
         n_points=len(model.moving_points), n_vectors=len(model.moving_vectors),
@@ -167,14 +169,15 @@ def _report(solver, report) -> CheckReport:
         classes=[f"{c.name}: {c.describe()}" for c in plan.classes],
         init_report=init.report(), notes=notes,
         joints=model.mechanism.describe() if model.mechanism is not None else [],
-        dependent=dependent if model.mechanism is not None else "",
+        dependent=dependent,
         rank_gap=tuple(decision.gap), uncertain=list(decision.uncertain))
 
 
-def _large_rows(B, labels, rank, groups, notes, say) -> tuple[list[str], str]:
-    """(redundant rows, rows taking part in the dependencies) of a large model, a
-    connected component of B at a time (module docstring); notes gets what was not
-    computed. The components' ranks must add up to ``rank`` (the decision of the
+def _large_rows(B, labels, rank, groups, notes, say,
+                dependencies: bool = True) -> tuple[list[str], str]:
+    """(redundant rows, rows taking part in the dependencies: '' unless
+    ``dependencies``) of a large model, a connected component of B at a time (module
+    docstring); notes gets what was not computed. The components' ranks must add up to ``rank`` (the decision of the
     whole), else the whole is taken as one dense component (slow, the small models'
     rule)."""
     groups = None if groups is None else np.asarray(groups)
@@ -201,9 +204,10 @@ def _large_rows(B, labels, rank, groups, notes, say) -> tuple[list[str], str]:
         Bc = B[rows][:, cols]
         if cols.size <= rank_rule.dense_columns_max():
             Bc = Bc.toarray()
-            found, taking = redundant_indices(Bc, r, part_groups), dependent_rows(Bc, r)
+            found = redundant_indices(Bc, r, part_groups)
+            taking = dependent_rows(Bc, r) if dependencies else []
         else:
-            found, taking = _large_component(Bc, r, part_groups, say)
+            found, taking = _large_component(Bc, r, part_groups, say, dependencies)
         if taking is None:
             unnamed.append(f"{rows.size} x {cols.size}")
         else:
@@ -212,17 +216,18 @@ def _large_rows(B, labels, rank, groups, notes, say) -> tuple[list[str], str]:
     if unnamed:
         notes.append(
             "the rows taking part in the dependencies of the component(s) of "
-            f"{', '.join(unnamed)} equations x coordinates are not named: with more than "
-            f"{DEPENDENCY_REDUNDANT_MAX} redundant rows that costs O(m^3) in them (an "
+            f"{', '.join(unnamed)} equations x coordinates are not named: at this size "
+            f"(over {DEPENDENCY_REDUNDANT_MAX} redundant rows, or {DEPENDENCY_ROWS_MAX} "
+            "rows where the LU's choice was not certified) that costs O(m^3) (an "
             "orthonormal basis of the left null space); the redundant equations listed "
             "are exact. To see which joints take part, check a smaller model of the same "
             "structure (fewer repeated units) or the one part of interest")
     return [labels[k] for k in sorted(redundant)], rows_text(sorted(dependent), labels)
 
 
-def _large_component(Bc, r: int, groups, say):
-    """(redundant rows, rows taking part in the dependencies or None when not
-    computed) of one component of more than DENSE_COMPONENT coordinates, indices of
+def _large_component(Bc, r: int, groups, say, dependencies: bool = True):
+    """(redundant rows, rows taking part in the dependencies: None when not computed,
+    [] unless ``dependencies``) of one component of more than DENSE_COMPONENT coordinates, indices of
     its rows: the certified LU's basis (rank_sparse.independent_rows) and the weights
     of rank_sparse.dependency_weights; the dense QR and SVD of small models where the
     LU's choice is not certified."""
@@ -234,11 +239,15 @@ def _large_component(Bc, r: int, groups, say):
             "LU's choice was not certified)")
         dense = Bc.toarray()
         found = redundant_indices(dense, r, groups)
+        if not dependencies:
+            return found, []
         if m > DEPENDENCY_ROWS_MAX:
             return found, None
         say(f"check: rows taking part in the dependencies (dense SVD of {m} rows)")
         return found, dependent_rows(dense, r)
     found = np.setdiff1d(np.arange(m), keep)
+    if not dependencies:
+        return found, []
     if found.size > DEPENDENCY_REDUNDANT_MAX:
         return found, None
     say(f"check: rows taking part in the dependencies ({found.size} redundant rows)")
