@@ -5,6 +5,15 @@ Loading the model runs every rule of the model file, including the run settings 
 ``simulate`` section exactly as ``fccgen simulate`` checks them (fccgen.run_settings),
 so a model that check passes is one that simulate accepts with its own settings. A
 number of the report that is not finite is an error, never a line of the report.
+
+A model of more than fccgen.rank_sparse.DENSE_COMPONENT coordinates is checked a
+connected component of its constraint Jacobian at a time (the rows of one component
+depend only on each other), from B assembled sparse: a small component as a small
+model is; a large one takes the rank decision of fccgen.rank_sparse, its redundant
+rows from a certified LU (rank_sparse.independent_rows) and the rows taking part in
+its dependencies from the weights of rank_sparse.dependency_weights (the same rule as
+small models' SVD), left unnamed with a note above DEPENDENCY_REDUNDANT_MAX redundant
+rows.
 """
 from __future__ import annotations
 
@@ -13,10 +22,22 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.linalg
+import scipy.sparse as sp
 
-from .mechanism.report import dependency_text
+from .mechanism.report import DEPENDENT_TOL, dependency_text, dependent_rows, rows_text
 from . import rank as rank_rule
+from . import rank_sparse
 from .errors import SimulationError
+from .progress import Reporter
+from .threads import single_threaded_blas
+
+# The rows taking part in the dependencies of a large component: from the weights of
+# rank_sparse.dependency_weights, O(R^3 + R^2 n) in its R redundant rows (2 s at the
+# 1000-bar mast's 2002), left unnamed with a note above DEPENDENCY_REDUNDANT_MAX; where
+# the LU's basis is not certified, from the dense SVD of small models (U: m x m, about
+# 1.5 s at 1000 rows, 90 s at 5000), up to DEPENDENCY_ROWS_MAX rows.
+DEPENDENCY_REDUNDANT_MAX = 3000
+DEPENDENCY_ROWS_MAX = 1500
 
 
 
@@ -86,51 +107,154 @@ def redundant_rows(B: np.ndarray, labels: list[str], rank: int, groups=None):
     """The rows that depend on earlier ones, given the rank of B (fccgen.rank): those
     past the first ``rank`` columns of the QR with column pivoting of the scaled B^T
     (rows scaled per element, ``groups``)."""
+    return [labels[k] for k in redundant_indices(B, rank, groups)]
+
+
+def redundant_indices(B: np.ndarray, rank: int, groups=None) -> list[int]:
+    """:func:`redundant_rows` as row indices, in increasing order."""
     if B.shape[0] == 0:
         return []
     scaled = B / rank_rule.row_scales(B, groups)[:, None]
     _, _, piv = scipy.linalg.qr(scaled.T, mode="economic", pivoting=True)
-    return [labels[k] for k in sorted(int(k) for k in piv[rank:])]
+    return sorted(int(k) for k in piv[rank:])
 
 
-def check_model(path) -> CheckReport:
+def check_model(path, progress=None) -> CheckReport:
     """Validate a model and report its structure (needs no compiler). Errors name the
-    model file."""
+    model file. progress: a callback of fccgen.progress events ("check" stage), told
+    of each step of a large model."""
     from .api import load_numeric
     solver = load_numeric(path)
     source = str(solver.plan.model.source)
     try:
-        return _report(solver)
+        with single_threaded_blas():     # a spinning OpenBLAS doubled the CPU time of
+            return _report(solver, Reporter(progress, "check"))   # the 1000-bar check
     except SimulationError as exc:
         if str(exc).startswith(f"{source}:"):
             raise
         raise SimulationError(f"{source}: {exc}") from None
 
 
-def _report(solver) -> CheckReport:
+def _report(solver, report) -> CheckReport:
     plan = solver.plan
+    large = plan.n_q > rank_rule.dense_columns_max()
+    say = report if large else (lambda *args, **kwargs: None)
+    say(f"check: initial state ({plan.n_q} coordinates, {plan.n_g} equations)")
     init = solver.initial_state()
     labels = constraint_row_labels(plan)
-    B = solver.constraint_jacobian(init.q)
+    B = solver.constraint_jacobian_sparse(init.q) if large else \
+        solver.constraint_jacobian(init.q)
     model = plan.model
     _require_finite(model.source, {
         "the assembled positions q": init.q, "the projected velocities v": init.v,
-        "the constraint Jacobian B": B,
+        "the constraint Jacobian B": B.data if large else B,
         "the residuals": [init.position_residual_given, init.position_residual,
                           init.velocity_change, init.velocity_residual]})
+    say("check: rank decision")
     decision = rank_rule.decide(B, B.shape[1], plan.row_groups)
     rank = max(decision.rank, 0)
-    redundant = redundant_rows(B, labels, rank, plan.row_groups)
+    notes = list(plan.notes)
+    joints = model.mechanism is not None         # the dependencies are named by joint
+    if large:
+        redundant, dependent = _large_rows(B, labels, rank, plan.row_groups, notes, say,
+                                           joints)
+    else:
+        redundant = redundant_rows(B, labels, rank, plan.row_groups)
+        dependent = dependency_text(B, rank, labels) if joints else ""
     return CheckReport(
         name=model.name, source=str(model.source),
         n_points=len(model.moving_points), n_vectors=len(model.moving_vectors),
         n_bodies=len(plan.bodies), n_q=plan.n_q, n_g=plan.n_g, rank=rank,
         rows=labels, redundant=redundant,
         classes=[f"{c.name}: {c.describe()}" for c in plan.classes],
-        init_report=init.report(), notes=list(plan.notes),
+        init_report=init.report(), notes=notes,
         joints=model.mechanism.describe() if model.mechanism is not None else [],
-        dependent=dependency_text(B, rank, labels) if model.mechanism is not None else "",
+        dependent=dependent,
         rank_gap=tuple(decision.gap), uncertain=list(decision.uncertain))
+
+
+def _large_rows(B, labels, rank, groups, notes, say,
+                dependencies: bool = True) -> tuple[list[str], str]:
+    """(redundant rows, rows taking part in the dependencies: '' unless
+    ``dependencies``) of a large model, a connected component of B at a time (module
+    docstring); notes gets what was not computed. The components' ranks must add up to ``rank`` (the decision of the
+    whole), else the whole is taken as one dense component (slow, the small models'
+    rule)."""
+    groups = None if groups is None else np.asarray(groups)
+    B = sp.csr_matrix(B, copy=True)
+    B.eliminate_zeros()          # components() labels a row by its first stored column
+    parts = [(rows, cols) for rows, cols in rank_sparse.components(B) if rows.size]
+    small = rank_rule.dense_columns_max()
+    ranks = [rank_rule.decide(B[rows][:, cols].toarray() if cols.size <= small
+                              else B[rows][:, cols], cols.size,
+                              None if groups is None else groups[rows]).rank
+             for rows, cols in parts]
+    if sum(ranks) != rank or min(ranks, default=0) < 0:
+        say(f"check: redundant equations by a dense QR of {B.shape[0]} x {B.shape[1]}")
+        notes.append("the ranks of the connected components of the constraint "
+                     "Jacobian do not add up to its rank (singular values near the "
+                     "rule's threshold): the redundant equations are those of the "
+                     "whole, the rows taking part in the dependencies are not named")
+        return redundant_rows(B.toarray(), labels, rank, groups), ""
+    redundant, dependent, unnamed = [], [], []          # row indices of B
+    for (rows, cols), r in zip(parts, ranks):
+        if r == rows.size:
+            continue
+        part_groups = None if groups is None else groups[rows]
+        Bc = B[rows][:, cols]
+        if cols.size <= rank_rule.dense_columns_max():
+            Bc = Bc.toarray()
+            found = redundant_indices(Bc, r, part_groups)
+            taking = dependent_rows(Bc, r) if dependencies else []
+        else:
+            found, taking = _large_component(Bc, r, part_groups, say, dependencies)
+        if taking is None:
+            unnamed.append(f"{rows.size} x {cols.size}")
+        else:
+            dependent += [int(rows[k]) for k in taking]
+        redundant += [int(rows[k]) for k in found]
+    if unnamed:
+        notes.append(
+            "the rows taking part in the dependencies of the component(s) of "
+            f"{', '.join(unnamed)} equations x coordinates are not named: at this size "
+            f"(over {DEPENDENCY_REDUNDANT_MAX} redundant rows, or {DEPENDENCY_ROWS_MAX} "
+            "rows where the LU's choice was not certified) that costs O(m^3) (an "
+            "orthonormal basis of the left null space); the redundant equations listed "
+            "are exact. To see which joints take part, check a smaller model of the same "
+            "structure (fewer repeated units) or the one part of interest")
+    return [labels[k] for k in sorted(redundant)], rows_text(sorted(dependent), labels)
+
+
+def _large_component(Bc, r: int, groups, say, dependencies: bool = True):
+    """(redundant rows, rows taking part in the dependencies: None when not computed,
+    [] unless ``dependencies``) of one component of more than DENSE_COMPONENT coordinates, indices of
+    its rows: the certified LU's basis (rank_sparse.independent_rows) and the weights
+    of rank_sparse.dependency_weights; the dense QR and SVD of small models where the
+    LU's choice is not certified."""
+    m, n = Bc.shape
+    say(f"check: redundant equations of a component of {m} x {n} (LU)")
+    keep = rank_sparse.independent_rows(rank_sparse.scaled(Bc, groups), r)
+    if keep is None:
+        say(f"check: redundant equations of a component of {m} x {n} (dense QR: the "
+            "LU's choice was not certified)")
+        dense = Bc.toarray()
+        found = redundant_indices(dense, r, groups)
+        if not dependencies:
+            return found, []
+        if m > DEPENDENCY_ROWS_MAX:
+            return found, None
+        say(f"check: rows taking part in the dependencies (dense SVD of {m} rows)")
+        return found, dependent_rows(dense, r)
+    found = np.setdiff1d(np.arange(m), keep)
+    if not dependencies:
+        return found, []
+    if found.size > DEPENDENCY_REDUNDANT_MAX:
+        return found, None
+    say(f"check: rows taking part in the dependencies ({found.size} redundant rows)")
+    norms = np.sqrt(np.asarray(Bc.multiply(Bc).sum(axis=1)).ravel())
+    Bs = (sp.diags(1.0 / np.where(norms > 0.0, norms, 1.0)) @ Bc).tocsr()
+    weights = rank_sparse.dependency_weights(Bs, keep)
+    return found, np.flatnonzero(weights > DEPENDENT_TOL)
 
 
 def _require_finite(source: str, arrays: dict):

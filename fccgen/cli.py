@@ -409,7 +409,7 @@ def _run(args, progress) -> int:
         return 0
     if args.command == "check":
         from .check import check_model
-        print(check_model(args.model).text())
+        print(check_model(args.model, progress=progress).text())
         return 0
     if args.command in ("statics", "modes", "inverse"):
         return _analysis(args, progress, api)

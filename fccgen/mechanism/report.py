@@ -32,9 +32,15 @@ def dependent_rows(B: np.ndarray, rank: int) -> np.ndarray:
 def dependency_text(B: np.ndarray, rank: int, labels: list[str]) -> str:
     """'joints J1, J2; other rows bodies.bar1 (length), ...' for the dependent rows, or
     '' when there are none."""
+    return rows_text(dependent_rows(B, rank), labels)
+
+
+def rows_text(rows, labels: list[str]) -> str:
+    """'joints J1, J2; other rows bodies.bar1 (length), ...' for the row indices
+    ``rows``, or '' when there are none."""
     joints: list[str] = []
     others: list[str] = []
-    for k in dependent_rows(B, rank):
+    for k in rows:
         m = _JOINT.match(labels[k])
         if m:
             if m.group(1) not in joints:

@@ -26,6 +26,7 @@ from ..results import InitialState, Result, keep_rows, timed_run
 from .constrained import RankKeeper, constrained_solve, scaled_residual
 from .dopri5 import simulate_dopri5
 from .elements import element_kernels
+from . import sparse_projection
 
 
 # kernels whose output is an n_q x n_q block of the element's coordinates
@@ -118,6 +119,18 @@ class NumericSolver:
     def constraint_jacobian(self, q) -> np.ndarray:
         return self._assemble(q, None, ("constraint_jacobian",))["constraint_jacobian"]
 
+    def constraint_jacobian_sparse(self, q):
+        """B at q as a SciPy CSR matrix from the element blocks (no dense n_g x n_q
+        array; the compiled solver's method of the same name)."""
+        return sparse_projection.sparse_jacobian(self, q)
+
+    def _jacobian_for_rank(self, q):
+        """B for fccgen.rank.decide: sparse for models it decides a component at a
+        time (no dense SVD, no dense array)."""
+        if self.n_q > rank_rule.dense_columns_max():
+            return self.constraint_jacobian_sparse(q)
+        return self.constraint_jacobian(q)
+
     def constraint_bias(self, q, v) -> np.ndarray:
         return self._assemble(q, v, ("constraint_bias",))["constraint_bias"]
 
@@ -163,7 +176,20 @@ class NumericSolver:
 
     def project_velocities(self, q, v) -> np.ndarray:
         """The speeds nearest to v in the kinetic-energy metric with B v = -dg/dt
-        (0 without drivers)."""
+        (0 without drivers). A large model (more coordinates than
+        fccgen.rank.dense_columns_max()) with its rank decided takes the sparse KKT
+        solve (numeric/sparse_projection.py) instead of the O(n^3) dense one, and
+        v = 0 with dg/dt = 0 is returned as its own projection."""
+        v = np.asarray(v, float)
+        if self.n_q > rank_rule.dense_columns_max():
+            rate = self.constraint_rate(q)
+            if not np.any(v) and not np.any(rate):
+                return np.zeros(self.n_q)
+            if self._rank.rank >= 0:
+                done = sparse_projection.project_velocities(self, q, v, -rate,
+                                                            self._rank.rank)
+                if done is not None:
+                    return done
         a = self._assemble(q, None, ("mass_matrix", "constraint_jacobian",
                                      "constraint_rate"))
         M = a["mass_matrix"]
@@ -286,7 +312,7 @@ class NumericSolver:
     def decide_rank(self, q) -> rank_rule.RankDecision:
         """Decide the rank of B at q (fccgen.rank) and keep it until the next decision,
         as the compiled solver does."""
-        decision = rank_rule.decide(self.constraint_jacobian(q), self.n_q, self.row_groups)
+        decision = rank_rule.decide(self._jacobian_for_rank(q), self.n_q, self.row_groups)
         self._rank.decide(decision.rank)
         return decision
 
