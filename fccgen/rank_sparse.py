@@ -111,7 +111,11 @@ def _all_dense(C, n_q: int) -> RankDecision:
 
 def components(C) -> list[tuple[np.ndarray, np.ndarray]]:
     """(rows, columns) of each connected component of the coordinate graph of C (a
-    coordinate without rows is a component with no rows and contributes no sigma)."""
+    coordinate without rows is a component with no rows and contributes no sigma).
+    Stored zeros (planar elements write them) are no edges: they are dropped first, so
+    that a row's first stored entry names its component."""
+    C = C.tocsr(copy=True)
+    C.eliminate_zeros()
     n = C.shape[1]
     pattern = abs(C).astype(bool).astype(float)
     if not n:

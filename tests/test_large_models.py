@@ -55,6 +55,19 @@ def test_zero_rows_and_coordinates_without_rows_count_as_the_dense_rule_counts()
     assert decision.rank == reference.rank == n - 1 and decision.uncertain == []
 
 
+def test_stored_zeros_do_not_join_components():
+    """Two blocks, rows 0-1 on columns 0-1 and row 2 on columns 2-3, with a stored zero
+    of row 2 in column 0 placed first (planar elements store such zeros): two
+    components, row 2 in the second. Without dropping the zero, the row's first stored
+    entry put it in the first."""
+    data = np.array([1.0, 2.0, 3.0, 4.0, 0.0, 5.0, 6.0])
+    indices = np.array([0, 1, 0, 1, 0, 2, 3])
+    C = sp.csr_matrix((data, indices, np.array([0, 2, 4, 7])), shape=(3, 4))
+    assert C.nnz == 7                                    # the zero is stored
+    parts = sorted((list(r), list(c)) for r, c in rank_sparse.components(C))
+    assert parts == [([0, 1], [0, 1]), ([2], [2, 3])]
+
+
 def test_a_singular_value_in_the_uncertain_band_is_left_to_the_dense_rule():
     n = 600
     chain = _difference_rows(n)
