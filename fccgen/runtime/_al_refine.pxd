@@ -18,6 +18,7 @@ cdef class ALRefinement(SparseBlocks):
     cdef long n_solves, n_iterations, n_unconverged
     cdef int most_iterations
     cdef int cg_max, refine_max, al_max    # caps (limit_refinement)
+    cdef double rho               # r2^T diag(alpha) r2 of the last residual pass
     cdef int cg_steps             # conjugate-gradient steps of the last correction
 
     cdef void residual_pass(self, const double *x, const double *b, bint pending,
