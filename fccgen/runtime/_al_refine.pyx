@@ -17,8 +17,12 @@ multiplier update alpha (B dx - r2) equals -alpha r2 at the new x, so it is made
 next iteration's residual pass, which forms r2, the update and r1 + B^T alpha r2 in one
 sweep over the element blocks. Near a singular position (sigma small) these steps slow
 down; the corrections are then conjugate-gradient solves of the multipliers' Schur
-system B A^{-1} B^T, preconditioned by diag(alpha), which take the few small singular
-values in a few extra steps. Redundant rows need no rank decision.
+system B A^{-1} B^T, preconditioned by diag(alpha): its eigenvalues are
+t / (1 + t), t = alpha sigma^2 / m, clustered at 1 but for the weak directions, so a
+few weak directions cost a few extra steps (the scissor mast: 2-4), many at once
+more (the A02 chain of 80 loops at its flat position: 180). Their stopping test is on
+the residual, with a bound set from the first step's (see the constants). Redundant
+rows need no rank decision.
 """
 from libc.math cimport fabs
 from libc.stdlib cimport free

@@ -227,29 +227,6 @@ cdef class SparseEngine(ALRefinement):
             csolve_apply(&self.sol, Q, w, b, x)
             self.n_fallback += 1
 
-    cdef void gather_dense(self) noexcept nogil:
-        """The assembler's dense M (n x n) and B (m x n, row-major) from the blocks."""
-        cdef int e, r, a, c, nq, row, n = self.n
-        cdef const int *idx
-        cdef const double *blk
-        cdef double *Md = self.asm.M
-        cdef double *Bd = self.asm.B
-        memset(Md, 0, <size_t>n * n * sizeof(double))
-        memset(Bd, 0, <size_t>self.m * n * sizeof(double))
-        for e in range(self.asm.n_el):
-            nq = self.asm.cls[e].n_q
-            idx = self.asm.qidx + self.asm.qptr[e]
-            if self.mptr[e + 1] > self.mptr[e]:
-                blk = self.Mblk + self.mptr[e]
-                for a in range(nq):
-                    for c in range(nq):
-                        Md[idx[a] * n + idx[c]] += blk[a * nq + c]
-            blk = self.Bblk + self.bptr[e]
-            row = self.asm.gptr[e]
-            for r in range(self.asm.cls[e].n_g):
-                for a in range(nq):
-                    Bd[(row + r) * n + idx[a]] += blk[r * nq + a]
-
     cdef int project_velocities_at(self, const double *q, double *v,
                                    bint have_B) noexcept nogil:
         self.assemble_mb(q, ASM_M if have_B else ASM_M | ASM_B)
