@@ -109,6 +109,23 @@ def test_a_200_body_mast_loads_through_the_large_model_path(tmp_path, build_dir)
     assert decision.dof == 1 and decision.uncertain == []
     reference = _dense_rule(solver.constraint_jacobian(init.q), solver.row_groups)
     assert reference.rank == decision.rank and reference.uncertain == []
+    # its sparse solve at the start against a reference from the SVD of B (null space
+    # N, rank 611): a = a_p + N z with B a_p = -c and N^T (f - h - M a) = 0. 1e-10
+    # relative: the reference is exact to ~1e-13 (sigma_r / sigma_1 = 3.6e-4), the
+    # sparse solve measured 4e-12 off it; the unconverged solve before the residual test
+    # of the conjugate gradients was off by 4.9 times the reference
+    q, v = init.q, init.v
+    M, B = solver.mass_matrix(q), solver.constraint_jacobian(q)
+    rhs = solver.applied_forces(q, v) - solver.h_vector(q, v)
+    c = solver.constraint_bias(q, v)
+    _, sigma, vt = np.linalg.svd(B)
+    rank = int(np.sum(sigma > 1e-9 * sigma[0]))
+    null = vt[rank:].T
+    a_p = np.linalg.lstsq(B, -c, rcond=1e-9)[0]
+    a_ref = a_p + null @ np.linalg.solve(null.T @ M @ null, null.T @ (rhs - M @ a_p))
+    a = solver._engine.solve_at(q, rhs, -c)
+    assert solver._engine.solve_statistics()["unconverged"] == 0
+    assert np.max(np.abs(a - a_ref)) < 1e-10 * np.max(np.abs(a_ref))
     # the sparse path (the default) runs it, and takes the same steps as the dense path
     # from the same decision: 1e-10 of each column (or of 1), the solves' rounding
     # (measured 5e-14 of the positions; before the refinement's conjugate gradients
