@@ -21,7 +21,7 @@ and a fresh build directory (a cold cache), the stages are timed in CPU seconds:
 * step: CPU time per RK4 step with projection at dt = 1e-3, warm: runs of K and 2K
   steps, the difference over K (the runs' set-up excluded), the fastest of 3; with the
   constrained solves per step whose refinement did not converge ("unconverged": the
-  run's singular_position_factorisations over its steps), or "failed" if the run stops.
+  run's sparse_unconverged_solves over its steps), or "failed" if the run stops.
 
 Prints the table, ms per step per coordinate, and the exponent p of time ~ N^p of each
 stage (least squares of log time on log N). --profile BODIES runs cProfile over the
@@ -90,7 +90,7 @@ def step_time(solver, q0, v0, repeats: int = 3, target: float = 0.3):
         t0 = time.process_time()
         result = solver.simulate(t_end=k * DT, dt=DT, method="rk4", q0=q0, v0=v0,
                                  output_dt=k * DT, reactions=False)
-        unconverged.append(result.info["singular_position_factorisations"] / k)
+        unconverged.append(result.info.get("sparse_unconverged_solves", 0) / k)
         return time.process_time() - t0
     k = 2
     while run(2 * k) - run(k) < target and k < 1 << 14:

@@ -274,6 +274,10 @@ def _dof_summary(info) -> str:
     drops = info.get("singular_position_factorisations", 0)
     if drops:
         text += f" ({drops} factorisations near a singular position)"
+    bad = info.get("sparse_unconverged_solves", 0)
+    if bad:
+        text += (f"; {bad} of {info.get('sparse_solves')} sparse solves did not converge"
+                 f" ({info.get('sparse_dense_fallbacks', 0)} redone by the dense solve)")
     return text
 
 

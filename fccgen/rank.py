@@ -159,6 +159,13 @@ def run_findings(decision: RankDecision, stats: dict,
                                   dof_after=decision.n_q - b) for t, a, b in increases],
                 projection_energy_cut=float(stats.get("kinetic_energy_cut", 0.0)))
     warnings = []
+    if "sparse_solves" in stats:
+        info.update(sparse_solves=int(stats["sparse_solves"]),
+                    sparse_unconverged_solves=int(stats["sparse_unconverged"]),
+                    sparse_dense_fallbacks=int(stats["sparse_dense_fallbacks"]))
+        text = sparse_solve_warning(info)
+        if text:
+            warnings.append(text)
     if decision.dof == 0 and final_rank == decision.rank and not driven:
         warnings.append(
             "the model has 0 degrees of freedom by rank (every coordinate is fixed by "
@@ -186,6 +193,24 @@ def run_findings(decision: RankDecision, stats: dict,
             f"at t = {t:.6g}: the run started at a singular position of the constraints "
             "and left it; results before that time follow the singular configuration")
     return info, warnings
+
+
+def sparse_solve_warning(info: dict) -> str:
+    """The warning of a run on the sparse path whose refinement did not converge in
+    some solves (info from :func:`run_findings`); "" when every solve converged."""
+    bad = info["sparse_unconverged_solves"]
+    if not bad:
+        return ""
+    redone = info["sparse_dense_fallbacks"]
+    text = (f"{bad} of the sparse path's {info['sparse_solves']} constrained solves did "
+            "not converge (the constraint Jacobian is ill-conditioned: near a singular "
+            "position, or a structure with nearly dependent constraints); ")
+    if redone == bad:
+        return text + ("the dense solve redid each of them, so the results hold; "
+                       "--linear-solver dense avoids the retries")
+    return text + (f"{bad - redone} of them were kept as they were (the dense solve "
+                   f"redid {redone}): the accelerations there may be wrong; run with "
+                   "--linear-solver dense (linear_solver='dense')")
 
 
 def report_run(result, decision: RankDecision, stats: dict, driven: bool = False):

@@ -17,10 +17,13 @@ cdef class ALRefinement(SparseBlocks):
     cdef double *u                # n
     cdef long n_solves, n_iterations, n_unconverged
     cdef int most_iterations
+    cdef int cg_max, refine_max, al_max    # caps (limit_refinement)
+    cdef double rho               # r2^T diag(alpha) r2 of the last residual pass
+    cdef int cg_steps             # conjugate-gradient steps of the last correction
 
     cdef void residual_pass(self, const double *x, const double *b, bint pending,
                             bint penalised, double *y, double *r2) noexcept nogil
     cdef void first_pass(self, const double *b, double *y) noexcept nogil
-    cdef int correction(self) noexcept nogil
-    cdef void kkt_solve(self, const double *Q, const double *w, const double *b,
+    cdef int correction(self, double *rz_stop) noexcept nogil
+    cdef bint kkt_solve(self, const double *Q, const double *w, const double *b,
                         double *x) noexcept nogil

@@ -12,8 +12,11 @@ blocks and the LDL^T of A = M + B^T diag(alpha) B of _sparse_blocks.pyx:
 * each Newton step of the position projection (Engine.project_positions_at, with
   this engine's assembly, residual and solve): M dq + B^T mu = 0, B dq = -g.
 
-Solves whose constraint residual did not converge (a singular position: b outside the
-range of B) are counted as the dense path's dropped rows are.
+A solve whose refinement did not converge (constraints so ill-conditioned that the
+conjugate-gradient corrections run out of steps: _al_refine.pyx) is counted, and
+redone by the dense path's solve (pivoted QR of B at the decided rank, _solve.pyx) on
+M and B gathered from the blocks, when the model has at most DENSE_FALLBACK_MAX
+coordinates; the run reports both counts and warns (fccgen.rank.run_findings).
 
 Changes of the degrees of freedom. The solves need no rank, but the reports do: the
 rank r decided at the start (fccgen.rank) is kept, and raised, as on the dense path,
@@ -50,9 +53,14 @@ from ._al_refine cimport ALRefinement
 from ._assemble cimport ASM_B, ASM_C, ASM_F, ASM_G, ASM_H, ASM_M, ASM_T
 from ._engine cimport (ERR_NONFINITE_INPUT, ERR_NONFINITE_RESULT, Engine,
                        RANK_LOG_SIZE, finite)
-from ._solve cimport csolve_svd_rank
+from ._solve cimport csolve_apply, csolve_factor, csolve_svd_rank
 from ._sparse_blocks cimport alloc_zeroed
 
+# An unconverged solve is redone densely up to this many coordinates: the dense
+# factorisation is O(n^3), about 60 ms at 483 coordinates (A02, N = 160: 310 ms per
+# dense RK4 step of five), 0.5 s at 1000, acceptable for the rare evaluation that
+# needs it; larger models keep the unconverged solve and warn.
+DEF DENSE_FALLBACK_MAX = 1000
 # The rank-growth watch tracks at most this many null-space directions (degrees of
 # freedom); models with more degrees of freedom and redundant rows keep the start's rank.
 DEF TRACK_MAX = 16
@@ -85,12 +93,15 @@ cdef class SparseEngine(ALRefinement):
     cdef object start_key             # (rank, q bytes) of the basis in start_basis
     cdef object start_basis           # the watch's basis from the SVD at that start
     cdef int start_n_track
+    cdef long n_fallback              # unconverged solves redone by the dense solve
+    cdef readonly int dense_fallback_max
 
     def __cinit__(self, *args, **kwargs):
         self.track = <double *>alloc_zeroed(self.n * TRACK_MAX, sizeof(double))
         self.bn = <double *>alloc_zeroed(self.m * TRACK_MAX, sizeof(double))
         self.xw = <double *>alloc_zeroed(self.n, sizeof(double))
         self.rs = <double *>alloc_zeroed(self.m, sizeof(double))
+        self.dense_fallback_max = DENSE_FALLBACK_MAX
 
     def __dealloc__(self):
         free(self.track); free(self.bn); free(self.xw); free(self.rs)
@@ -104,6 +115,8 @@ cdef class SparseEngine(ALRefinement):
         cdef double[::1] saved
         Engine.decide_rank(self, q, rank)
         self.n_factor = self.n_solves = self.n_iterations = self.n_unconverged = 0
+        self.n_fallback = 0
+        self.sol.n_drop = 0
         self.most_iterations = 0
         self.n_svd = 0
         self.bound_max = 0.0
@@ -123,14 +136,23 @@ cdef class SparseEngine(ALRefinement):
             self.grow_trigger = GROW_TOL
             self.n_track = self.start_n_track
 
+    def set_dense_fallback_max(self, int n_max):
+        """Redo unconverged solves densely only for models of at most n_max
+        coordinates (default DENSE_FALLBACK_MAX; 0: never), for tests."""
+        self.dense_fallback_max = n_max
+
     def rank_statistics(self):
-        """As Engine.rank_statistics; drops are solves whose constraint residual did
-        not converge (a singular position), largest_dropped the largest bound
-        ||B_s N||_F on sigma_{r+1} / sigma_1 met by the rank-growth watch."""
+        """As Engine.rank_statistics; drops are the dense fallback's factorisations
+        with a pivot dropped within the decided rank (the dense path's meaning),
+        largest_dropped the largest bound ||B_s N||_F on sigma_{r+1} / sigma_1 met by
+        the rank-growth watch; sparse_solves, sparse_unconverged (refinements that
+        did not converge) and sparse_dense_fallbacks (of those, redone densely)."""
         stats = Engine.rank_statistics(self)
-        stats.update(factorisations=self.n_factor, drops=self.n_unconverged,
+        stats.update(factorisations=self.n_factor, drops=self.sol.n_drop,
                      svd_checks=self.n_svd, smallest_kept=1.0,
-                     largest_dropped=self.bound_max)
+                     largest_dropped=self.bound_max, sparse_solves=self.n_solves,
+                     sparse_unconverged=self.n_unconverged,
+                     sparse_dense_fallbacks=self.n_fallback)
         return stats
 
     cdef int finish(self, const double *q, const double *v, const double *a,
@@ -155,7 +177,7 @@ cdef class SparseEngine(ALRefinement):
             self.rhs[i] = self.asm.f[i] - self.asm.h[i]
         for i in range(self.m):
             self.nb[i] = -self.asm.c[i]
-        self.kkt_solve(self.rhs, NULL, self.nb, a)
+        self.solve_constrained(self.rhs, NULL, self.nb, a)
         return self.finish(q, v, a, flags)
 
     cdef int baumgarte_at(self, const double *q, const double *v, double *a,
@@ -169,7 +191,7 @@ cdef class SparseEngine(ALRefinement):
         for i in range(self.n):
             self.rhs[i] = self.asm.f[i] - self.asm.h[i]
         self.baumgarte_targets(v, alpha, beta, self.nb)
-        self.kkt_solve(self.rhs, NULL, self.nb, a)
+        self.solve_constrained(self.rhs, NULL, self.nb, a)
         return self.finish(q, v, a, flags)
 
     cdef void baumgarte_targets(self, const double *v, double alpha, double beta,
@@ -198,7 +220,14 @@ cdef class SparseEngine(ALRefinement):
 
     cdef void solve_constrained(self, const double *Q, const double *w, const double *b,
                                 double *x) noexcept nogil:
-        self.kkt_solve(Q, w, b, x)
+        """kkt_solve; when it did not converge, the dense solve instead (module
+        docstring) if the model is small enough and M, B factor there."""
+        if self.kkt_solve(Q, w, b, x) or self.n > self.dense_fallback_max:
+            return
+        self.gather_dense()
+        if csolve_factor(&self.sol, self.asm.M, self.asm.B) == 0:
+            csolve_apply(&self.sol, Q, w, b, x)
+            self.n_fallback += 1
 
     cdef int project_velocities_at(self, const double *q, double *v,
                                    bint have_B) noexcept nogil:
@@ -206,7 +235,7 @@ cdef class SparseEngine(ALRefinement):
         if self.factor(q) < 0:
             return -1
         self.velocity_targets(q, self.nb)
-        self.kkt_solve(NULL, v, self.nb, self.vtmp)
+        self.solve_constrained(NULL, v, self.nb, self.vtmp)
         if self.finish(q, v, self.vtmp, ASM_M | ASM_B) < 0:
             return -1
         self.watch_kinetic_energy(v, self.vtmp)

@@ -42,6 +42,7 @@ cdef class SparseBlocks(Engine):
     cdef void mult_m(self, const double *x, double *y, bint add) noexcept nogil
     cdef void mult_b(self, const double *x, double *y) noexcept nogil
     cdef void mult_bt(self, const double *z, const double *s, double *y) noexcept nogil
+    cdef void gather_dense(self) noexcept nogil
     cdef double row_norms(self) noexcept nogil
     cdef double scaled_residual_sparse(self) noexcept nogil
     cdef void solve_a(self, double *x) noexcept nogil

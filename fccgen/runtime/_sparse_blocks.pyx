@@ -1,8 +1,9 @@
 # cython: language_level=3
 """Element blocks of the sparse path and the LDL^T of the matrix built from them.
 
-SparseBlocks (an Engine) keeps M and B as the kernels' element blocks (never a dense
-n x n or m x n array) with the products y = M x, y = B x, y += B^T diag(s) z over them,
+SparseBlocks (an Engine) keeps M and B as the kernels' element blocks (a dense n x n or
+m x n array only for the dense solve that redoes an unconverged one: gather_dense)
+with the products y = M x, y = B x, y += B^T diag(s) z over them,
 and the matrix of the sparse solve
 
     A = M + B^T diag(alpha) B,    alpha_k = RHO m_ref / s_k^2,
@@ -227,6 +228,29 @@ cdef class SparseBlocks(Engine):
                     continue
                 for j in range(nq):
                     y[idx[j]] += blk[r * nq + j] * zr
+
+    cdef void gather_dense(self) noexcept nogil:
+        """The assembler's dense M (n x n) and B (m x n, row-major) from the blocks."""
+        cdef int e, r, a, c, nq, row, n = self.n
+        cdef const int *idx
+        cdef const double *blk
+        cdef double *Md = self.asm.M
+        cdef double *Bd = self.asm.B
+        memset(Md, 0, <size_t>n * n * sizeof(double))
+        memset(Bd, 0, <size_t>self.m * n * sizeof(double))
+        for e in range(self.asm.n_el):
+            nq = self.asm.cls[e].n_q
+            idx = self.asm.qidx + self.asm.qptr[e]
+            if self.mptr[e + 1] > self.mptr[e]:
+                blk = self.Mblk + self.mptr[e]
+                for a in range(nq):
+                    for c in range(nq):
+                        Md[idx[a] * n + idx[c]] += blk[a * nq + c]
+            blk = self.Bblk + self.bptr[e]
+            row = self.asm.gptr[e]
+            for r in range(self.asm.cls[e].n_g):
+                for a in range(nq):
+                    Bd[(row + r) * n + idx[a]] += blk[r * nq + a]
 
     cdef double row_norms(self) noexcept nogil:
         """rnorm_k = ||B_k||; alpha_k = RHO m_ref / s_k^2 with s_k = max(||B_k||,

@@ -1,0 +1,104 @@
+"""The sparse path's refinement on ill-conditioned constraints (runtime/_al_refine.pyx):
+it converges near the A02 chain's flat position, agrees with the dense path there, and
+a solve that does not converge is redone densely or kept, but never silently: the run
+counts it, warns, and the command line's summary says it."""
+from __future__ import annotations
+
+import importlib.util
+
+import numpy as np
+import pytest
+
+from conftest import EXAMPLES
+from fccgen.cli import _dof_summary
+from fccgen.errors import RunWarning
+from fccgen.runtime import CompiledSolver
+from fccgen.runtime._sparse import SparseEngine
+
+
+def _chain_text(n: int) -> str:
+    spec = importlib.util.spec_from_file_location("make_n_four_bar",
+                                                  EXAMPLES / "make_n_four_bar.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.model_text(n)
+
+
+def _state(solver, result):
+    """(q, v) of a run's last row."""
+    q = [result[f"{name}.{c}"][-1] for name, _ in solver.plan.triples for c in "xyz"]
+    v = [result[f"{name}.v{c}"][-1] for name, _ in solver.plan.triples for c in "xyz"]
+    return np.array(q), np.array(v)
+
+
+def _largest_difference(a, b) -> float:
+    """Largest difference of two runs' columns, each relative to max(1, its size)."""
+    return max(float(np.max(np.abs(a[c] - b[c])) / max(1.0, np.max(np.abs(b[c]))))
+               for c in b.columns)
+
+
+def test_the_a02_chain_of_80_loops_converges_near_its_flat_position(tmp_path, build_dir):
+    """A02 with N = 80 loops (243 coordinates) approaches its flat position at
+    t = 1.245 s, where 80 singular values of B fall to 1e-7..1e-9 of the largest: every
+    sparse solve up to t = 1.244 converges (before the conjugate gradients stopped on
+    the residual, 38 did not), and from t = 1.2 both paths take the same steps."""
+    import fccgen
+    path = tmp_path / "a02_80.yaml"
+    path.write_text(_chain_text(80))
+    solver = fccgen.load(path, build_dir)
+    assert isinstance(solver._engine, SparseEngine)
+    head = solver.simulate(t_end=1.2, dt=1e-3)
+    assert head.info["sparse_unconverged_solves"] == 0 and head.info["sparse_solves"] > 0
+    q, v = _state(solver, head)
+    dense = CompiledSolver(solver.plan, solver.module, linear_solver="dense")
+    tail_sparse = solver.simulate(t_end=0.044, dt=1e-3, q0=q, v0=v)
+    tail_dense = dense.simulate(t_end=0.044, dt=1e-3, q0=q, v0=v)
+    assert tail_sparse.info["sparse_unconverged_solves"] == 0
+    assert solver._engine.solve_statistics()["max_iterations"] <= 400
+    # 1e-8: near the flat position an acceleration is determined to about
+    # eps / sigma_min of B (3e-8 at t = 1.245: the dense solve against an SVD
+    # reference); measured 1.5e-10 between the paths at t = 1.244.
+    assert _largest_difference(tail_sparse, tail_dense) < 1e-8
+
+
+def _forced(compiled, fallback_max=None):
+    """A02 (N = 40) on its own sparse solver whose solves stop after one
+    augmented-Lagrangian step and one correction: none converges."""
+    shared = compiled("a02_n_four_bar")
+    solver = CompiledSolver(shared.plan, shared.module, linear_solver="sparse")
+    solver._engine.limit_refinement(corrections=1, cg_steps=0, al_steps=1)
+    if fallback_max is not None:
+        solver._engine.set_dense_fallback_max(fallback_max)
+    return solver
+
+
+def test_an_unconverged_sparse_solve_is_redone_densely_and_reported(compiled):
+    solver = _forced(compiled)
+    with pytest.warns(RunWarning, match=r"did not converge.*the dense solve redid each"):
+        result = solver.simulate(t_end=0.01, dt=1e-3)
+    info = result.info
+    assert info["sparse_unconverged_solves"] > 0
+    assert info["sparse_dense_fallbacks"] == info["sparse_unconverged_solves"]
+    assert info["sparse_solves"] >= info["sparse_unconverged_solves"]
+    assert "sparse solves did not converge" in _dof_summary(info)
+    # the fallback is the dense path's solve: the runs agree as the paths do
+    # (1e-9, tests/test_sparse_path.py's one-second runs)
+    dense = CompiledSolver(solver.plan, solver.module, linear_solver="dense")
+    assert _largest_difference(result, dense.simulate(t_end=0.01, dt=1e-3)) < 1e-9
+
+
+def test_an_unconverged_sparse_solve_kept_says_what_to_change(compiled):
+    solver = _forced(compiled, fallback_max=0)
+    with pytest.warns(RunWarning, match=r"kept as they were.*--linear-solver dense"):
+        result = solver.simulate(t_end=0.005, dt=1e-3)
+    assert result.info["sparse_unconverged_solves"] > 0
+    assert result.info["sparse_dense_fallbacks"] == 0
+
+
+def test_converged_sparse_runs_report_no_unconverged_solve(compiled):
+    result = compiled("a02_n_four_bar").simulate(t_end=0.01, dt=1e-3)
+    assert result.info["sparse_unconverged_solves"] == 0
+    assert result.info["singular_position_factorisations"] == 0
+    assert "sparse solves" not in _dof_summary(result.info)
+    with pytest.raises(ValueError, match="at least one correction"):
+        _forced(compiled)._engine.limit_refinement(corrections=0)
