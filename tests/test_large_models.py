@@ -154,3 +154,28 @@ def test_a_200_body_mast_loads_through_the_large_model_path(tmp_path, build_dir)
     assert np.max(np.abs(energy - energy[0])) < 1e-9 * abs(energy[0])
     height = result["A33.z"]         # the springs deploy the mast: the top hub rises
     assert height[-1] > height[0]
+
+
+def test_smallest_right_vectors_span_the_dense_null_space():
+    """The sparse path's rank-growth watch starts, above rank.dense_columns_max()
+    coordinates, from rank_sparse.smallest_right_vectors instead of a dense SVD: on a
+    600 x 700 chain-like sparse matrix of nullity 103 (700 - 597, three dependent
+    rows) asked for the 103 + 2 smallest, its vectors span the dense SVD's: the
+    principal angles' sines are below 1e-8 (Lanczos to ~1e-10 relative; the gap to the
+    next singular value is O(1)) and the basis is orthonormal to 1e-10."""
+    rng = np.random.default_rng(3)
+    n, m = 700, 600
+    rows, cols = np.repeat(np.arange(m), 3), np.concatenate(
+        [np.arange(k, k + 3) for k in range(m)])
+    C = sp.csr_matrix((rng.normal(size=3 * m), (rows, cols)), shape=(m, n)).tolil()
+    for k in (100, 300, 500):
+        C[k] = C[k - 1] + C[k + 1]                    # three rows dependent
+    C = C.tocsr()
+    _, sigma, vt = np.linalg.svd(C.toarray())
+    nullity = n - int(np.sum(sigma > 1e-8 * sigma[0]))
+    assert nullity == 103
+    X = rank_sparse.smallest_right_vectors(C, nullity)
+    want = vt[n - nullity:].T
+    assert np.abs(X.T @ X - np.eye(nullity)).max() < 1e-10
+    sines = np.linalg.svd(want - X @ (X.T @ want), compute_uv=False)
+    assert sines.max() < 1e-8

@@ -126,7 +126,9 @@ cdef class SparseEngine(ALRefinement):
         key = (rank, np.asarray(q, dtype=float).tobytes())
         if key != self.start_key:           # a run decides again at its initial state
             self.start_key = None
-            self.start_watch(self.asm.quantity(ASM_B, q), rank)
+            self.start_watch(self.asm.quantity(ASM_B, q)
+                             if self.n <= rank_rule.dense_columns_max() else
+                             self._sparse_jacobian(q), rank)
             self.start_basis = np.array(<double[:self.n * TRACK_MAX]>self.track)
             self.start_n_track = self.n_track
             self.start_key = key
@@ -358,10 +360,19 @@ cdef class SparseEngine(ALRefinement):
             self.start_watch(np.array(<double[:self.m * n]>self.sol.A).reshape(self.m, n),
                              self.sol.rank_fixed)
 
+    def _sparse_jacobian(self, q):
+        """B at q as a SciPy CSR matrix from the element blocks (large models)."""
+        from scipy.sparse import coo_matrix
+        rows, cols, values = self.asm.jacobian_triplets(q)
+        return coo_matrix((values, (rows, cols)), shape=(self.m, self.n)).tocsr()
+
     def start_watch(self, B, int rank):
         """N = the right singular vectors of the row-scaled B beyond the first rank
         (its null space when rank is B's), when the rank can grow (rank below
-        min(n, m)) and n - rank <= TRACK_MAX; otherwise no watch."""
+        min(n, m)) and n - rank <= TRACK_MAX; otherwise no watch. B dense: a full SVD;
+        B sparse (models above rank.dense_columns_max() coordinates, where that SVD
+        would take minutes): shift-invert Lanczos on B^T B
+        (fccgen.rank_sparse.smallest_right_vectors)."""
         cdef int k = self.n - rank, i, j
         self.n_track = 0
         self.grow_trigger = GROW_TOL
@@ -369,13 +380,19 @@ cdef class SparseEngine(ALRefinement):
             return
         groups = [self.sol.group[i] for i in range(self.m)]
         try:
-            _, _, vt = np.linalg.svd(B / rank_rule.row_scales(B, groups)[:, None],
-                                     full_matrices=self.m < self.n)   # vt: n x n
-        except np.linalg.LinAlgError:        # no basis: the start's rank is kept
-            return
+            if isinstance(B, np.ndarray):
+                _, _, vt = np.linalg.svd(B / rank_rule.row_scales(B, groups)[:, None],
+                                         full_matrices=self.m < self.n)   # vt: n x n
+                basis = vt[rank:rank + k].T
+            else:
+                from fccgen import rank_sparse
+                basis = rank_sparse.smallest_right_vectors(
+                    rank_sparse.scaled(B, groups), k)
+        except (np.linalg.LinAlgError, ArithmeticError, RuntimeError):
+            return                           # no basis: the start's rank is kept
         for j in range(k):
             for i in range(self.n):
-                self.track[j * self.n + i] = vt[rank + j, i]
+                self.track[j * self.n + i] = basis[i, j]
         self.n_track = k
 
     cdef void velocity_targets(self, const double *q, double *b) noexcept nogil:
