@@ -112,7 +112,8 @@ cdef class Engine:
         within the decided rank fell to rank_tol or below), svd_checks, smallest_kept
         and largest_dropped pivot ratios, increases [(t, old rank, new rank)], and the
         largest fraction of the kinetic energy one velocity projection removed
-        (kinetic_energy_cut, at kinetic_energy_cut_t)."""
+        (kinetic_energy_cut, at kinetic_energy_cut_t) and the largest kinetic energy
+        a velocity projection met (kinetic_energy_peak; 0 when none ran)."""
         n = min(self.n_rank_log, RANK_LOG_SIZE)
         return dict(factorisations=self.sol.n_factor, drops=self.sol.n_drop,
                     svd_checks=self.sol.n_svd, smallest_kept=self.sol.kept_min,
@@ -120,7 +121,8 @@ cdef class Engine:
                     increases=[(self.rank_log[k][0], int(self.rank_log[k][1]),
                                 int(self.rank_log[k][2])) for k in range(n)],
                     increases_total=self.n_rank_log,
-                    kinetic_energy_cut=self.ke_cut_max, kinetic_energy_cut_t=self.ke_cut_t)
+                    kinetic_energy_cut=self.ke_cut_max, kinetic_energy_cut_t=self.ke_cut_t,
+                    kinetic_energy_peak=self.ke_peak / 2.0)
 
     # -- building blocks (nogil) ---------------------------------------------------
     cdef int fail(self, int code, int info, int detail) noexcept nogil:

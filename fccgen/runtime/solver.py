@@ -26,6 +26,7 @@ from ._assemble import FLAGS, Assembler
 from ._dopri5 import simulate_dopri5
 from .paths import make_engine, use_sparse
 from ._rk4 import simulate_baumgarte, simulate_rk4
+from .energy_check import check_energy
 
 
 def _available_methods() -> tuple[str, ...]:
@@ -301,6 +302,7 @@ class CompiledSolver:
         if events is not None:
             from ..events.table import final_dof
             result.info["final_dof"] = final_dof(result.info, result.events)
+        check_energy(result, self.plan, used.rank_statistics().get("kinetic_energy_peak"))
         return add_reactions(self, result) if reactions else result
 
     def dense_engine(self):
