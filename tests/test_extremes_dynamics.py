@@ -11,7 +11,7 @@ from scipy.integrate import solve_ivp
 
 import minimal
 import test_extremes_models as em
-from fccgen.errors import SimulationError
+from fccgen.errors import RunWarning, SimulationError
 
 IMPLICIT = "ali3p"
 
@@ -51,7 +51,11 @@ def oscillation_energy(r):
 @pytest.mark.parametrize("stiffness_ratio", [1e-2, 1.0])
 def test_rk4_inside_its_stability_interval_keeps_the_spring_bounded(load, stiffness_ratio):
     s = load(em.spring_pendulum(stiffness_ratio / DT**2, V0))
-    r = s.simulate(t_end=0.5, dt=DT)
+    if stiffness_ratio < 0.1:
+        r = s.simulate(t_end=0.5, dt=DT)
+    else:           # w dt = 1: RK4's damping takes the oscillation's energy, which the
+        with pytest.warns(RunWarning, match="energy changed"):   # energy check reports
+            r = s.simulate(t_end=0.5, dt=DT)
     e = oscillation_energy(r)
     # One degree of freedom, amplitude 1e-4 rad: linear. RK4 multiplies the energy of an
     # oscillation by |R(i w dt)|^2 per step, R(z) = 1 + z + z^2/2 + z^3/6 + z^4/24: it
