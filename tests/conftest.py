@@ -12,6 +12,16 @@ REFERENCE = Path(__file__).resolve().parent / "reference"
 sys.path.insert(0, str(Path(__file__).resolve().parent))   # tests/minimal.py
 
 
+def example_module(name: str):
+    """The script examples/<name>.py as a module (the model generators and plot
+    scripts are scripts, not a package)."""
+    import importlib.util
+    spec = importlib.util.spec_from_file_location(name, EXAMPLES / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
 @pytest.fixture(scope="session")
 def build_dir(tmp_path_factory) -> Path:
     return tmp_path_factory.mktemp("generated")

@@ -3,12 +3,10 @@
 (B0 position error <= 1e-3 m over 20 s) met by the method that meets it cheapest."""
 from __future__ import annotations
 
-import importlib.util
-
 import numpy as np
 import pytest
 
-from conftest import EXAMPLES, REFERENCE
+from conftest import EXAMPLES, REFERENCE, example_module
 from fccgen.accuracy import reference_from_table
 
 MODEL = EXAMPLES / "a02_n_four_bar.yaml"
@@ -24,11 +22,7 @@ METHOD = dict(method="dopri5", rtol=1e-8, atol=1e-11, project=True)
 
 
 def _generator():
-    spec = importlib.util.spec_from_file_location("make_n_four_bar",
-                                                  EXAMPLES / "make_n_four_bar.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return example_module("make_n_four_bar")
 
 
 def test_the_model_file_is_the_generator_output_for_n_40():

@@ -3,9 +3,6 @@ connected component at a time, from the sparse B, the redundant rows from a cert
 (fccgen.check, fccgen.rank_sparse.independent_rows)."""
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import scipy.sparse as sp
 
@@ -15,15 +12,11 @@ from fccgen.api import load_numeric
 from fccgen.check import check_model
 from fccgen.mechanism.report import dependency_text
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+from conftest import example_module
 
 
 def _mast(bays: int) -> str:
-    spec = importlib.util.spec_from_file_location("make_scissor_mast",
-                                                  EXAMPLES / "make_scissor_mast.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module.model_text(bays)
+    return example_module("make_scissor_mast").model_text(bays)
 
 
 def _dense_rank(B) -> int:

@@ -2,9 +2,6 @@
 200-body deployable mast (examples/make_scissor_mast.py) through the large-model path."""
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import pytest
 import scipy.sparse as sp
@@ -12,7 +9,7 @@ import scipy.sparse as sp
 from fccgen import rank as rank_rule
 from fccgen import rank_sparse
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+from conftest import example_module
 
 
 def _dense_rule(B, groups=None):
@@ -97,11 +94,7 @@ def test_the_sparse_jacobian_is_the_dense_one(compiled, name):
 
 
 def _mast(bays: int) -> str:
-    spec = importlib.util.spec_from_file_location("make_scissor_mast",
-                                                  EXAMPLES / "make_scissor_mast.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module.model_text(bays)
+    return example_module("make_scissor_mast").model_text(bays)
 
 
 def test_a_200_body_mast_loads_through_the_large_model_path(tmp_path, build_dir):

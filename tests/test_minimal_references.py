@@ -12,7 +12,7 @@ import yaml
 from scipy.special import ellipk
 
 import minimal
-from conftest import EXAMPLES, REFERENCE
+from conftest import EXAMPLES, REFERENCE, example_module
 
 # -- simple pendulum -------------------------------------------------------------------
 
@@ -418,12 +418,7 @@ def test_example_loads_with_the_stated_degrees_of_freedom(path):
 
 
 def _plot_script():
-    import importlib.util
-    spec = importlib.util.spec_from_file_location("plot_deployable",
-                                                  EXAMPLES / "plot_deployable.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return example_module("plot_deployable")
 
 
 def test_deployable_folds_as_its_comment_says():

@@ -7,25 +7,20 @@ plastic impact that takes all the kinetic energy (0 DOF). After it: the boom hel
 full length to the end."""
 from __future__ import annotations
 
-import importlib.util
 import math
 
 import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from conftest import EXAMPLES
+from conftest import EXAMPLES, example_module
 
 N = 12
 T_END = 2.0          # s: the latch is at 1.48 s, so a quarter of the run is latched
 
 
 def generator():
-    spec = importlib.util.spec_from_file_location("make_scissor_boom",
-                                                  EXAMPLES / "make_scissor_boom.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return example_module("make_scissor_boom")
 
 
 @pytest.fixture(scope="module")

@@ -4,12 +4,10 @@ a solve that does not converge is redone densely or kept, but never silently: th
 counts it, warns, and the command line's summary says it."""
 from __future__ import annotations
 
-import importlib.util
-
 import numpy as np
 import pytest
 
-from conftest import EXAMPLES
+from conftest import example_module
 from fccgen.cli import _dof_summary
 from fccgen.errors import RunWarning
 from fccgen.runtime import CompiledSolver
@@ -17,11 +15,7 @@ from fccgen.runtime._sparse import SparseEngine
 
 
 def _chain_text(n: int) -> str:
-    spec = importlib.util.spec_from_file_location("make_n_four_bar",
-                                                  EXAMPLES / "make_n_four_bar.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module.model_text(n)
+    return example_module("make_n_four_bar").model_text(n)
 
 
 def _state(solver, result):

@@ -5,14 +5,13 @@ the choice of path (auto by size, forced by option, CLI and model file), and the
 of more than 100 bodies where the sparse path is the default."""
 from __future__ import annotations
 
-import importlib.util
 import re
 import warnings
 
 import numpy as np
 import pytest
 
-from conftest import EXAMPLES
+from conftest import EXAMPLES, example_module
 from fccgen.errors import ModelError, RunWarning
 from fccgen.runtime import CompiledSolver
 from fccgen.runtime.solver import dense_only_reason
@@ -149,11 +148,7 @@ def test_the_model_file_and_the_command_line_choose_the_path(tmp_path, build_dir
 
 
 def _chain_text(n: int) -> str:
-    spec = importlib.util.spec_from_file_location("make_n_four_bar",
-                                                  EXAMPLES / "make_n_four_bar.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module.model_text(n)
+    return example_module("make_n_four_bar").model_text(n)
 
 
 def test_a_chain_of_over_100_bodies_runs_on_the_sparse_path(tmp_path, build_dir):
