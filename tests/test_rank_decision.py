@@ -35,6 +35,14 @@ simulate: {t_end: 1.0, dt: 1.0e-3}
 """
 
 
+def near_flat_four_bar(eps: float) -> str:
+    """FLAT_FOUR_BAR with its crank eps rad above the flat position."""
+    c, s = float(np.cos(eps)), float(np.sin(eps))
+    return (FLAT_FOUR_BAR.replace("name: flat_four_bar", "name: near_flat")
+            .replace("P: [1, 0, 0]", f"P: [{c!r}, {s!r}, 0]")
+            .replace("Q: [3, 0, 0]", f"Q: [{2 + c!r}, {s!r}, 0]"))
+
+
 @pytest.fixture(scope="module")
 def bricard_solvers(tmp_path_factory, build_dir):
     folder = tmp_path_factory.mktemp("bricard")
@@ -224,12 +232,8 @@ def test_a_start_near_a_singular_position_is_called_uncertain(tmp_path, build_di
     vanishes at the flat position is ~1e-8 of the largest, inside [1e-10, 1e-6].
     check says the decision is uncertain and a run warns about it (then, leaving the
     position, the run also reports its change from 2 to 1 degree of freedom)."""
-    eps = 1e-8
-    c, s = float(np.cos(eps)), float(np.sin(eps))
     path = tmp_path / "near_flat.yaml"
-    path.write_text(FLAT_FOUR_BAR.replace("name: flat_four_bar", "name: near_flat")
-                    .replace("P: [1, 0, 0]", f"P: [{c!r}, {s!r}, 0]")
-                    .replace("Q: [3, 0, 0]", f"Q: [{2 + c!r}, {s!r}, 0]"))
+    path.write_text(near_flat_four_bar(1e-8))
     report = check_model(path)
     assert report.uncertain and all(1e-10 <= x <= 1e-6 for x in report.uncertain)
     assert "UNCERTAIN" in report.text()

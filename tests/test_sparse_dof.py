@@ -15,7 +15,7 @@ from fccgen.check import check_model
 from fccgen.errors import RunWarning
 from fccgen.runtime import CompiledSolver
 from fccgen.runtime._sparse import SparseEngine
-from test_rank_decision import FLAT_FOUR_BAR
+from test_rank_decision import FLAT_FOUR_BAR, near_flat_four_bar
 
 
 def paths(solver):
@@ -106,12 +106,8 @@ def test_a_slow_departure_is_reported_soon_after_the_crossing(tmp_path, build_di
 def test_an_uncertain_start_is_said_alike_on_both_paths(tmp_path, build_dir):
     """The parallelogram 1e-8 rad from flat (test_rank_decision): both paths warn that
     the start is close to a singular position and report the same change."""
-    eps = 1e-8
-    c, s = float(np.cos(eps)), float(np.sin(eps))
     path = tmp_path / "near_flat.yaml"
-    path.write_text(FLAT_FOUR_BAR.replace("name: flat_four_bar", "name: near_flat")
-                    .replace("P: [1, 0, 0]", f"P: [{c!r}, {s!r}, 0]")
-                    .replace("Q: [3, 0, 0]", f"Q: [{2 + c!r}, {s!r}, 0]"))
+    path.write_text(near_flat_four_bar(1e-8))
     dense, sparse = paths(fccgen.load(path, build_dir))
     rd, wd = run(dense, t_end=0.01)
     rs, ws = run(sparse, t_end=0.01)
