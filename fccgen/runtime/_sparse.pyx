@@ -49,6 +49,8 @@ import numpy as np
 
 from fccgen import rank as rank_rule
 
+from .sparsity import jacobian_csr
+
 from ._al_refine cimport ALRefinement
 from ._assemble cimport ASM_B, ASM_C, ASM_F, ASM_G, ASM_H, ASM_M, ASM_T
 from ._engine cimport (ERR_NONFINITE_INPUT, ERR_NONFINITE_RESULT, Engine,
@@ -128,7 +130,7 @@ cdef class SparseEngine(ALRefinement):
             self.start_key = None
             self.start_watch(self.asm.quantity(ASM_B, q)
                              if self.n <= rank_rule.dense_columns_max() else
-                             self._sparse_jacobian(q), rank)
+                             jacobian_csr(self.asm, q), rank)
             self.start_basis = np.array(<double[:self.n * TRACK_MAX]>self.track)
             self.start_n_track = self.n_track
             self.start_key = key
@@ -359,12 +361,6 @@ cdef class SparseEngine(ALRefinement):
         with gil:                           # rare: once per change of the rank
             self.start_watch(np.array(<double[:self.m * n]>self.sol.A).reshape(self.m, n),
                              self.sol.rank_fixed)
-
-    def _sparse_jacobian(self, q):
-        """B at q as a SciPy CSR matrix from the element blocks (large models)."""
-        from scipy.sparse import coo_matrix
-        rows, cols, values = self.asm.jacobian_triplets(q)
-        return coo_matrix((values, (rows, cols)), shape=(self.m, self.n)).tocsr()
 
     def start_watch(self, B, int rank):
         """N = the right singular vectors of the row-scaled B beyond the first rank

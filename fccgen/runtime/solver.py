@@ -165,9 +165,8 @@ class CompiledSolver:
     def constraint_jacobian_sparse(self, q):
         """B at q as a SciPy CSR matrix, assembled from the element blocks (no dense
         n_g x n_q array: what large models use)."""
-        from scipy.sparse import coo_matrix
-        rows, cols, values = self._asm.jacobian_triplets(q)
-        return coo_matrix((values, (rows, cols)), shape=(self.n_g, self.n_q)).tocsr()
+        from .sparsity import jacobian_csr
+        return jacobian_csr(self._asm, q)
 
     def _jacobian_for_rank(self, q):
         """B for fccgen.rank.decide: sparse for models it decides a component at a time."""

@@ -137,3 +137,11 @@ def structure(n: int, q_ptr, q_idx, couples, order: str = "minimum_degree") -> S
         emap_ptr[e + 1] = len(emap)
     return Structure(n, perm, Ap, np.asarray(Ai, dtype=np.intc), emap_ptr,
                      np.asarray(emap, dtype=np.intc))
+
+
+def jacobian_csr(asm, q):
+    """The constraint Jacobian B at q as a SciPy CSR matrix (n_g x n_q), from the
+    assembler's element blocks (``Assembler.jacobian_triplets``; repeated entries of a
+    shared coordinate are summed): no dense n_g x n_q array, what large models use."""
+    rows, cols, values = asm.jacobian_triplets(q)
+    return coo_matrix((values, (rows, cols)), shape=(asm.n_g, asm.n_q)).tocsr()
