@@ -51,6 +51,7 @@ cdef struct EvC:
     double *held              # per quantity row: the value a lock holds
     int *active               # per quantity row: the row is an active constraint
     int *used                 # ... and independent: it enters the solves (rank)
+    int n_used                # how many rows are used (set with used, by ev_decide)
     int *rested               # per event: its bounce rests (release is watched)
     double *rel_sign          # per event: the sign making its release function > 0
                               # when the resting contact's multiplier pulls

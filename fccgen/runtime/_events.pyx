@@ -255,15 +255,10 @@ cdef int ev_constrain(Engine e, EvC *ev, const double *q, const double *v,
     """a <- the accelerations with the active rows added (the engine's factorisation
     must be the one at q, as accelerations_at leaves it)."""
     cdef int m, i, k = 0
-    if ev.nr == 0:
-        return 0
-    for i in range(ev.nr):
-        k += ev.used[i]
-    if k == 0:
+    if ev.n_used == 0:
         return 0
     m = _responses(e, ev, q)
     ev.tab.quantity_bias(q, v, t, ev.p, ev.rb)
-    k = 0
     for i in range(ev.nr):
         if ev.used[i]:
             ev.held[ev.nr + k] = -ev.rb[i]          # target G a = -(dG/dt) v
@@ -275,15 +270,10 @@ cdef int ev_correct(Engine e, EvC *ev, double *q, double *v) noexcept nogil:
     """After a step's projections (factorisation at q): one Newton correction of the
     active rows' positions, r_j(q) = held_j, then their speeds, G v = 0."""
     cdef int m, i, k = 0
-    if ev.nr == 0:
-        return 0
-    for i in range(ev.nr):
-        k += ev.used[i]
-    if k == 0:
+    if ev.n_used == 0:
         return 0
     m = _responses(e, ev, q)
     ev.tab.quantity_values(q, NULL, 0.0, ev.p, ev.r)
-    k = 0
     for i in range(ev.nr):
         if ev.used[i]:
             ev.mu[k] = ev.held[i] - ev.r[i]
@@ -395,9 +385,11 @@ cdef int ev_decide(Engine e, EvC *ev, const double *q) noexcept nogil:
     engine) every active row is used."""
     cdef int i, rows, rank, r
     cdef int n = ev.n
+    ev.n_used = 0
     if ev.aug == NULL:
         for i in range(ev.nr):
             ev.used[i] = ev.active[i]
+            ev.n_used += ev.used[i]
         return 0
     _scaled_rows(e, ev, q)
     rows = ev.m
@@ -416,6 +408,7 @@ cdef int ev_decide(Engine e, EvC *ev, const double *q) noexcept nogil:
         if r > rank:
             _uncertain(ev, ev.sig[r - 1] / ev.sig[0])
             ev.used[i] = 1
+            ev.n_used += 1
             rows += 1
             rank = r
         elif rank < (n if n < rows + 1 else rows + 1) and ev.sig[0] > 0.0:
@@ -563,7 +556,7 @@ cdef int ev_apply(Engine e, EvC *ev, int k, double *q, double *v,
     k >= ne releases the resting bounce k - ne. Every switch decides the used rows
     anew (ev_decide). Returns 1 (nothing done) for a bounce that does not approach
     its surface."""
-    cdef int act, i, used_rows = 0
+    cdef int act
     cdef double ke0, impulse = 0.0, speed = 0.0, cerr, approach = 0.0
     cdef double *rec
     cdef bint rest = k < 0
@@ -608,15 +601,13 @@ cdef int ev_apply(Engine e, EvC *ev, int k, double *q, double *v,
     e.factor_valid = False
     e.asm.assemble(q, NULL, ASM_G)
     cerr = e.asm.max_abs_g()
-    if ev.nr and _row_error(ev, q) > cerr:
-        cerr = _row_error(ev, q)
-    for i in range(ev.nr):
-        used_rows += ev.used[i]
+    if ev.nr:
+        cerr = max(cerr, _row_error(ev, q))
     if ev.n_log < ev.cap_log:
         rec = ev.log + ev.n_log * LOG_COLS
         rec[0], rec[1], rec[2], rec[3] = t, k, act, impulse
         rec[4], rec[5], rec[6] = ke0, _kinetic(e, q, v), cerr
-        rec[7], rec[8] = e.sol.nr - used_rows, speed
+        rec[7], rec[8] = e.sol.nr - ev.n_used, speed
         rec[9], rec[10] = ev.note, ev.note_sigma
     ev.n_log += 1
     return 0
@@ -710,6 +701,7 @@ cdef class EventSet:
             c.p[3 * j + 1] = 1.0
         memset(c.active, 0, c.nr * sizeof(int))
         memset(c.used, 0, c.nr * sizeof(int))
+        c.n_used = 0
         memset(c.rested, 0, c.ne * sizeof(int))
         c.n_log = 0
         c.stop = 0
