@@ -31,19 +31,27 @@ def event_rows(names, actions, log: np.ndarray) -> list[dict]:
     return rows
 
 
-def energy_balance(t, energy, rows: list[dict]) -> tuple[float, float]:
-    """(energy drift, event energy loss) of a run with events. An impact changes the
-    kinetic energy only (the positions do not jump), by ke_after - ke_before; adding
-    the losses of the events up to each output time back to E(t) leaves the
-    integration's own drift: max_i |E(t_i) + sum_{t_e <= t_i} (ke_before - ke_after)
-    - E(t_0)|. Without this, a latch's energy loss would read as drift."""
+def energy_losses(t, rows: list[dict]) -> np.ndarray:
+    """Per output time t_i, the kinetic energy the events up to it took:
+    sum_{t_e <= t_i} (ke_before - ke_after). An impact changes the kinetic energy only
+    (the positions do not jump), so E(t_i) plus this is what the integration alone
+    would have kept."""
     t = np.asarray(t, float)
-    e = np.asarray(energy, float)
-    lost = np.zeros_like(e)
+    lost = np.zeros_like(t)
     for r in rows:
         lost[t >= r["t"]] += r["kinetic_energy_before"] - r["kinetic_energy_after"]
-    drift = float(np.max(np.abs(e + lost - e[0]))) if e.size else 0.0
-    return drift, float(lost[-1]) if e.size else 0.0
+    return lost
+
+
+def energy_balance(t, energy, rows: list[dict]) -> tuple[float, float]:
+    """(energy drift, event energy loss) of a run with events: the drift is
+    max_i |E(t_i) + energy_losses(t_i) - E(t_0)|, the integration's own; without
+    adding the losses back, a latch's energy loss would read as drift."""
+    e = np.asarray(energy, float)
+    if not e.size:
+        return 0.0, 0.0
+    lost = energy_losses(t, rows)
+    return float(np.max(np.abs(e + lost - e[0]))), float(lost[-1])
 
 
 def switch_warnings(rows: list[dict], log: np.ndarray, notes: dict) -> list[str]:

@@ -19,6 +19,7 @@ import warnings
 import numpy as np
 
 from ..errors import RunWarning
+from ..events.table import energy_losses
 from ..plan.classes import FUNCTION_KINDS
 
 DRIFT_FRACTION = 1e-2      # of the peak kinetic energy: 1e4 times the drift of an
@@ -59,7 +60,7 @@ def check_energy(result, plan, kinetic_peak: float | None) -> None:
     check["drift_fraction"] = fraction
     if not fraction > DRIFT_FRACTION:
         return
-    e = np.asarray(result["energy"], float)
+    e = np.asarray(result["energy"], float) + energy_losses(result.t, result.events)
     at = float(np.asarray(result.t)[int(np.argmax(np.abs(e - e[0])))])
     text = (f"the energy changed by {float(drift):.3g} ({fraction:.1%} of the largest "
             f"kinetic energy, {kinetic_peak:.3g}; worst at t = {at:.6g}) in a model that "

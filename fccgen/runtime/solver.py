@@ -296,12 +296,13 @@ class CompiledSolver:
                                                                 result.events)
         add_driver_columns(self, result)
         used = self.dense_engine() if m.name == "ali3p" else self._engine
-        rank_rule.report_run(result, decision, used.rank_statistics(),
+        stats = used.rank_statistics()
+        rank_rule.report_run(result, decision, stats,
                              driven=bool(driver_rows(self.plan)))
         if events is not None:
             from ..events.table import final_dof
             result.info["final_dof"] = final_dof(result.info, result.events)
-        check_energy(result, self.plan, used.rank_statistics().get("kinetic_energy_peak"))
+        check_energy(result, self.plan, stats.get("kinetic_energy_peak"))
         return add_reactions(self, result) if reactions else result
 
     def dense_engine(self):
