@@ -12,7 +12,7 @@ import sympy
 import fccgen
 from fccgen.errors import ModelError
 from fccgen.mechanism.reactions import reactions
-from test_drivers import G, L0, L1, L2, L3, MASS, OMEGA, THETA0
+from test_drivers import G, MASS, OMEGA, THETA0, loop_closure
 from test_joints import write
 
 
@@ -21,16 +21,7 @@ def centre_accelerations():
     crank angle theta at the constant rate OMEGA: a = OMEGA^2 d2c/dtheta2, with the
     centres from the loop closure (B on the upper intersection of the circles about
     A and C), the geometry of tests/test_drivers.minimal_torque."""
-    th = sympy.Symbol("theta", real=True)
-    A = sympy.Matrix([L1 * sympy.cos(th), L1 * sympy.sin(th)])
-    C = sympy.Matrix([L0, 0])
-    d = C - A
-    dist = sympy.sqrt(d.dot(d))
-    a = (L2 ** 2 - L3 ** 2 + dist ** 2) / (2 * dist)
-    h = sympy.sqrt(L2 ** 2 - a ** 2)
-    e = d / dist
-    B = A + a * e + h * sympy.Matrix([-e[1], e[0]])
-    centres = (A / 2, (A + B) / 2, (B + C) / 2)
+    th, _, _, _, centres = loop_closure()
     return [sympy.lambdify(th, list(sympy.diff(c, th, 2) * OMEGA ** 2), "numpy")
             for c in centres]
 

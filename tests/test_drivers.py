@@ -78,11 +78,10 @@ G = 9.81
 OMEGA, THETA0 = 10.0, math.pi / 3
 
 
-@functools.cache                 # SymPy takes seconds; other test modules reuse it
-def minimal_torque():
-    """tau(theta) = M'(theta) omega^2 / 2 + V'(theta) of the four-bar in its crank
-    angle theta (minimal coordinates, written from the loop closure with SymPy: B on
-    the upper intersection of the circles about A and C); returns a NumPy function."""
+def loop_closure():
+    """(theta, A, B, C, mass centres) of the four-bar in its crank angle theta, as SymPy
+    expressions: the crank tip A, the coupler-rocker joint B on the upper intersection
+    of the circles about A (coupler L2) and C (rocker L3), the ground pivot C."""
     th = sympy.Symbol("theta", real=True)
     A = sympy.Matrix([L1 * sympy.cos(th), L1 * sympy.sin(th)])
     C = sympy.Matrix([L0, 0])
@@ -92,7 +91,15 @@ def minimal_torque():
     h = sympy.sqrt(L2 ** 2 - a ** 2)
     e = d / dist
     B = A + a * e + h * sympy.Matrix([-e[1], e[0]])
-    centres = (A / 2, (A + B) / 2, (B + C) / 2)
+    return th, A, B, C, (A / 2, (A + B) / 2, (B + C) / 2)
+
+
+@functools.cache                 # SymPy takes seconds; other test modules reuse it
+def minimal_torque():
+    """tau(theta) = M'(theta) omega^2 / 2 + V'(theta) of the four-bar in its crank
+    angle theta (minimal coordinates, written from the loop closure with SymPy: B on
+    the upper intersection of the circles about A and C); returns a NumPy function."""
+    th, A, B, C, centres = loop_closure()
     angles = (th, sympy.atan2(B[1] - A[1], B[0] - A[0]),
               sympy.atan2(B[1] - C[1], B[0] - C[0]))
     M = sum(m * (sympy.diff(c, th).dot(sympy.diff(c, th))) + i * sympy.diff(phi, th) ** 2
