@@ -16,6 +16,9 @@ cdef class ALRefinement(SparseBlocks):
     cdef double *sp
     cdef double *u                # n
     cdef long n_solves, n_iterations, n_unconverged
+    cdef long n_beyond_rank       # corrections stopped beyond the decided rank
+    cdef double beyond_quotient   # their Rayleigh-quotient bound (0: off)
+    cdef bint beyond_hit          # the last correction stopped there
     cdef int most_iterations
     cdef int cg_max, refine_max, al_max    # caps (limit_refinement)
     cdef double rho               # r2^T diag(alpha) r2 of the last residual pass

@@ -32,6 +32,7 @@ import numpy as np
 
 from ._assemble cimport ASM_B, ASM_M, Assembler
 from ._sparse_blocks cimport SparseBlocks, alloc_zeroed
+from ._sparse_blocks import PENALTY
 
 # Augmented-Lagrangian steps stop when the estimated remaining change,
 # |dx| rate / (1 - rate), is at most AL_STOP |x|; a step with rate above SLOW (or the
@@ -58,6 +59,26 @@ cdef double CG_TOL = 1e-8
 cdef int CG_MAX = 400
 cdef double REFINE_STOP = 1e-14
 cdef int REFINE_MAX = 3
+# Directions beyond the decided rank (set_beyond_rank). Rows dependent only on the
+# constraint manifold (a linkage mobile by its geometry: Bricard's loop, the scissor
+# mast) are independent a little off it: at an RK stage, positions off by the step's
+# error, their singular value rises from 1e-15 to about that error, and so does the
+# right-hand side's component along them. Exactly dependent rows (A02's planar rows)
+# stay dependent. The dense path keeps rank pivots and drops the rest; resolving such
+# a direction instead divides the one small number by the other: stage accelerations
+# wrong by O(1) (measured 9.6 and 2e4 on Bricard's two encodings at dt 1e-3) that pass
+# every residual test. So for such models the conjugate-gradient corrections stop at
+# a search direction p whose preconditioned Rayleigh
+# quotient p^T S p / p^T diag(alpha)^-1 p, about t / (1 + t) with
+# t = alpha sigma^2 / m, is below that of a direction of BEYOND_FRACTION times the
+# smallest scaled singular value kept by the rank decision: far below every direction
+# within the rank (the scissor mast's weakest has t = 42), far above the stage's
+# (sigma ~1e-6 at dt 1e-3, 1e-4 at 1e-2, against 0.05 .. 0.2 kept on Bricard), and
+# the solve counts as not converged: the dense solve, which drops that direction,
+# redoes it (_sparse.pyx). Accepting the stopped solve is not enough: the
+# augmented-Lagrangian steps before it move x along the direction too, by t / (1 + t)
+# of the wrong amount each (Bricard's line encoding kept 1e-2 J of energy error so).
+BEYOND_FRACTION = 1e-2
 
 
 cdef class ALRefinement(SparseBlocks):
@@ -98,12 +119,25 @@ cdef class ALRefinement(SparseBlocks):
         self.cg_max = cg_steps
         self.al_max = al_steps
 
+    def set_beyond_rank(self, double kept_sigma):
+        """Stop the conjugate-gradient corrections at directions beyond the decided
+        rank (module constants, "Directions beyond the decided rank"): kept_sigma is
+        the smallest scaled singular value the rank decision kept (sigma_r /
+        sigma_1); 0 turns the stop off (rows dependent exactly, or none)."""
+        cdef double t = PENALTY * (BEYOND_FRACTION * kept_sigma) ** 2
+        self.beyond_quotient = t / (1.0 + t) if kept_sigma > 0.0 else 0.0
+
+    @property
+    def beyond_rank_quotient(self):
+        """The Rayleigh quotient below which the corrections stop (0: off)."""
+        return self.beyond_quotient
+
     def solve_statistics(self):
         """Factorisations and solves since the last rank decision, refinement iterations
         in all and at most in one solve, and solves that did not converge."""
         return dict(factorisations=self.n_factor, solves=self.n_solves,
                     iterations=self.n_iterations, max_iterations=self.most_iterations,
-                    unconverged=self.n_unconverged)
+                    unconverged=self.n_unconverged, beyond_rank_stops=self.n_beyond_rank)
 
     cdef void residual_pass(self, const double *x, const double *b, bint pending,
                             bint penalised, double *y, double *r2) noexcept nogil:
@@ -201,7 +235,8 @@ cdef class ALRefinement(SparseBlocks):
         CG_MAX. Returns the number of solves with A; cg_steps holds
         the iterations taken (0: the residual started below rz_stop)."""
         cdef int i, k = 0, n = self.n, m = self.m
-        cdef double rz, rz_new, psp, step
+        cdef double rz, rz_new, psp, pap, step
+        self.beyond_hit = False
         memcpy(self.dx, self.r1, <size_t>n * sizeof(double))
         self.mult_bt(self.r2, self.alpha, self.dx)
         self.solve_a(self.dx)
@@ -226,6 +261,16 @@ cdef class ALRefinement(SparseBlocks):
                 psp += self.p[i] * self.sp[i]
             if not psp > 0.0:
                 break
+            if self.beyond_quotient > 0.0:
+                pap = 0.0
+                for i in range(m):
+                    if self.alpha[i] > 0.0:
+                        pap += self.p[i] * self.p[i] / self.alpha[i]
+                if psp < self.beyond_quotient * pap:
+                    self.cg_steps -= 1          # not taken: beyond the rank
+                    self.n_beyond_rank += 1
+                    self.beyond_hit = True
+                    break
             step = rz / psp
             for i in range(n):
                 self.dx[i] -= step * self.u[i]
@@ -267,6 +312,8 @@ cdef class ALRefinement(SparseBlocks):
                 self.residual_pass(x, b, pending, False, self.r1, self.r2)
                 pending = False
                 solves += self.correction(&rz_stop)
+                if self.beyond_hit:             # redone densely (_sparse.pyx)
+                    break
                 for i in range(m):
                     self.lam[i] += self.bdx[i]
             else:

@@ -117,6 +117,7 @@ cdef class SparseEngine(ALRefinement):
         cdef double[::1] saved
         Engine.decide_rank(self, q, rank)
         self.n_factor = self.n_solves = self.n_iterations = self.n_unconverged = 0
+        self.n_beyond_rank = 0
         self.n_fallback = 0
         self.sol.n_drop = 0
         self.most_iterations = 0

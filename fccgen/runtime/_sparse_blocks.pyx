@@ -37,6 +37,7 @@ from ._model_table cimport fcc_element_class
 # is one of a group of full-size rows. (Starting a solve from the previous stage's
 # solution accumulates the same drift over the run: measured, it breaks Bricard.)
 cdef double RHO = 1e7
+PENALTY = RHO                 # for the other modules
 # Row scale floor within an element, as the dense path's (fccgen.rank.ROW_FLOOR).
 cdef double ROW_FLOOR = 1e-4
 # An LDL^T pivot D_k at or below this fraction of A_kk counts as zero.

@@ -7,8 +7,9 @@ in the size for chains and trees. "auto" takes the sparse path from
 SPARSE_MIN_COORDINATES moving coordinates on (docs/performance.md, "Dense and sparse
 paths"): the sparse step measured faster than the dense one at every size, from 3
 coordinates on, but the small models keep the dense path's longer-tested rank logic
-(Bricard, 24 coordinates, follows its motion over 10 s only on the dense path), so the
-threshold sits just above the largest example below it.
+(Bricard, 24 coordinates, has a row dependent only on the constraints: on the sparse
+path a third of its solves reach it and are redone densely, docs/reliability.md), so
+the threshold sits just above the largest example below it.
 """
 from __future__ import annotations
 
