@@ -10,6 +10,7 @@ cdef enum:
     ERR_NONFINITE_INPUT = 3   # a state or assembled quantity is not finite (err_detail)
     ERR_NONFINITE_RESULT = 4  # the solve produced a non-finite result
     ERR_DIVERGED = 5          # the state grew past the run's bound (err_detail: q or v)
+    ERR_PATTERN = 6           # sparse path: a block entry zero at the written positions is not
 
 cdef enum:
     AT_CALL = 0               # a direct call

@@ -8,6 +8,7 @@ INPUTS = ("", "coordinates q", "speeds v", "mass matrix M", "inertia terms h",
 
 ERR_SINGULAR, ERR_LAPACK, ERR_NONFINITE_INPUT, ERR_NONFINITE_RESULT = 1, 2, 3, 4
 ERR_DIVERGED = 5
+ERR_PATTERN = 6      # handled by the solver (it retries on the full pattern)
 AT_CALL, AT_STAGE, AT_POSITIONS, AT_VELOCITIES, AT_STEP = 0, 1, 2, 3, 4
 
 
@@ -35,6 +36,9 @@ def error_message(rec: dict, in_run: bool) -> str:
                 "stiff springs)")
     elif code == ERR_NONFINITE_RESULT:
         what = "the constrained solve gave non-finite values from finite inputs"
+    elif code == ERR_PATTERN:
+        what = ("an element block entry that was zero at the written positions is not: "
+                "the sparse pattern taken there no longer holds")
     else:
         what = f"unknown engine error {code}"
     where = rec["where"]

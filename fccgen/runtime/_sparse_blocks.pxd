@@ -37,6 +37,12 @@ cdef class SparseBlocks(Engine):
     cdef double *Y
     cdef double *t                # n: the permuted right-hand side of a solve
     cdef long n_factor
+    cdef int *zero_m              # offsets into Mblk / Bblk of the entries that were zero at
+    cdef int *zero_b              # the positions the pattern was taken at (planar_pattern)
+    cdef double *zero_m_tol       # the size each may reach (GUARD_TOL of its block's largest)
+    cdef double *zero_b_tol
+    cdef int n_zero_m, n_zero_b
+    cdef bint tripped             # one of them is not zero any more
 
     cdef void assemble_mb(self, const double *q, int flags) noexcept nogil
     cdef void mult_m(self, const double *x, double *y, bint add) noexcept nogil

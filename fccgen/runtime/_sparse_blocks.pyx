@@ -21,7 +21,8 @@ from libc.string cimport memset
 import numpy as np
 
 from ._assemble cimport ASM_B, ASM_C, ASM_F, ASM_G, ASM_H, ASM_M, Assembler
-from ._engine cimport ERR_LAPACK, ERR_NONFINITE_INPUT, ERR_SINGULAR, Engine, finite
+from ._engine cimport (ERR_LAPACK, ERR_NONFINITE_INPUT, ERR_PATTERN, ERR_SINGULAR, Engine,
+                       finite)
 from ._ldl cimport ldl_numeric, ldl_rows, ldl_solve, ldl_symbolic
 from ._model_table cimport fcc_element_class
 
@@ -50,6 +51,26 @@ cdef void *alloc_zeroed(size_t n, size_t size) except NULL:
     if p == NULL:
         raise MemoryError("cannot allocate the sparse solve's work arrays")
     return p
+
+
+# A block entry zero where the pattern of A was taken (SparseBlocks.planar_pattern)
+# may grow to GUARD_TOL of its block's largest entry before the pattern trips: the
+# factor of A then misses entries of that relative size. The refinement's residuals
+# use the full blocks, so the solve still converges to the system's solution, except
+# along directions it leaves undetermined: 1e-8 let Bricard's Newton projection from
+# 1e-9 off the constraints land 1.8e-8 from the dense path's point (the redundant row
+# there is independent to 1e-9). Rounding makes such entries nonzero too (a coordinate
+# held at zero by a constraint gets 1e-17 from the solves), far below 1e-12.
+cdef double GUARD_TOL = 1e-12
+
+
+def block_scales(starts, offsets, scales):
+    """scales[e] for each offset into the concatenated element blocks, e the element
+    whose block holds it (starts: the blocks' start offsets, n_el + 1)."""
+    if not len(offsets):
+        return np.zeros(0)
+    owner = np.searchsorted(starts, offsets, side="right") - 1
+    return np.asarray(scales)[owner]
 
 
 def element_structure(Assembler asm):
@@ -91,6 +112,7 @@ cdef class SparseBlocks(Engine):
     def __dealloc__(self):
         free(self.mptr); free(self.bptr); free(self.Mblk); free(self.Bblk); free(self.lq)
         free(self.ly); free(self.alpha); free(self.rnorm); free(self.t)
+        free(self.zero_m); free(self.zero_b); free(self.zero_m_tol); free(self.zero_b_tol)
         free(self.perm); free(self.Ap); free(self.Ai); free(self.Ax); free(self.emap_ptr)
         free(self.emap); free(self.Lp); free(self.Li); free(self.Lx); free(self.D)
         free(self.parent); free(self.Lnz); free(self.flag); free(self.pattern)
@@ -148,6 +170,94 @@ cdef class SparseBlocks(Engine):
                  self.Rj, self.Rpos, self.pattern, self.flag)
         self.ready = True
 
+    def planar_pattern(self, samples):
+        """Take the pattern of A from the element blocks at the coordinate vectors in
+        samples (before set_structure): the entries (a, b) of each element's block of A
+        nonzero at any of them (M_ab != 0 or B_ra B_rb != 0 for some row r, a NaN
+        counting as nonzero), and keep the offsets of the block entries of M and B zero
+        at all of them, which every later assembly checks: a nonzero one trips the
+        pattern (the factorisation then fails with ERR_PATTERN and the solver redoes
+        the call on the full pattern, paths.make_engine). A model written in a plane
+        keeps its out-of-plane entries exactly zero while it moves in it, so the fill
+        of L is about halved there. Returns (mask_ptr, mask) for
+        fccgen.runtime.sparsity.structure."""
+        cdef int e, a, b, r, nq, ng, k
+        cdef const double *mb
+        cdef const double *bb
+        cdef double[:, ::1] qs = np.ascontiguousarray(np.atleast_2d(samples), dtype=float)
+        if self.ready:
+            raise RuntimeError("the structure is already set")
+        if qs.shape[1] != self.n:
+            raise ValueError(f"samples have {qs.shape[1]} coordinates, the model {self.n}")
+        ptr = np.zeros(self.asm.n_el + 1, dtype=np.intp)
+        for e in range(self.asm.n_el):
+            nq = self.asm.cls[e].n_q
+            couples = self.mptr[e + 1] > self.mptr[e] or self.asm.cls[e].n_g > 0
+            ptr[e + 1] = ptr[e] + (nq * nq if couples else 0)
+        mask = np.zeros(ptr[self.asm.n_el], dtype=bool)
+        cdef unsigned char[::1] mk = mask.view(np.uint8)
+        zero_m = np.ones(self.mptr[self.asm.n_el], dtype=bool)
+        zero_b = np.ones(self.bptr[self.asm.n_el], dtype=bool)
+        cdef unsigned char[::1] zm = zero_m.view(np.uint8)
+        cdef unsigned char[::1] zb = zero_b.view(np.uint8)
+        scale_m = np.zeros(self.asm.n_el)
+        scale_b = np.zeros(self.asm.n_el)
+        for k in range(qs.shape[0]):
+            self.assemble_mb(&qs[k, 0], ASM_M | ASM_B)
+            for e in range(self.asm.n_el):
+                if self.mptr[e + 1] > self.mptr[e]:
+                    scale_m[e] = max(scale_m[e], float(np.max(np.abs(np.array(
+                        <double[:self.mptr[e + 1] - self.mptr[e]]>(self.Mblk + self.mptr[e]))))))
+                if self.bptr[e + 1] > self.bptr[e]:
+                    scale_b[e] = max(scale_b[e], float(np.max(np.abs(np.array(
+                        <double[:self.bptr[e + 1] - self.bptr[e]]>(self.Bblk + self.bptr[e]))))))
+            for e in range(self.asm.n_el):
+                if ptr[e + 1] == ptr[e]:
+                    continue
+                nq = self.asm.cls[e].n_q
+                ng = self.asm.cls[e].n_g
+                if self.mptr[e + 1] > self.mptr[e]:
+                    mb = self.Mblk + self.mptr[e]
+                    for a in range(nq * nq):
+                        if mb[a] != 0.0:
+                            mk[ptr[e] + a] = 1
+                            zm[self.mptr[e] + a] = 0
+                bb = self.Bblk + self.bptr[e]
+                for r in range(ng):
+                    for a in range(nq):
+                        if bb[r * nq + a] == 0.0:
+                            continue
+                        zb[self.bptr[e] + r * nq + a] = 0
+                        for b in range(nq):
+                            if bb[r * nq + b] != 0.0:
+                                mk[ptr[e] + a * nq + b] = 1
+        offs_m = np.flatnonzero(zero_m)
+        offs_b = np.flatnonzero(zero_b)
+        mstart = np.array([self.mptr[e] for e in range(self.asm.n_el + 1)], dtype=np.intp)
+        bstart = np.array([self.bptr[e] for e in range(self.asm.n_el + 1)], dtype=np.intp)
+        tol_m = GUARD_TOL * block_scales(mstart, offs_m, scale_m)
+        tol_b = GUARD_TOL * block_scales(bstart, offs_b, scale_b)
+        free(self.zero_m); free(self.zero_b); free(self.zero_m_tol); free(self.zero_b_tol)
+        self.zero_m = <int *>alloc_zeroed(offs_m.size, sizeof(int))
+        self.zero_b = <int *>alloc_zeroed(offs_b.size, sizeof(int))
+        self.zero_m_tol = <double *>alloc_zeroed(offs_m.size, sizeof(double))
+        self.zero_b_tol = <double *>alloc_zeroed(offs_b.size, sizeof(double))
+        for a in range(offs_m.size):
+            self.zero_m[a] = offs_m[a]
+            self.zero_m_tol[a] = tol_m[a]
+        for a in range(offs_b.size):
+            self.zero_b[a] = offs_b[a]
+            self.zero_b_tol[a] = tol_b[a]
+        self.n_zero_m, self.n_zero_b = offs_m.size, offs_b.size
+        self.tripped = False
+        return ptr, mask
+
+    @property
+    def pattern_tripped(self):
+        """Whether an assembly found a block entry nonzero that was zero where the
+        pattern was taken (planar_pattern)."""
+        return bool(self.tripped)
+
     @property
     def nonzeros(self):
         """(nonzeros of upper(A), nonzeros of the strict lower part of L)."""
@@ -174,6 +284,14 @@ cdef class SparseBlocks(Engine):
                 k.mass_matrix(self.lq, p, self.Mblk + self.mptr[e])
             if flags & ASM_B and k.constraint_jacobian != NULL:
                 k.constraint_jacobian(self.lq, p, self.Bblk + self.bptr[e])
+        if flags & ASM_M:
+            for i in range(self.n_zero_m):
+                if not fabs(self.Mblk[self.zero_m[i]]) <= self.zero_m_tol[i]:
+                    self.tripped = True
+        if flags & ASM_B:
+            for i in range(self.n_zero_b):
+                if not fabs(self.Bblk[self.zero_b[i]]) <= self.zero_b_tol[i]:
+                    self.tripped = True
 
     cdef void mult_m(self, const double *x, double *y, bint add) noexcept nogil:
         """y (+)= M x."""
@@ -318,6 +436,8 @@ cdef class SparseBlocks(Engine):
         self.factor_valid = False
         if not self.ready:
             return self.fail(ERR_LAPACK, -1, 0)
+        if self.tripped:
+            return self.fail(ERR_PATTERN, 0, 0)
         self.row_norms()
         memset(self.Ax, 0, <size_t>self.nnz_a * sizeof(double))
         for e in range(self.asm.n_el):

@@ -24,7 +24,7 @@ from ..progress import run_reporter
 from ..results import InitialState, Result, timed_run
 from ._assemble import FLAGS, Assembler
 from ._dopri5 import simulate_dopri5
-from .paths import make_engine, use_sparse
+from .paths import make_engine, pattern_samples, use_sparse
 from ._rk4 import simulate_baumgarte, simulate_rk4
 from .energy_check import check_energy
 
@@ -136,7 +136,10 @@ class CompiledSolver:
                                  "dense path for such models)")
             self.sparse = False
         self._engine = make_engine(self._asm, self.rank_tol, self.position_tol,
-                                   self.max_newton, self.sparse)
+                                   self.max_newton, self.sparse,
+                                   at=pattern_samples(plan.q0, plan.v_target,
+                                                      self.length_scale))
+        self._decided_at = None
         self._manifold_key = None
         self._manifold_kept = 0.0
         self._dense_engine = None if self.sparse else self._engine
@@ -204,12 +207,13 @@ class CompiledSolver:
     # -- solves -------------------------------------------------------------------------
     def accelerations(self, q, v) -> np.ndarray:
         """q'' from M q'' + B^T lambda = f - h, B q'' = -(dB/dt) v."""
-        return self._engine.accelerations(q, v)
+        return self._engine_call(lambda e: e.accelerations(q, v))
 
     def project_positions(self, q):
         """(q_new, iterations): Newton projection onto g(q) = 0 with M-weighted minimal
         corrections. Raises SimulationError when it does not converge."""
-        q_new, iterations, converged, residual = self._engine.project_positions(q)
+        q_new, iterations, converged, residual = self._engine_call(
+            lambda e: e.project_positions(q))
         if not converged:
             raise SimulationError(
                 f"position projection did not converge: max |g_k|/|B_k| = {residual:.3g} "
@@ -218,7 +222,7 @@ class CompiledSolver:
 
     def project_velocities(self, q, v) -> np.ndarray:
         """The M-orthogonal projection of v onto B(q) v = 0."""
-        return self._engine.project_velocities(q, v)
+        return self._engine_call(lambda e: e.project_velocities(q, v))
 
     def initial_state(self) -> InitialState:
         """The model's initial positions assembled onto the constraints and its initial
@@ -246,6 +250,29 @@ class CompiledSolver:
                                                     + self.constraint_rate(q)))
 
     # -- simulation ---------------------------------------------------------------------
+    def _pattern_tripped(self) -> bool:
+        return self.sparse and getattr(self._engine, "pattern_tripped", False)
+
+    def _full_pattern(self) -> None:
+        """The sparse engine again, on the full pattern of A (every element block
+        full), with the rank decided where the last decision was made."""
+        self._engine = make_engine(self._asm, self.rank_tol, self.position_tol,
+                                   self.max_newton, True)
+        if self._decided_at is not None:
+            self.decide_rank(self._decided_at)
+
+    def _engine_call(self, call):
+        """call(engine), redone once on the full pattern when the sparse engine's
+        pattern of A, read at the written positions, no longer holds
+        (paths.pattern_samples)."""
+        try:
+            return call(self._engine)
+        except SimulationError:
+            if not self._pattern_tripped():
+                raise
+        self._full_pattern()
+        return call(self._engine)
+
     def simulate(self, t_end=None, dt=None, method=None, output_dt=None, project=True,
                  q0=None, v0=None, progress=None, rtol=None, atol=None,
                  reactions=True, event_tol=1e-12, rest_speed=1e-6,
@@ -271,6 +298,19 @@ class CompiledSolver:
         event table (fccgen.events.table), also kept in ``result.info["events"]`` so
         that every file format carries it.
         """
+        args = dict(t_end=t_end, dt=dt, method=method, output_dt=output_dt,
+                    project=project, q0=q0, v0=v0, progress=progress, rtol=rtol,
+                    atol=atol, reactions=reactions, event_tol=event_tol,
+                    rest_speed=rest_speed, **method_options)
+        # On the sparse path, a run whose motion leaves the pattern of A read at the
+        # written positions (a model written in a plane that moves out of it) stops at
+        # the first such assembly and is run again on the full pattern, once.
+        return self._engine_call(lambda engine: self._simulate_once(**args))
+
+    def _simulate_once(self, t_end, dt, method, output_dt, project, q0, v0, progress,
+                       rtol, atol, reactions, event_tol, rest_speed,
+                       **method_options) -> Result:
+        """One run (:meth:`simulate`)."""
         d = self.plan.model.simulate
         m = registry.get(d.method if method is None else method, METHODS)
         opts = registry.options_for(m, rtol, atol, method_options)
@@ -358,6 +398,7 @@ class CompiledSolver:
         Every run decides at its start; before the first decision the factorisations
         count QR pivots above rank_tol."""
         decision = rank_rule.decide(self._jacobian_for_rank(q), self.n_q, self.row_groups)
+        self._decided_at = np.array(q, dtype=float)
         self._engine.decide_rank(q, decision.rank)
         if self._dense_engine is not None and self._dense_engine is not self._engine:
             self._dense_engine.decide_rank(q, decision.rank)
@@ -451,6 +492,7 @@ class CompiledSolver:
 
     def time_accelerations(self, q, v, repeats=200) -> float:
         """Seconds per evaluation of the accelerations (assembly, factorisation, solve)."""
+        self._engine_call(lambda e: e.accelerations(q, v))    # the pattern holds at q, v
         return _median_time(lambda b: self._engine.time_accelerations(q, v, b), repeats)
 
 

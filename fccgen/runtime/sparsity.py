@@ -7,6 +7,11 @@ element's local coordinates (a clique of the coordinate graph) to A. So the patt
 A is the union of these cliques, known from the elements' local -> global coordinate
 maps before any number is computed. Here, once per solver:
 
+0. the solver may narrow the cliques to the entries the element blocks hold at the
+   written positions and at nearby ones where only the coordinates that sit off zero
+   or move are moved (paths.pattern_samples, SparseBlocks.planar_pattern): a model
+   written in a plane leaves out its out-of-plane couplings, guarded at every
+   assembly;
 1. a fill-reducing order of the coordinate graph (:func:`fill_reducing_order`:
    minimum degree, ties by index; reverse Cuthill-McKee as the alternative);
 2. the upper triangle of the permuted A in compressed sparse columns (Ap, Ai);
@@ -97,12 +102,35 @@ def rcm(n: int, groups) -> np.ndarray:
 ORDERS = {"minimum_degree": minimum_degree, "rcm": rcm}
 
 
-def structure(n: int, q_ptr, q_idx, couples, order: str = "minimum_degree") -> Structure:
+def masked_edges(q_ptr, q_idx, couples, masks) -> list[np.ndarray]:
+    """The coordinate pairs (i, j), i < j, that some element's block of A holds
+    (masks: (mask_ptr, mask), element e's n_q x n_q mask row-major), each a 2-array."""
+    mask_ptr, mask = masks
+    pairs = set()
+    for e in range(len(couples)):
+        if not couples[e]:
+            continue
+        local = q_idx[q_ptr[e]:q_ptr[e + 1]]
+        nq = len(local)
+        blk = np.asarray(mask[mask_ptr[e]:mask_ptr[e + 1]]).reshape(nq, nq)
+        for a, b in zip(*np.nonzero(blk | blk.T)):
+            i, j = int(local[a]), int(local[b])
+            if i < j:
+                pairs.add((i, j))
+    return [np.array(p, dtype=np.intp) for p in sorted(pairs)]
+
+
+def structure(n: int, q_ptr, q_idx, couples, order: str = "minimum_degree",
+              masks=None) -> Structure:
     """The :class:`Structure` of A for elements with local -> global maps (q_ptr,
-    q_idx) (CSR style), of which those with couples[e] add to A."""
+    q_idx) (CSR style), of which those with couples[e] add to A: every element's
+    block full (a clique of its coordinates), or with masks
+    (``SparseBlocks.planar_pattern``) only the entries they hold, the others mapped
+    to -1 (not assembled)."""
     q_ptr = np.asarray(q_ptr, dtype=np.intp)
     q_idx = np.asarray(q_idx, dtype=np.intp)
-    groups = cliques(q_ptr, q_idx, couples)
+    groups = (cliques(q_ptr, q_idx, couples) if masks is None
+              else masked_edges(q_ptr, q_idx, couples, masks))
     perm = ORDERS[order](n, [g for g in groups if len(g)])
     pinv = np.empty(n, dtype=np.intp)
     pinv[perm] = np.arange(n)
@@ -131,9 +159,14 @@ def structure(n: int, q_ptr, q_idx, couples, order: str = "minimum_degree") -> S
         local = q_idx[q_ptr[e]:q_ptr[e + 1]]
         if couples[e]:
             p = pinv[local]
-            for a in p:
-                for b in p:
-                    emap.append(where[(a, b)] if a <= b else -1)
+            nq = len(local)
+            keep = (np.ones((nq, nq), dtype=bool) if masks is None else
+                    np.asarray(masks[1][masks[0][e]:masks[0][e + 1]]).reshape(nq, nq))
+            keep = keep | keep.T
+            for ia, a in enumerate(p):
+                for ib, b in enumerate(p):
+                    emap.append(where[(a, b)] if a <= b and (keep[ia, ib] or a == b)
+                                else -1)
         emap_ptr[e + 1] = len(emap)
     return Structure(n, perm, Ap, np.asarray(Ai, dtype=np.intc), emap_ptr,
                      np.asarray(emap, dtype=np.intc))
