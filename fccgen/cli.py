@@ -276,8 +276,11 @@ def _dof_summary(info) -> str:
         text += f" ({drops} factorisations near a singular position)"
     bad = info.get("sparse_unconverged_solves", 0)
     if bad:
+        beyond = info.get("sparse_beyond_rank_solves", 0)
         text += (f"; {bad} of {info.get('sparse_solves')} sparse solves did not converge"
-                 f" ({info.get('sparse_dense_fallbacks', 0)} redone by the dense solve)")
+                 f" ({info.get('sparse_dense_fallbacks', 0)} redone by the dense solve"
+                 + (f", {beyond} at a row dependent only on the constraints"
+                    if beyond else "") + ")")
     return text
 
 

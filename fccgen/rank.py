@@ -162,7 +162,8 @@ def run_findings(decision: RankDecision, stats: dict,
     if "sparse_solves" in stats:
         info.update(sparse_solves=int(stats["sparse_solves"]),
                     sparse_unconverged_solves=int(stats["sparse_unconverged"]),
-                    sparse_dense_fallbacks=int(stats["sparse_dense_fallbacks"]))
+                    sparse_dense_fallbacks=int(stats["sparse_dense_fallbacks"]),
+                    sparse_beyond_rank_solves=int(stats.get("sparse_beyond_rank", 0)))
         text = sparse_solve_warning(info)
         if text:
             warnings.append(text)
@@ -202,9 +203,14 @@ def sparse_solve_warning(info: dict) -> str:
     if not bad:
         return ""
     redone = info["sparse_dense_fallbacks"]
+    beyond = info.get("sparse_beyond_rank_solves", 0)
+    why = ("the constraint Jacobian is ill-conditioned: near a singular position, or a "
+           "structure with nearly dependent constraints")
+    if beyond:
+        why += (f"; {beyond} of them reached a row dependent only on the constraints "
+                "(a linkage mobile by its geometry), which the dense path leaves out")
     text = (f"{bad} of the sparse path's {info['sparse_solves']} constrained solves did "
-            "not converge (the constraint Jacobian is ill-conditioned: near a singular "
-            "position, or a structure with nearly dependent constraints); ")
+            f"not converge ({why}); ")
     if redone == bad:
         return text + ("the dense solve redid each of them, so the results hold; "
                        "--linear-solver dense avoids the retries")

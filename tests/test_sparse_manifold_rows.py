@@ -15,6 +15,7 @@ import pytest
 
 import bricard
 import fccgen
+from fccgen.cli import _dof_summary
 from fccgen.errors import RunWarning
 from fccgen.runtime import CompiledSolver
 
@@ -55,7 +56,8 @@ def test_bricard_on_the_sparse_path_follows_the_dense_path(tmp_path, build_dir, 
     dense = fccgen.load(path, build_dir, linear_solver="dense")
     sparse = fccgen.load(path, build_dir, linear_solver="sparse")
     rd = dense.simulate(t_end=1.0, output_dt=0.05)
-    with pytest.warns(RunWarning, match="the dense solve redid each of them"):
+    with pytest.warns(RunWarning, match="reached a row dependent only on the "
+                      "constraints.*the dense solve redid each of them"):
         rs = sparse.simulate(t_end=1.0, output_dt=0.05)
     p3 = ["P3.x", "P3.y", "P3.z"]
     assert np.ptp(rs["P3.x"]) > 0.5                      # it moves: 0.73 m in 1 s
@@ -63,8 +65,9 @@ def test_bricard_on_the_sparse_path_follows_the_dense_path(tmp_path, build_dir, 
     e = rs["energy"]
     assert np.max(np.abs(e - e[0])) < 1e-6
     stats = sparse._engine.solve_statistics()
-    assert stats["beyond_rank_stops"] > 0
+    assert rs.info["sparse_beyond_rank_solves"] == stats["beyond_rank_stops"] > 0
     assert rs.info["sparse_dense_fallbacks"] == stats["unconverged"] > 0
+    assert "at a row dependent only on the constraints" in _dof_summary(rs.info)
 
 
 def test_models_with_rows_dependent_exactly_never_stop_there(compiled):

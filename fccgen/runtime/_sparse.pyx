@@ -151,13 +151,16 @@ cdef class SparseEngine(ALRefinement):
         with a pivot dropped within the decided rank (the dense path's meaning),
         largest_dropped the largest bound ||B_s N||_F on sigma_{r+1} / sigma_1 met by
         the rank-growth watch; sparse_solves, sparse_unconverged (refinements that
-        did not converge) and sparse_dense_fallbacks (of those, redone densely)."""
+        did not converge), sparse_dense_fallbacks (of those, redone densely) and
+        sparse_beyond_rank (of those, stopped at a direction beyond the decided rank:
+        _al_refine.pyx)."""
         stats = Engine.rank_statistics(self)
         stats.update(factorisations=self.n_factor, drops=self.sol.n_drop,
                      svd_checks=self.n_svd, smallest_kept=1.0,
                      largest_dropped=self.bound_max, sparse_solves=self.n_solves,
                      sparse_unconverged=self.n_unconverged,
-                     sparse_dense_fallbacks=self.n_fallback)
+                     sparse_dense_fallbacks=self.n_fallback,
+                     sparse_beyond_rank=self.n_beyond_rank)
         return stats
 
     cdef int finish(self, const double *q, const double *v, const double *a,
