@@ -64,15 +64,6 @@ cdef void *alloc_zeroed(size_t n, size_t size) except NULL:
 cdef double GUARD_TOL = 1e-12
 
 
-def block_scales(starts, offsets, scales):
-    """scales[e] for each offset into the concatenated element blocks, e the element
-    whose block holds it (starts: the blocks' start offsets, n_el + 1)."""
-    if not len(offsets):
-        return np.zeros(0)
-    owner = np.searchsorted(starts, offsets, side="right") - 1
-    return np.asarray(scales)[owner]
-
-
 def element_structure(Assembler asm):
     """(q_ptr, q_idx, couples) of the assembler's elements: couples[e] is True when
     element e has a mass matrix or constraint rows (it adds a block to A)."""
@@ -189,28 +180,21 @@ cdef class SparseBlocks(Engine):
             raise RuntimeError("the structure is already set")
         if qs.shape[1] != self.n:
             raise ValueError(f"samples have {qs.shape[1]} coordinates, the model {self.n}")
-        ptr = np.zeros(self.asm.n_el + 1, dtype=np.intp)
-        for e in range(self.asm.n_el):
-            nq = self.asm.cls[e].n_q
-            couples = self.mptr[e + 1] > self.mptr[e] or self.asm.cls[e].n_g > 0
-            ptr[e + 1] = ptr[e] + (nq * nq if couples else 0)
+        _, _, couples = element_structure(self.asm)
+        sizes = np.array([self.asm.cls[e].n_q ** 2 for e in range(self.asm.n_el)],
+                         dtype=np.intp)
+        ptr = np.concatenate([[0], np.cumsum(sizes * couples)]).astype(np.intp)
         mask = np.zeros(ptr[self.asm.n_el], dtype=bool)
         cdef unsigned char[::1] mk = mask.view(np.uint8)
         zero_m = np.ones(self.mptr[self.asm.n_el], dtype=bool)
         zero_b = np.ones(self.bptr[self.asm.n_el], dtype=bool)
         cdef unsigned char[::1] zm = zero_m.view(np.uint8)
         cdef unsigned char[::1] zb = zero_b.view(np.uint8)
-        scale_m = np.zeros(self.asm.n_el)
+        scale_m = np.zeros(self.asm.n_el)          # largest |entry| of each block
         scale_b = np.zeros(self.asm.n_el)
+        cdef double[::1] sm = scale_m, sb = scale_b
         for k in range(qs.shape[0]):
             self.assemble_mb(&qs[k, 0], ASM_M | ASM_B)
-            for e in range(self.asm.n_el):
-                if self.mptr[e + 1] > self.mptr[e]:
-                    scale_m[e] = max(scale_m[e], float(np.max(np.abs(np.array(
-                        <double[:self.mptr[e + 1] - self.mptr[e]]>(self.Mblk + self.mptr[e]))))))
-                if self.bptr[e + 1] > self.bptr[e]:
-                    scale_b[e] = max(scale_b[e], float(np.max(np.abs(np.array(
-                        <double[:self.bptr[e + 1] - self.bptr[e]]>(self.Bblk + self.bptr[e]))))))
             for e in range(self.asm.n_el):
                 if ptr[e + 1] == ptr[e]:
                     continue
@@ -222,21 +206,26 @@ cdef class SparseBlocks(Engine):
                         if mb[a] != 0.0:
                             mk[ptr[e] + a] = 1
                             zm[self.mptr[e] + a] = 0
+                            if fabs(mb[a]) > sm[e]:
+                                sm[e] = fabs(mb[a])
                 bb = self.Bblk + self.bptr[e]
                 for r in range(ng):
                     for a in range(nq):
                         if bb[r * nq + a] == 0.0:
                             continue
                         zb[self.bptr[e] + r * nq + a] = 0
+                        if fabs(bb[r * nq + a]) > sb[e]:
+                            sb[e] = fabs(bb[r * nq + a])
                         for b in range(nq):
                             if bb[r * nq + b] != 0.0:
                                 mk[ptr[e] + a * nq + b] = 1
         offs_m = np.flatnonzero(zero_m)
         offs_b = np.flatnonzero(zero_b)
-        mstart = np.array([self.mptr[e] for e in range(self.asm.n_el + 1)], dtype=np.intp)
-        bstart = np.array([self.bptr[e] for e in range(self.asm.n_el + 1)], dtype=np.intp)
-        tol_m = GUARD_TOL * block_scales(mstart, offs_m, scale_m)
-        tol_b = GUARD_TOL * block_scales(bstart, offs_b, scale_b)
+        # each offset's tolerance: GUARD_TOL times the largest entry of its block
+        m_len = [self.mptr[e + 1] - self.mptr[e] for e in range(self.asm.n_el)]
+        b_len = [self.bptr[e + 1] - self.bptr[e] for e in range(self.asm.n_el)]
+        tol_m = GUARD_TOL * np.repeat(scale_m, m_len)[offs_m]
+        tol_b = GUARD_TOL * np.repeat(scale_b, b_len)[offs_b]
         free(self.zero_m); free(self.zero_b); free(self.zero_m_tol); free(self.zero_b_tol)
         self.zero_m = <int *>alloc_zeroed(offs_m.size, sizeof(int))
         self.zero_b = <int *>alloc_zeroed(offs_b.size, sizeof(int))
