@@ -151,6 +151,7 @@ cdef class ALRefinement(SparseBlocks):
         and scattered once."""
         cdef int e, a, r, nq, ng, row
         cdef const int *idx
+        cdef const int *rows
         cdef const double *mb
         cdef const double *bb
         cdef double *xl = self.lq
@@ -159,12 +160,12 @@ cdef class ALRefinement(SparseBlocks):
         memcpy(y, self.base, <size_t>self.n * sizeof(double))
         self.rho = 0.0
         for e in range(self.asm.n_el):
-            nq = self.asm.cls[e].n_q
-            ng = self.asm.cls[e].n_g
-            mb = self.Mblk + self.mptr[e] if self.mptr[e + 1] > self.mptr[e] else NULL
+            nq = self.snq[e]
+            ng = self.sng[e]
+            mb = self.Mc + self.mcptr[e] if self.mcptr[e + 1] > self.mcptr[e] else NULL
             if mb == NULL and ng == 0:
                 continue
-            idx = self.asm.qidx + self.asm.qptr[e]
+            idx = self.sidx + self.sptr[e]
             for a in range(nq):
                 xl[a] = x[idx[a]]
                 yl[a] = 0.0
@@ -174,20 +175,21 @@ cdef class ALRefinement(SparseBlocks):
                     for r in range(nq):
                         acc += mb[a * nq + r] * xl[r]
                     yl[a] = acc
-            bb = self.Bblk + self.bptr[e]
-            row = self.asm.gptr[e]
+            bb = self.Bc + self.bcptr[e]
+            rows = self.srow + self.sgptr[e]
             for r in range(ng):
-                acc = b[row + r] if b != NULL else 0.0
+                row = rows[r]
+                acc = b[row] if b != NULL else 0.0
                 for a in range(nq):
                     acc -= bb[r * nq + a] * xl[a]
                 if pending:
-                    self.lam[row + r] -= self.alpha[row + r] * acc
+                    self.lam[row] -= self.alpha[row] * acc
                 if r2 != NULL:
-                    r2[row + r] = acc
-                self.rho += acc * self.alpha[row + r] * acc
-                z = self.lam[row + r]
+                    r2[row] = acc
+                self.rho += acc * self.alpha[row] * acc
+                z = self.lam[row]
                 if penalised:
-                    z -= self.alpha[row + r] * acc
+                    z -= self.alpha[row] * acc
                 if z != 0.0:
                     for a in range(nq):
                         yl[a] += bb[r * nq + a] * z
@@ -199,8 +201,9 @@ cdef class ALRefinement(SparseBlocks):
         B^T alpha b, without the products with M and B that vanish there; the same
         operations in the same order as residual_pass on what is left (the same
         rounding)."""
-        cdef int e, a, r, nq, ng, row
+        cdef int e, a, r, nq, ng
         cdef const int *idx
+        cdef const int *rows
         cdef const double *bb
         cdef double *yl = self.ly
         cdef double z
@@ -208,17 +211,17 @@ cdef class ALRefinement(SparseBlocks):
         if b == NULL:
             return
         for e in range(self.asm.n_el):
-            ng = self.asm.cls[e].n_g
+            ng = self.sng[e]
             if ng == 0:
                 continue
-            nq = self.asm.cls[e].n_q
-            idx = self.asm.qidx + self.asm.qptr[e]
-            bb = self.Bblk + self.bptr[e]
-            row = self.asm.gptr[e]
+            nq = self.snq[e]
+            idx = self.sidx + self.sptr[e]
+            bb = self.Bc + self.bcptr[e]
+            rows = self.srow + self.sgptr[e]
             for a in range(nq):
                 yl[a] = 0.0
             for r in range(ng):
-                z = 0.0 - self.alpha[row + r] * b[row + r]
+                z = 0.0 - self.alpha[rows[r]] * b[rows[r]]
                 if z != 0.0:
                     for a in range(nq):
                         yl[a] += bb[r * nq + a] * z
@@ -302,8 +305,10 @@ cdef class ALRefinement(SparseBlocks):
         memset(self.base, 0, <size_t>n * sizeof(double))
         if Q != NULL:
             memcpy(self.base, Q, <size_t>n * sizeof(double))
-        if w != NULL:
-            self.mult_m(w, self.base, True)
+        if w != NULL:                       # M w whole: w may move pinned coordinates
+            self.mult_m_full(w, self.base, True)
+        for i in range(self.n_pinned):      # pinned coordinates: x stays 0 there
+            self.base[self.pinned[i]] = 0.0
         memset(x, 0, <size_t>n * sizeof(double))
         memset(self.lam, 0, <size_t>m * sizeof(double))
         self.n_solves += 1

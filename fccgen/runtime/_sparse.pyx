@@ -217,9 +217,11 @@ cdef class SparseEngine(ALRefinement):
 
     # -- the varying parts of Engine.project_positions_at ---------------------------
     cdef void assemble_constraints(self, const double *q, int flags) noexcept nogil:
-        """g into the assembler, M and B as element blocks."""
+        """g into the assembler (the fixed rows checked: SparseBlocks.set_pinned),
+        M and B as element blocks."""
         if flags & ASM_G:
             self.asm.assemble(q, NULL, ASM_G)
+            self.check_fixed_g()
         if flags & (ASM_M | ASM_B):
             self.assemble_mb(q, flags & (ASM_M | ASM_B))
 
@@ -410,10 +412,10 @@ cdef class SparseEngine(ALRefinement):
         """As Engine.watch_kinetic_energy, with M v from the blocks."""
         cdef int i, n = self.n
         cdef double before = 0.0, cut = 0.0
-        self.mult_m(v, self.r1, False)
+        self.mult_m_full(v, self.r1, False)
         for i in range(n):
             self.dx[i] = v[i] - w[i]
-        self.mult_m(self.dx, self.t, False)
+        self.mult_m_full(self.dx, self.t, False)
         for i in range(n):
             before += v[i] * self.r1[i]
             cut += self.dx[i] * self.t[i]

@@ -43,9 +43,38 @@ cdef class SparseBlocks(Engine):
     cdef double *zero_b_tol
     cdef int n_zero_m, n_zero_b
     cdef bint tripped             # one of them is not zero any more
+    # The solve's view of the elements (set_pinned): each element's free local
+    # coordinates and kept rows, and its blocks compacted to them (Mc, Bc). Without
+    # pinned coordinates it is the full view, Mc and Bc the blocks themselves.
+    cdef bint compact
+    cdef int *snq                 # per element: its free local coordinates
+    cdef int *sptr                # per element: start in sidx and sloc (n_el + 1)
+    cdef int *sidx                # the global index of each free local coordinate
+    cdef int *sloc                # its place in the element's local list
+    cdef int *sng                 # per element: its kept rows
+    cdef int *sgptr               # per element: start in srow and srloc (n_el + 1)
+    cdef int *srow                # the global index of each kept row
+    cdef int *srloc               # its local row
+    cdef int *mcptr               # per element: start of its compact mass block
+    cdef int *bcptr               # per element: start of its compact Jacobian block
+    cdef double *Mc
+    cdef double *Bc
+    cdef double *efix             # per element: the largest norm of its fixed rows
+    cdef int n_pinned
+    cdef int *pinned              # the pinned coordinates
+    cdef int *pin_diag            # where each one's diagonal sits in Ax
+    cdef int n_fixed              # entries of the fixed rows' blocks
+    cdef int *fixed_off           # offsets into Bblk
+    cdef double *fixed_val        # their values where they were read
+    cdef double *fixed_tol        # the change each may take (GUARD_TOL of its row)
+    cdef int n_fixed_rows
+    cdef int *fixed_rows          # the fixed rows (global)
+    cdef double *fixed_g_tol      # |g_k| each may reach: position_tol ||B_k||
 
     cdef void assemble_mb(self, const double *q, int flags) noexcept nogil
+    cdef void check_fixed_g(self) noexcept nogil
     cdef void mult_m(self, const double *x, double *y, bint add) noexcept nogil
+    cdef void mult_m_full(self, const double *x, double *y, bint add) noexcept nogil
     cdef void mult_b(self, const double *x, double *y) noexcept nogil
     cdef void mult_bt(self, const double *z, const double *s, double *y) noexcept nogil
     cdef void gather_dense(self) noexcept nogil

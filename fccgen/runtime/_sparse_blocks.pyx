@@ -64,6 +64,58 @@ cdef void *alloc_zeroed(size_t n, size_t size) except NULL:
 cdef double GUARD_TOL = 1e-12
 
 
+# A row pins its last free coordinate only when that entry is at least PIN_PIVOT of
+# the row's norm: the pinned coordinate then follows from the row without
+# amplifying rounding (rows of the constraints that pin in practice, planes and
+# "perpendicular to a fixed vector", have entries of one size).
+PIN_PIVOT = 1e-3
+
+
+def _pin(taken, norms):
+    """The coordinates pinned by the rows taken (SparseBlocks.set_pinned): {row:
+    {coordinate: entry}}; a row with one coordinate not yet pinned pins it, repeatedly
+    (a queue over the rows' counts of coordinates not yet pinned)."""
+    rows_of = {}
+    left = {}
+    for row, coef in taken.items():
+        left[row] = len(coef)
+        for j in coef:
+            rows_of.setdefault(j, []).append(row)
+    queue = sorted(row for row, k in left.items() if k == 1)
+    pinned = set()
+    while queue:
+        row = queue.pop()
+        if left[row] != 1:
+            continue
+        j = next(j for j in taken[row] if j not in pinned)
+        if abs(taken[row][j]) < PIN_PIVOT * norms[row]:
+            continue
+        pinned.add(j)
+        for other in rows_of[j]:
+            left[other] -= 1
+            if left[other] == 1:
+                queue.append(other)
+    return pinned
+
+
+def view_masks(masks, locals_, couples):
+    """The masks of planar_pattern (mask_ptr, mask: each coupling element's full
+    n_q x n_q block) narrowed to the solve's view (set_pinned): locals_ = (sizes,
+    s_ptr, s_loc) of SparseBlocks.solve_locals, couples of solve_elements."""
+    ptr, mask = masks
+    sizes, s_ptr, s_loc = locals_
+    parts = []
+    for e in range(len(sizes)):
+        if couples[e]:
+            loc = s_loc[s_ptr[e]:s_ptr[e + 1]]
+            full = np.asarray(mask[ptr[e]:ptr[e + 1]]).reshape(sizes[e], sizes[e])
+            parts.append(full[np.ix_(loc, loc)].ravel())
+        else:
+            parts.append(np.zeros(0, dtype=bool))
+    view_ptr = np.concatenate([[0], np.cumsum([p.size for p in parts])]).astype(np.intp)
+    return view_ptr, (np.concatenate(parts) if parts else np.zeros(0, dtype=bool))
+
+
 def element_structure(Assembler asm):
     """(q_ptr, q_idx, couples) of the assembler's elements: couples[e] is True when
     element e has a mass matrix or constraint rows (it adds a block to A)."""
@@ -80,7 +132,7 @@ cdef class SparseBlocks(Engine):
     docstring). Call :meth:`set_structure` (fccgen.runtime.sparsity) before use."""
 
     def __cinit__(self, Assembler asm, *args, **kwargs):
-        cdef int e, nq, total_m = 0, total_b = 0, local = 1
+        cdef int e, nq, i, total_m = 0, total_b = 0, local = 1
         cdef const fcc_element_class *k
         self.mptr = <int *>alloc_zeroed(asm.n_el + 1, sizeof(int))
         self.bptr = <int *>alloc_zeroed(asm.n_el + 1, sizeof(int))
@@ -99,8 +151,40 @@ cdef class SparseBlocks(Engine):
         self.alpha = <double *>alloc_zeroed(asm.n_g, sizeof(double))
         self.rnorm = <double *>alloc_zeroed(asm.n_g, sizeof(double))
         self.t = <double *>alloc_zeroed(asm.n_q, sizeof(double))
+        # the full view (set_pinned narrows it)
+        self.snq = <int *>alloc_zeroed(asm.n_el, sizeof(int))
+        self.sng = <int *>alloc_zeroed(asm.n_el, sizeof(int))
+        self.sptr = <int *>alloc_zeroed(asm.n_el + 1, sizeof(int))
+        self.sgptr = <int *>alloc_zeroed(asm.n_el + 1, sizeof(int))
+        self.sidx = <int *>alloc_zeroed(asm.qptr[asm.n_el], sizeof(int))
+        self.sloc = <int *>alloc_zeroed(asm.qptr[asm.n_el], sizeof(int))
+        self.srow = <int *>alloc_zeroed(asm.n_g, sizeof(int))
+        self.srloc = <int *>alloc_zeroed(asm.n_g, sizeof(int))
+        self.efix = <double *>alloc_zeroed(asm.n_el, sizeof(double))
+        for e in range(asm.n_el + 1):
+            self.sptr[e] = asm.qptr[e]
+            self.sgptr[e] = asm.gptr[e]
+        for e in range(asm.n_el):
+            self.snq[e] = asm.cls[e].n_q
+            self.sng[e] = asm.cls[e].n_g
+            for i in range(asm.cls[e].n_q):
+                self.sidx[asm.qptr[e] + i] = asm.qidx[asm.qptr[e] + i]
+                self.sloc[asm.qptr[e] + i] = i
+            for i in range(asm.cls[e].n_g):
+                self.srow[asm.gptr[e] + i] = asm.gptr[e] + i
+                self.srloc[asm.gptr[e] + i] = i
+        self.mcptr = self.mptr
+        self.bcptr = self.bptr
+        self.Mc = self.Mblk
+        self.Bc = self.Bblk
 
     def __dealloc__(self):
+        if self.compact:
+            free(self.mcptr); free(self.bcptr); free(self.Mc); free(self.Bc)
+        free(self.snq); free(self.sng); free(self.sptr); free(self.sgptr); free(self.sidx)
+        free(self.sloc); free(self.srow); free(self.srloc); free(self.efix)
+        free(self.pinned); free(self.pin_diag); free(self.fixed_off); free(self.fixed_val)
+        free(self.fixed_tol); free(self.fixed_rows); free(self.fixed_g_tol)
         free(self.mptr); free(self.bptr); free(self.Mblk); free(self.Bblk); free(self.lq)
         free(self.ly); free(self.alpha); free(self.rnorm); free(self.t)
         free(self.zero_m); free(self.zero_b); free(self.zero_m_tol); free(self.zero_b_tol)
@@ -119,7 +203,7 @@ cdef class SparseBlocks(Engine):
         cdef int[::1] aiv = np.ascontiguousarray(Ai, dtype=np.intc)
         cdef int[::1] epv = np.ascontiguousarray(emap_ptr, dtype=np.intc)
         cdef int[::1] ev = np.ascontiguousarray(emap, dtype=np.intc)
-        cdef int n = self.n, i
+        cdef int n = self.n, i, k
         if pv.shape[0] != n or apv.shape[0] != n + 1 or epv.shape[0] != self.asm.n_el + 1:
             raise ValueError("the structure does not match the engine's sizes")
         if sorted(np.asarray(pv).tolist()) != list(range(n)):
@@ -159,7 +243,176 @@ cdef class SparseBlocks(Engine):
         self.Rpos = <int *>alloc_zeroed(self.nnz_l, sizeof(int))
         ldl_rows(n, self.Ap, self.Ai, self.Lp, self.parent, self.Lnz, self.Li, self.Rp,
                  self.Rj, self.Rpos, self.pattern, self.flag)
+        free(self.pin_diag)
+        self.pin_diag = <int *>alloc_zeroed(self.n_pinned, sizeof(int))
+        pinv = np.empty(n, dtype=np.intc)
+        pinv[np.asarray(pv)] = np.arange(n, dtype=np.intc)
+        for i in range(self.n_pinned):
+            k = pinv[self.pinned[i]]          # the diagonal closes its column
+            self.pin_diag[i] = self.Ap[k + 1] - 1
+            if self.Ai[self.pin_diag[i]] != k:
+                raise ValueError("the pattern of A lacks a pinned coordinate's diagonal")
         self.ready = True
+
+    def set_pinned(self, samples):
+        """Leave out of the solve the coordinates that linear constraints with constant
+        rows hold still, and those rows (before planar_pattern and set_structure). A
+        row is taken when its Jacobian entries are the same at every coordinate vector
+        in samples (paths.pattern_samples: every coordinate that sits off zero or moves
+        is moved there, so a row that depends on one changes), its element does not
+        depend on the time, and it holds at samples[0] to the position tolerance
+        (|g_k| <= position_tol ||B_k||). Among those rows, one whose entries are zero
+        but for one coordinate not yet pinned (and that entry at least PIN_PIVOT of
+        the row's norm) pins it; pinning repeats until no row pins another (a point
+        on the plane z = 0 pins its z, then a body's "perpendicular to z" row pins the
+        next point's z, and so on down a planar chain). The taken rows whose every
+        entry is on pinned coordinates are *fixed*: they hold B_R x = 0 with x = 0 on
+        the pinned coordinates (their right-hand sides vanish: constant rows of a
+        constraint that holds), so the accelerations, speed changes and Newton steps
+        of the pinned coordinates are zero, and the solve works on the other
+        coordinates and rows alone, with every block compacted to them. The same
+        answer as the full solve, while the fixed rows keep their entries (checked at
+        every assembly against GUARD_TOL of the row's largest) and hold (checked with
+        g at each position projection): otherwise the pattern trips and the solver
+        redoes the call on the full pattern, as for planar_pattern. Returns the number
+        of pinned coordinates (0: the full view is kept)."""
+        cdef int e, a, r, nq, ng, k, i, row, at, nf
+        cdef const fcc_element_class *c
+        cdef double[:, ::1] qs = np.ascontiguousarray(np.atleast_2d(samples), dtype=float)
+        if self.ready or self.compact:
+            raise RuntimeError("the structure is already set")
+        if qs.shape[1] != self.n:
+            raise ValueError(f"samples have {qs.shape[1]} coordinates, the model {self.n}")
+        n_el = self.asm.n_el
+        nb = self.bptr[n_el]
+        if nb == 0:
+            return 0
+        blocks = []
+        for k in range(qs.shape[0]):
+            self.assemble_mb(&qs[k, 0], ASM_B)
+            blocks.append(np.array(<double[:nb]>self.Bblk))
+        g0 = self.asm.quantity(ASM_G, np.asarray(qs[0]))
+        taken = {}                            # row -> {coordinate: entry}
+        where = {}                            # row -> (element, local row)
+        norms = {}
+        for e in range(n_el):
+            c = self.asm.cls[e]
+            if c.constraint_jacobian == NULL or c.constraint_rate != NULL:
+                continue
+            nq, ng = c.n_q, c.n_g
+            idx = [self.asm.qidx[self.asm.qptr[e] + a] for a in range(nq)]
+            for r in range(ng):
+                at = self.bptr[e] + r * nq
+                entries = blocks[0][at:at + nq]
+                if any(not np.array_equal(entries, b[at:at + nq]) for b in blocks[1:]):
+                    continue
+                norm = float(np.sqrt(np.dot(entries, entries)))
+                row = self.asm.gptr[e] + r
+                if not (norm > 0.0 and abs(g0[row]) <= self.position_tol * norm):
+                    continue
+                coef = {}
+                for a in range(nq):
+                    coef[idx[a]] = coef.get(idx[a], 0.0) + float(entries[a])
+                taken[row] = {j: x for j, x in coef.items() if x != 0.0}
+                where[row] = (e, r)
+                norms[row] = norm
+        pinned = _pin(taken, norms)
+        if not pinned:
+            return 0
+        fixed = sorted(row for row, coef in taken.items() if set(coef) <= pinned)
+        fixed_set = set(fixed)
+        # the view: free local coordinates and kept rows of every element
+        cdef int total_m = 0, total_b = 0
+        self.mcptr = <int *>alloc_zeroed(n_el + 1, sizeof(int))
+        self.bcptr = <int *>alloc_zeroed(n_el + 1, sizeof(int))
+        self.compact = True
+        for e in range(n_el):
+            c = self.asm.cls[e]
+            nq, ng = c.n_q, c.n_g
+            nf = 0
+            for a in range(nq):
+                if self.asm.qidx[self.asm.qptr[e] + a] not in pinned:
+                    self.sidx[self.sptr[e] + nf] = self.asm.qidx[self.asm.qptr[e] + a]
+                    self.sloc[self.sptr[e] + nf] = a
+                    nf += 1
+            self.snq[e] = nf
+            self.sptr[e + 1] = self.sptr[e] + nf
+            k = 0
+            for r in range(ng):
+                if self.asm.gptr[e] + r not in fixed_set:
+                    self.srow[self.sgptr[e] + k] = self.asm.gptr[e] + r
+                    self.srloc[self.sgptr[e] + k] = r
+                    k += 1
+            self.sng[e] = k
+            self.sgptr[e + 1] = self.sgptr[e] + k
+            total_m += nf * nf if c.mass_matrix != NULL else 0
+            total_b += k * nf
+            self.mcptr[e + 1] = total_m
+            self.bcptr[e + 1] = total_b
+        self.Mc = <double *>alloc_zeroed(total_m, sizeof(double))
+        self.Bc = <double *>alloc_zeroed(total_b, sizeof(double))
+        # the fixed rows: constant norms, no penalty, and their guards
+        self.n_pinned = len(pinned)
+        self.pinned = <int *>alloc_zeroed(self.n_pinned, sizeof(int))
+        for i, a in enumerate(sorted(pinned)):
+            self.pinned[i] = a
+        self.n_fixed_rows = len(fixed)
+        self.fixed_rows = <int *>alloc_zeroed(len(fixed), sizeof(int))
+        self.fixed_g_tol = <double *>alloc_zeroed(len(fixed), sizeof(double))
+        offsets, values, tols = [], [], []
+        for i, row in enumerate(fixed):
+            e, r = where[row]
+            nq = self.asm.cls[e].n_q
+            at = self.bptr[e] + r * nq
+            entries = blocks[0][at:at + nq]
+            self.fixed_rows[i] = row
+            self.fixed_g_tol[i] = self.position_tol * norms[row]
+            self.rnorm[row] = norms[row]
+            self.alpha[row] = 0.0
+            if norms[row] > self.efix[e]:
+                self.efix[e] = norms[row]
+            offsets += range(at, at + nq)
+            values += entries.tolist()
+            tols += [GUARD_TOL * float(np.max(np.abs(entries)))] * nq
+        self.n_fixed = len(offsets)
+        self.fixed_off = <int *>alloc_zeroed(self.n_fixed, sizeof(int))
+        self.fixed_val = <double *>alloc_zeroed(self.n_fixed, sizeof(double))
+        self.fixed_tol = <double *>alloc_zeroed(self.n_fixed, sizeof(double))
+        for i in range(self.n_fixed):
+            self.fixed_off[i] = offsets[i]
+            self.fixed_val[i] = values[i]
+            self.fixed_tol[i] = tols[i]
+        return self.n_pinned
+
+    def solve_elements(self):
+        """(q_ptr, q_idx, couples) of the solve's view (set_pinned): each element's
+        free coordinates, and whether it adds a block to A (a mass matrix or kept
+        rows on them); the assembler's elements when nothing is pinned."""
+        cdef int e
+        n_el = self.asm.n_el
+        q_ptr = np.array([self.sptr[e] for e in range(n_el + 1)], dtype=np.intc)
+        q_idx = np.array([self.sidx[e] for e in range(self.sptr[n_el])], dtype=np.intc)
+        couples = np.array([self.snq[e] > 0 and (self.mcptr[e + 1] > self.mcptr[e]
+                                                 or self.sng[e] > 0)
+                            for e in range(n_el)], dtype=bool)
+        return q_ptr, q_idx, couples
+
+    def solve_locals(self):
+        """(sizes, s_ptr, s_loc): each element's number of local coordinates, and
+        where each free one of the solve's view (set_pinned) sits in that list."""
+        cdef int e
+        n_el = self.asm.n_el
+        return (np.array([self.asm.cls[e].n_q for e in range(n_el)], dtype=np.intp),
+                np.array([self.sptr[e] for e in range(n_el + 1)], dtype=np.intp),
+                np.array([self.sloc[e] for e in range(self.sptr[n_el])], dtype=np.intp))
+
+    @property
+    def pinned_coordinates(self):
+        """The coordinates the solve leaves out (set_pinned), and the fixed rows."""
+        cdef int i
+        return (np.array([self.pinned[i] for i in range(self.n_pinned)], dtype=np.intp),
+                np.array([self.fixed_rows[i] for i in range(self.n_fixed_rows)],
+                         dtype=np.intp))
 
     def planar_pattern(self, samples):
         """Take the pattern of A from the element blocks at the coordinate vectors in
@@ -239,7 +492,9 @@ cdef class SparseBlocks(Engine):
             self.zero_b_tol[a] = tol_b[a]
         self.n_zero_m, self.n_zero_b = offs_m.size, offs_b.size
         self.tripped = False
-        return ptr, mask
+        if not self.compact:
+            return ptr, mask
+        return view_masks((ptr, mask), self.solve_locals(), self.solve_elements()[2])
 
     @property
     def pattern_tripped(self):
@@ -254,11 +509,17 @@ cdef class SparseBlocks(Engine):
 
     # -- element blocks ------------------------------------------------------------
     cdef void assemble_mb(self, const double *q, int flags) noexcept nogil:
-        """The mass (ASM_M) and Jacobian (ASM_B) blocks of every element at q."""
-        cdef int e, i, nq
+        """The mass (ASM_M) and Jacobian (ASM_B) blocks of every element at q, and
+        their compact copies on the solve's view (set_pinned); the guards of the
+        entries left out (planar_pattern) and of the fixed rows."""
+        cdef int e, i, a, b, r, nq, nf, ng
         cdef const fcc_element_class *k
         cdef const int *idx
+        cdef const int *loc
+        cdef const int *rl
         cdef const double *p
+        cdef const double *src
+        cdef double *dst
         for e in range(self.asm.n_el):
             k = self.asm.cls[e]
             nq = k.n_q
@@ -269,10 +530,26 @@ cdef class SparseBlocks(Engine):
                 continue
             for i in range(nq):
                 self.lq[i] = q[idx[i]]
+            nf = self.snq[e]
+            loc = self.sloc + self.sptr[e]
             if flags & ASM_M and k.mass_matrix != NULL:
                 k.mass_matrix(self.lq, p, self.Mblk + self.mptr[e])
+                if self.compact:
+                    src = self.Mblk + self.mptr[e]
+                    dst = self.Mc + self.mcptr[e]
+                    for a in range(nf):
+                        for b in range(nf):
+                            dst[a * nf + b] = src[loc[a] * nq + loc[b]]
             if flags & ASM_B and k.constraint_jacobian != NULL:
                 k.constraint_jacobian(self.lq, p, self.Bblk + self.bptr[e])
+                if self.compact:
+                    src = self.Bblk + self.bptr[e]
+                    dst = self.Bc + self.bcptr[e]
+                    rl = self.srloc + self.sgptr[e]
+                    ng = self.sng[e]
+                    for r in range(ng):
+                        for a in range(nf):
+                            dst[r * nf + a] = src[rl[r] * nq + loc[a]]
         if flags & ASM_M:
             for i in range(self.n_zero_m):
                 if not fabs(self.Mblk[self.zero_m[i]]) <= self.zero_m_tol[i]:
@@ -281,9 +558,43 @@ cdef class SparseBlocks(Engine):
             for i in range(self.n_zero_b):
                 if not fabs(self.Bblk[self.zero_b[i]]) <= self.zero_b_tol[i]:
                     self.tripped = True
+            for i in range(self.n_fixed):
+                if not fabs(self.Bblk[self.fixed_off[i]] - self.fixed_val[i]) \
+                        <= self.fixed_tol[i]:
+                    self.tripped = True
+
+    cdef void check_fixed_g(self) noexcept nogil:
+        """Trip the pattern when a fixed row (set_pinned) no longer holds to the
+        position tolerance (assembled g): its pinned coordinates would need to move."""
+        cdef int i
+        for i in range(self.n_fixed_rows):
+            if not fabs(self.asm.g[self.fixed_rows[i]]) <= self.fixed_g_tol[i]:
+                self.tripped = True
 
     cdef void mult_m(self, const double *x, double *y, bint add) noexcept nogil:
-        """y (+)= M x."""
+        """y (+)= M x on the solve's view (pinned coordinates: neither read nor
+        written)."""
+        cdef int e, i, j, nq
+        cdef const int *idx
+        cdef const double *blk
+        cdef double acc
+        if not add:
+            memset(y, 0, <size_t>self.n * sizeof(double))
+        for e in range(self.asm.n_el):
+            if self.mcptr[e + 1] == self.mcptr[e]:
+                continue
+            nq = self.snq[e]
+            idx = self.sidx + self.sptr[e]
+            blk = self.Mc + self.mcptr[e]
+            for i in range(nq):
+                acc = 0.0
+                for j in range(nq):
+                    acc += blk[i * nq + j] * x[idx[j]]
+                y[idx[i]] += acc
+
+    cdef void mult_m_full(self, const double *x, double *y, bint add) noexcept nogil:
+        """y (+)= M x with the whole blocks (pinned coordinates too: M v of speeds
+        that are not yet zero there, for the velocity projection)."""
         cdef int e, i, j, nq
         cdef const int *idx
         cdef const double *blk
@@ -303,35 +614,39 @@ cdef class SparseBlocks(Engine):
                 y[idx[i]] += acc
 
     cdef void mult_b(self, const double *x, double *y) noexcept nogil:
-        """y = B x (m rows)."""
-        cdef int e, r, j, nq, row
+        """y = B x (m rows) on the solve's view: 0 in the fixed rows."""
+        cdef int e, r, j, nq
         cdef const int *idx
+        cdef const int *rows
         cdef const double *blk
         cdef double acc
+        if self.compact:
+            memset(y, 0, <size_t>self.m * sizeof(double))
         for e in range(self.asm.n_el):
-            nq = self.asm.cls[e].n_q
-            idx = self.asm.qidx + self.asm.qptr[e]
-            blk = self.Bblk + self.bptr[e]
-            row = self.asm.gptr[e]
-            for r in range(self.asm.cls[e].n_g):
+            nq = self.snq[e]
+            idx = self.sidx + self.sptr[e]
+            blk = self.Bc + self.bcptr[e]
+            rows = self.srow + self.sgptr[e]
+            for r in range(self.sng[e]):
                 acc = 0.0
                 for j in range(nq):
                     acc += blk[r * nq + j] * x[idx[j]]
-                y[row + r] = acc
+                y[rows[r]] = acc
 
     cdef void mult_bt(self, const double *z, const double *s, double *y) noexcept nogil:
-        """y += B^T diag(s) z (s NULL: the identity)."""
-        cdef int e, r, j, nq, row
+        """y += B^T diag(s) z (s NULL: the identity) on the solve's view."""
+        cdef int e, r, j, nq
         cdef const int *idx
+        cdef const int *rows
         cdef const double *blk
         cdef double zr
         for e in range(self.asm.n_el):
-            nq = self.asm.cls[e].n_q
-            idx = self.asm.qidx + self.asm.qptr[e]
-            blk = self.Bblk + self.bptr[e]
-            row = self.asm.gptr[e]
-            for r in range(self.asm.cls[e].n_g):
-                zr = z[row + r] if s == NULL else z[row + r] * s[row + r]
+            nq = self.snq[e]
+            idx = self.sidx + self.sptr[e]
+            blk = self.Bc + self.bcptr[e]
+            rows = self.srow + self.sgptr[e]
+            for r in range(self.sng[e]):
+                zr = z[rows[r]] if s == NULL else z[rows[r]] * s[rows[r]]
                 if zr == 0.0:
                     continue
                 for j in range(nq):
@@ -361,40 +676,46 @@ cdef class SparseBlocks(Engine):
                     Bd[(row + r) * n + idx[a]] += blk[r * nq + a]
 
     cdef double row_norms(self) noexcept nogil:
-        """rnorm_k = ||B_k||; alpha_k = RHO m_ref / s_k^2 with s_k = max(||B_k||,
-        ROW_FLOOR * the largest row norm of its element), 0 for a zero row; m_ref = the
-        largest diagonal entry of M. Returns m_ref."""
-        cdef int e, r, j, nq, row, ng
+        """rnorm_k = ||B_k|| (the whole row, pinned coordinates too); alpha_k =
+        RHO m_ref / s_k^2 with s_k = max(||B_k||, ROW_FLOOR * the largest row norm of
+        B_k's element), 0 for a zero row; m_ref = the largest diagonal entry of M (on
+        the solve's view). Fixed rows (set_pinned) keep their constant norms and no
+        penalty. Returns m_ref."""
+        cdef int e, r, j, nq, nf, ng, row
         cdef double acc, largest, s, mref = 0.0
         cdef const double *blk
+        cdef const int *rows
+        cdef const int *rl
         for e in range(self.asm.n_el):
-            if self.mptr[e + 1] == self.mptr[e]:
+            if self.mcptr[e + 1] == self.mcptr[e]:
                 continue
-            nq = self.asm.cls[e].n_q
-            blk = self.Mblk + self.mptr[e]
-            for j in range(nq):
-                if blk[j * nq + j] > mref:
-                    mref = blk[j * nq + j]
+            nf = self.snq[e]
+            blk = self.Mc + self.mcptr[e]
+            for j in range(nf):
+                if blk[j * nf + j] > mref:
+                    mref = blk[j * nf + j]
         if not mref > 0.0:
             mref = 1.0
         for e in range(self.asm.n_el):
             nq = self.asm.cls[e].n_q
-            ng = self.asm.cls[e].n_g
+            ng = self.sng[e]
             blk = self.Bblk + self.bptr[e]
-            row = self.asm.gptr[e]
-            largest = 0.0
+            rows = self.srow + self.sgptr[e]
+            rl = self.srloc + self.sgptr[e]
+            largest = self.efix[e]
             for r in range(ng):
                 acc = 0.0
                 for j in range(nq):
-                    acc += blk[r * nq + j] * blk[r * nq + j]
-                self.rnorm[row + r] = sqrt(acc)
-                if self.rnorm[row + r] > largest:
-                    largest = self.rnorm[row + r]
+                    acc += blk[rl[r] * nq + j] * blk[rl[r] * nq + j]
+                self.rnorm[rows[r]] = sqrt(acc)
+                if self.rnorm[rows[r]] > largest:
+                    largest = self.rnorm[rows[r]]
             for r in range(ng):
-                s = self.rnorm[row + r]
+                row = rows[r]
+                s = self.rnorm[row]
                 if s < ROW_FLOOR * largest:
                     s = ROW_FLOOR * largest
-                self.alpha[row + r] = RHO * mref / (s * s) if s > 0.0 else 0.0
+                self.alpha[row] = RHO * mref / (s * s) if s > 0.0 else 0.0
         return mref
 
     cdef double scaled_residual_sparse(self) noexcept nogil:
@@ -418,9 +739,9 @@ cdef class SparseBlocks(Engine):
         """A = M + B^T diag(alpha) B from the blocks, and its LDL^T."""
         cdef int e, a, b, r, nq, ng, pos, info, bad
         cdef const int *em
+        cdef const int *rows
         cdef const double *mb
         cdef const double *bb
-        cdef const double *al
         cdef double val
         self.factor_valid = False
         if not self.ready:
@@ -432,12 +753,12 @@ cdef class SparseBlocks(Engine):
         for e in range(self.asm.n_el):
             if self.emap_ptr[e + 1] == self.emap_ptr[e]:
                 continue
-            nq = self.asm.cls[e].n_q
-            ng = self.asm.cls[e].n_g
+            nq = self.snq[e]
+            ng = self.sng[e]
             em = self.emap + self.emap_ptr[e]
-            mb = self.Mblk + self.mptr[e] if self.mptr[e + 1] > self.mptr[e] else NULL
-            bb = self.Bblk + self.bptr[e]
-            al = self.alpha + self.asm.gptr[e]
+            mb = self.Mc + self.mcptr[e] if self.mcptr[e + 1] > self.mcptr[e] else NULL
+            bb = self.Bc + self.bcptr[e]
+            rows = self.srow + self.sgptr[e]
             for a in range(nq):
                 for b in range(nq):
                     pos = em[a * nq + b]
@@ -445,8 +766,10 @@ cdef class SparseBlocks(Engine):
                         continue
                     val = mb[a * nq + b] if mb != NULL else 0.0
                     for r in range(ng):
-                        val += bb[r * nq + a] * al[r] * bb[r * nq + b]
+                        val += bb[r * nq + a] * self.alpha[rows[r]] * bb[r * nq + b]
                     self.Ax[pos] += val
+        for a in range(self.n_pinned):      # pinned: a unit diagonal, nothing else
+            self.Ax[self.pin_diag[a]] = 1.0
         self.n_factor += 1
         info = ldl_numeric(self.n, self.Ap, self.Ai, self.Ax, self.Lp, self.Li, self.Rp,
                            self.Rj, self.Rpos, self.Lx, self.D, self.Y, PIVOT_TOL)

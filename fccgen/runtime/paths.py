@@ -17,7 +17,6 @@ import numpy as np
 
 from ._engine import Engine
 from ._sparse import SparseEngine
-from ._sparse_blocks import element_structure
 from .sparsity import structure
 
 SPARSE_MIN_COORDINATES = 25
@@ -57,8 +56,10 @@ def make_engine(asm, rank_tol, position_tol, max_newton, sparse: bool,
     if not sparse:
         return Engine(asm, rank_tol, position_tol, max_newton)
     engine = SparseEngine(asm, rank_tol, position_tol, max_newton)
-    masks = engine.planar_pattern(at) if at is not None and np.all(np.isfinite(at)) \
-        else None
-    st = structure(asm.n_q, *element_structure(asm), order=order, masks=masks)
+    masks = None
+    if at is not None and np.all(np.isfinite(at)):
+        engine.set_pinned(at)
+        masks = engine.planar_pattern(at)
+    st = structure(asm.n_q, *engine.solve_elements(), order=order, masks=masks)
     engine.set_structure(st.perm, st.Ap, st.Ai, st.emap_ptr, st.emap)
     return engine
