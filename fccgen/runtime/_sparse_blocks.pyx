@@ -397,6 +397,26 @@ cdef class SparseBlocks(Engine):
                             for e in range(n_el)], dtype=bool)
         return q_ptr, q_idx, couples
 
+    def view_entries(self):
+        """(in_m, in_b): for each entry of the mass and Jacobian blocks, whether the
+        solve's view (set_pinned) reads it (its coordinates free, its row kept)."""
+        cdef int e, a, b, r, nq
+        pinned = np.zeros(self.n, dtype=bool)
+        pinned[self.pinned_coordinates[0]] = True
+        fixed = np.zeros(self.m, dtype=bool)
+        fixed[self.pinned_coordinates[1]] = True
+        in_m = np.zeros(self.mptr[self.asm.n_el], dtype=bool)
+        in_b = np.zeros(self.bptr[self.asm.n_el], dtype=bool)
+        for e in range(self.asm.n_el):
+            nq = self.asm.cls[e].n_q
+            free = ~pinned[[self.asm.qidx[self.asm.qptr[e] + a] for a in range(nq)]]
+            if self.mptr[e + 1] > self.mptr[e]:
+                in_m[self.mptr[e]:self.mptr[e + 1]] = np.outer(free, free).ravel()
+            rows = ~fixed[self.asm.gptr[e]:self.asm.gptr[e + 1]]
+            if self.bptr[e + 1] > self.bptr[e]:
+                in_b[self.bptr[e]:self.bptr[e + 1]] = np.outer(rows, free).ravel()
+        return in_m, in_b
+
     def solve_locals(self):
         """(sizes, s_ptr, s_loc): each element's number of local coordinates, and
         where each free one of the solve's view (set_pinned) sits in that list."""
@@ -472,6 +492,12 @@ cdef class SparseBlocks(Engine):
                         for b in range(nq):
                             if bb[r * nq + b] != 0.0:
                                 mk[ptr[e] + a * nq + b] = 1
+        if self.compact:
+            # entries on a pinned coordinate or in a fixed row need no guard: the
+            # solve never reads them (x is 0 there; fixed rows have their own guard)
+            free_m, free_b = self.view_entries()
+            zero_m &= free_m
+            zero_b &= free_b
         offs_m = np.flatnonzero(zero_m)
         offs_b = np.flatnonzero(zero_b)
         # each offset's tolerance: GUARD_TOL times the largest entry of its block
