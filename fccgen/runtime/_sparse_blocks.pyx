@@ -127,6 +127,27 @@ def element_structure(Assembler asm):
     return q_ptr, q_idx, couples
 
 
+cdef void mult_blocks(int n_el, const int *ptr, const int *idx, const int *mptr,
+                      const double *blocks, const double *x, double *y) noexcept nogil:
+    """y += M x over square element blocks: element e's block (at mptr[e], none when
+    mptr[e + 1] == mptr[e]) on the coordinates idx[ptr[e]:ptr[e + 1]]."""
+    cdef int e, i, j, nq
+    cdef const int *ix
+    cdef const double *blk
+    cdef double acc
+    for e in range(n_el):
+        if mptr[e + 1] == mptr[e]:
+            continue
+        nq = ptr[e + 1] - ptr[e]
+        ix = idx + ptr[e]
+        blk = blocks + mptr[e]
+        for i in range(nq):
+            acc = 0.0
+            for j in range(nq):
+                acc += blk[i * nq + j] * x[ix[j]]
+            y[ix[i]] += acc
+
+
 cdef class SparseBlocks(Engine):
     """The element blocks, the products with them and the factorisation of A (module
     docstring). Call :meth:`set_structure` (fccgen.runtime.sparsity) before use."""
@@ -600,44 +621,17 @@ cdef class SparseBlocks(Engine):
     cdef void mult_m(self, const double *x, double *y, bint add) noexcept nogil:
         """y (+)= M x on the solve's view (pinned coordinates: neither read nor
         written)."""
-        cdef int e, i, j, nq
-        cdef const int *idx
-        cdef const double *blk
-        cdef double acc
         if not add:
             memset(y, 0, <size_t>self.n * sizeof(double))
-        for e in range(self.asm.n_el):
-            if self.mcptr[e + 1] == self.mcptr[e]:
-                continue
-            nq = self.snq[e]
-            idx = self.sidx + self.sptr[e]
-            blk = self.Mc + self.mcptr[e]
-            for i in range(nq):
-                acc = 0.0
-                for j in range(nq):
-                    acc += blk[i * nq + j] * x[idx[j]]
-                y[idx[i]] += acc
+        mult_blocks(self.asm.n_el, self.sptr, self.sidx, self.mcptr, self.Mc, x, y)
 
     cdef void mult_m_full(self, const double *x, double *y, bint add) noexcept nogil:
         """y (+)= M x with the whole blocks (pinned coordinates too: M v of speeds
         that are not yet zero there, for the velocity projection)."""
-        cdef int e, i, j, nq
-        cdef const int *idx
-        cdef const double *blk
-        cdef double acc
         if not add:
             memset(y, 0, <size_t>self.n * sizeof(double))
-        for e in range(self.asm.n_el):
-            if self.mptr[e + 1] == self.mptr[e]:
-                continue
-            nq = self.asm.cls[e].n_q
-            idx = self.asm.qidx + self.asm.qptr[e]
-            blk = self.Mblk + self.mptr[e]
-            for i in range(nq):
-                acc = 0.0
-                for j in range(nq):
-                    acc += blk[i * nq + j] * x[idx[j]]
-                y[idx[i]] += acc
+        mult_blocks(self.asm.n_el, self.asm.qptr, self.asm.qidx, self.mptr, self.Mblk,
+                    x, y)
 
     cdef void mult_b(self, const double *x, double *y) noexcept nogil:
         """y = B x (m rows) on the solve's view: 0 in the fixed rows."""
