@@ -8,6 +8,8 @@ cdef class ALRefinement(SparseBlocks):
     cdef double *dx
     cdef double *base
     cdef double *lam              # m-vectors
+    cdef double *lam_warm         # the last converged acceleration solve's multipliers
+    cdef bint warm_valid          # lam_warm holds them (reset_warm_start: not)
     cdef double *r2
     cdef double *bdx
     cdef double *res
@@ -26,7 +28,9 @@ cdef class ALRefinement(SparseBlocks):
 
     cdef void residual_pass(self, const double *x, const double *b, bint pending,
                             bint penalised, double *y, double *r2) noexcept nogil
-    cdef void first_pass(self, const double *b, double *y) noexcept nogil
+    cdef void first_pass(self, const double *b, bint warm, double *y) noexcept nogil
     cdef int correction(self, double *rz_stop) noexcept nogil
     cdef bint kkt_solve(self, const double *Q, const double *w, const double *b,
-                        double *x) noexcept nogil
+                        double *x, bint warm) noexcept nogil
+    cdef int refine(self, const double *b, double *x, bint warm,
+                    int *solves) noexcept nogil

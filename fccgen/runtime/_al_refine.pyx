@@ -79,6 +79,15 @@ cdef int REFINE_MAX = 3
 # augmented-Lagrangian steps before it move x along the direction too, by t / (1 + t)
 # of the wrong amount each (Bricard's line encoding kept 1e-2 J of energy error so).
 BEYOND_FRACTION = 1e-2
+# Warm start. Each augmented-Lagrangian step multiplies the multipliers' error by the
+# rate, about 1e-7 (RHO); from zero the first x is off by that rate times lambda, so a
+# solve takes three steps (two to reach rounding, one whose rate shows it has). The
+# accelerations of consecutive evaluations (RK stages, steps) differ by O(h), so
+# starting from the last converged ones leaves the first x off by the rate times that
+# change: two steps. Projections and Newton steps solve other systems and start from
+# zero. A warm start that meets a slow step (rate above SLOW) is dropped and the solve
+# starts again from zero, so the conjugate-gradient corrections near singular
+# positions run exactly as from a cold start.
 
 
 cdef class ALRefinement(SparseBlocks):
@@ -87,6 +96,7 @@ cdef class ALRefinement(SparseBlocks):
     def __cinit__(self, Assembler asm, *args, **kwargs):
         cdef int n = asm.n_q, m = asm.n_g
         self.lam = <double *>alloc_zeroed(m, sizeof(double))
+        self.lam_warm = <double *>alloc_zeroed(m, sizeof(double))
         self.r2 = <double *>alloc_zeroed(m, sizeof(double))
         self.bdx = <double *>alloc_zeroed(m, sizeof(double))
         self.res = <double *>alloc_zeroed(m, sizeof(double))
@@ -103,7 +113,7 @@ cdef class ALRefinement(SparseBlocks):
         self.al_max = AL_MAX
 
     def __dealloc__(self):
-        free(self.lam); free(self.r2); free(self.bdx); free(self.res); free(self.mu)
+        free(self.lam); free(self.lam_warm); free(self.r2); free(self.bdx); free(self.res); free(self.mu)
         free(self.p); free(self.sp); free(self.u); free(self.w_n); free(self.r1)
         free(self.dx); free(self.base)
 
@@ -196,19 +206,19 @@ cdef class ALRefinement(SparseBlocks):
             for a in range(nq):
                 y[idx[a]] -= yl[a]
 
-    cdef void first_pass(self, const double *b, double *y) noexcept nogil:
-        """residual_pass at x = 0 and lambda = 0 (not pending, penalised): y = base +
-        B^T alpha b, without the products with M and B that vanish there; the same
-        operations in the same order as residual_pass on what is left (the same
-        rounding)."""
-        cdef int e, a, r, nq, ng
+    cdef void first_pass(self, const double *b, bint warm, double *y) noexcept nogil:
+        """residual_pass at x = 0 (not pending, penalised), with lambda = 0 or (warm)
+        the multipliers kkt_solve started from: y = base - B^T (lambda - alpha b),
+        without the products with M and B that vanish there; the same operations in
+        the same order as residual_pass on what is left (the same rounding)."""
+        cdef int e, a, r, nq, ng, row
         cdef const int *idx
         cdef const int *rows
         cdef const double *bb
         cdef double *yl = self.ly
         cdef double z
         memcpy(y, self.base, <size_t>self.n * sizeof(double))
-        if b == NULL:
+        if b == NULL and not warm:
             return
         for e in range(self.asm.n_el):
             ng = self.sng[e]
@@ -221,7 +231,10 @@ cdef class ALRefinement(SparseBlocks):
             for a in range(nq):
                 yl[a] = 0.0
             for r in range(ng):
-                z = 0.0 - self.alpha[rows[r]] * b[rows[r]]
+                row = rows[r]
+                z = self.lam[row] if warm else 0.0
+                if b != NULL:
+                    z -= self.alpha[row] * b[row]
                 if z != 0.0:
                     for a in range(nq):
                         yl[a] += bb[r * nq + a] * z
@@ -290,18 +303,14 @@ cdef class ALRefinement(SparseBlocks):
         return self.cg_steps + 1
 
     cdef bint kkt_solve(self, const double *Q, const double *w, const double *b,
-                        double *x) noexcept nogil:
+                        double *x, bint warm) noexcept nogil:
         """x of M x + B^T lambda = Q + M w, B x = b (Q, w, b may be NULL: zero):
         iterative refinement with the true residuals r1 = Q + M w - M x - B^T lambda,
-        r2 = b - B x. Each correction is one augmented-Lagrangian step (module
-        docstring), its right-hand side and the previous step's multiplier update
-        formed in one pass (:meth:`residual_pass`), while those converge fast; once a
-        step shrinks the change by less than SLOW (a nearly singular B: near a
-        singular position), the corrections are conjugate-gradient solves
-        (:meth:`correction`). Returns whether the refinement converged."""
-        cdef int i, it, solves = 0, n = self.n, m = self.m, cg = 0
-        cdef double nd, nx, prev = 0.0, rate, rz_stop = -1.0
-        cdef bint done = False, pending = False
+        r2 = b - B x (:meth:`refine`). warm (the accelerations): lambda starts from
+        the last converged acceleration solve's multipliers (module constants, "Warm
+        start"), else from zero; a warm start that meets a slow step starts again
+        from zero. Returns whether the refinement converged."""
+        cdef int i, status, solves = 0, n = self.n, m = self.m
         memset(self.base, 0, <size_t>n * sizeof(double))
         if Q != NULL:
             memcpy(self.base, Q, <size_t>n * sizeof(double))
@@ -309,28 +318,59 @@ cdef class ALRefinement(SparseBlocks):
             self.mult_m_full(w, self.base, True)
         for i in range(self.n_pinned):      # pinned coordinates: x stays 0 there
             self.base[self.pinned[i]] = 0.0
-        memset(x, 0, <size_t>n * sizeof(double))
-        memset(self.lam, 0, <size_t>m * sizeof(double))
         self.n_solves += 1
+        status = -1
+        if warm and self.warm_valid:
+            memcpy(self.lam, self.lam_warm, <size_t>m * sizeof(double))
+            status = self.refine(b, x, True, &solves)
+        if status < 0:
+            memset(self.lam, 0, <size_t>m * sizeof(double))
+            status = self.refine(b, x, False, &solves)
+        if warm:
+            self.warm_valid = status == 1
+            if status == 1:
+                memcpy(self.lam_warm, self.lam, <size_t>m * sizeof(double))
+        if status != 1:
+            self.n_unconverged += 1
+        self.n_iterations += solves
+        if solves > self.most_iterations:
+            self.most_iterations = solves
+        return status == 1
+
+    cdef int refine(self, const double *b, double *x, bint warm,
+                    int *solves) noexcept nogil:
+        """The refinement of kkt_solve from x = 0 and the multipliers in lam (zero
+        unless warm), the solves with A added to solves[0]. Each correction is one
+        augmented-Lagrangian step (module docstring), its right-hand side and the
+        previous step's multiplier update formed in one pass (:meth:`residual_pass`),
+        while those converge fast; once a step shrinks the change by less than SLOW
+        (a nearly singular B: near a singular position), the corrections are
+        conjugate-gradient solves (:meth:`correction`). Returns 1 when it converged,
+        0 when not, -1 when a warm start met that slow step (not continued: the
+        conjugate-gradient bounds are set from a cold start's first residual)."""
+        cdef int i, it, n = self.n, m = self.m, cg = 0
+        cdef double nd, nx, prev = 0.0, rate, rz_stop = -1.0
+        cdef bint pending = False
+        memset(x, 0, <size_t>n * sizeof(double))
         for it in range(self.al_max + self.refine_max):
             if cg:
                 self.residual_pass(x, b, pending, False, self.r1, self.r2)
                 pending = False
-                solves += self.correction(&rz_stop)
+                solves[0] += self.correction(&rz_stop)
                 if self.beyond_hit:             # redone densely (_sparse.pyx)
-                    break
+                    return 0
                 for i in range(m):
                     self.lam[i] += self.bdx[i]
             else:
                 if it == 0:
-                    self.first_pass(b, self.dx)
+                    self.first_pass(b, warm, self.dx)
                 else:
                     self.residual_pass(x, b, pending, True, self.dx, NULL)
                     if it == 1:
                         rz_stop = CG_TOL * CG_TOL * self.rho
                 self.solve_a(self.dx)
                 pending = True
-                solves += 1
+                solves[0] += 1
             nd = 0.0
             nx = 0.0
             for i in range(n):
@@ -340,31 +380,30 @@ cdef class ALRefinement(SparseBlocks):
                 if fabs(x[i]) > nx:
                     nx = fabs(x[i])
             if not nd > 0.0:                    # zero, or NaN (the caller checks x)
-                done = True
-                break
+                return 1
             if cg:
                 if nd <= REFINE_STOP * nx or (cg > 1 and self.cg_steps == 0):
-                    done = True
-                    break
+                    return 1
                 cg += 1
                 if cg > self.refine_max:
-                    break
+                    return 0
             elif it > 0:
                 rate = nd / prev
                 if rate < 0.5 and nd * rate / (1.0 - rate) <= AL_STOP * nx:
-                    done = True
-                    break
+                    return 1
                 if rate > SLOW:
                     cg = 1
             if not cg and it + 1 >= self.al_max:
                 cg = 1
+            if cg and warm:
+                return -1
             prev = nd
-        if not done:
-            self.n_unconverged += 1
-        self.n_iterations += solves
-        if solves > self.most_iterations:
-            self.most_iterations = solves
-        return done
+        return 0
+
+    def reset_warm_start(self):
+        """Start the next acceleration solve's multipliers from zero (every run and
+        every direct call does: a result does not depend on what was solved before)."""
+        self.warm_valid = False
 
     def solve_at(self, q, Q, b):
         """x of M x + B^T lambda = Q, B x = b with M, B assembled and A factored at q

@@ -116,6 +116,7 @@ cdef class SparseEngine(ALRefinement):
         (a run from its initial state) reuses that start's basis instead of a new SVD."""
         cdef double[::1] saved
         Engine.decide_rank(self, q, rank)
+        self.reset_warm_start()
         self.n_factor = self.n_solves = self.n_iterations = self.n_unconverged = 0
         self.n_beyond_rank = 0
         self.n_fallback = 0
@@ -140,6 +141,17 @@ cdef class SparseEngine(ALRefinement):
             memcpy(self.track, &saved[0], <size_t>self.n * TRACK_MAX * sizeof(double))
             self.grow_trigger = GROW_TOL
             self.n_track = self.start_n_track
+
+    def accelerations(self, q, v):
+        """Engine.accelerations, from zero multipliers (a direct call does not depend
+        on what was solved before)."""
+        self.reset_warm_start()
+        return Engine.accelerations(self, q, v)
+
+    def baumgarte_accelerations(self, q, v, double alpha, double beta):
+        """Engine.baumgarte_accelerations, from zero multipliers."""
+        self.reset_warm_start()
+        return Engine.baumgarte_accelerations(self, q, v, alpha, beta)
 
     def set_dense_fallback_max(self, int n_max):
         """Redo unconverged solves densely only for models of at most n_max
@@ -185,7 +197,7 @@ cdef class SparseEngine(ALRefinement):
             self.rhs[i] = self.asm.f[i] - self.asm.h[i]
         for i in range(self.m):
             self.nb[i] = -self.asm.c[i]
-        self.solve_constrained(self.rhs, NULL, self.nb, a)
+        self.solve_kkt(self.rhs, NULL, self.nb, a, True)
         return self.finish(q, v, a, flags)
 
     cdef int baumgarte_at(self, const double *q, const double *v, double *a,
@@ -199,7 +211,7 @@ cdef class SparseEngine(ALRefinement):
         for i in range(self.n):
             self.rhs[i] = self.asm.f[i] - self.asm.h[i]
         self.baumgarte_targets(v, alpha, beta, self.nb)
-        self.solve_constrained(self.rhs, NULL, self.nb, a)
+        self.solve_kkt(self.rhs, NULL, self.nb, a, True)
         return self.finish(q, v, a, flags)
 
     cdef void baumgarte_targets(self, const double *v, double alpha, double beta,
@@ -230,9 +242,15 @@ cdef class SparseEngine(ALRefinement):
 
     cdef void solve_constrained(self, const double *Q, const double *w, const double *b,
                                 double *x) noexcept nogil:
-        """kkt_solve; when it did not converge, the dense solve instead (module
-        docstring) if the model is small enough and M, B factor there."""
-        if self.kkt_solve(Q, w, b, x) or self.n > self.dense_fallback_max:
+        """solve_kkt, started from zero multipliers (projections and Newton steps)."""
+        self.solve_kkt(Q, w, b, x, False)
+
+    cdef void solve_kkt(self, const double *Q, const double *w, const double *b,
+                        double *x, bint warm) noexcept nogil:
+        """kkt_solve (warm: from the last accelerations' multipliers); when it did
+        not converge, the dense solve instead (module docstring) if the model is small
+        enough and M, B factor there."""
+        if self.kkt_solve(Q, w, b, x, warm) or self.n > self.dense_fallback_max:
             return
         self.gather_dense()
         if csolve_factor(&self.sol, self.asm.M, self.asm.B) == 0:
