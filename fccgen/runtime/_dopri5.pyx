@@ -411,6 +411,7 @@ def simulate_dopri5(Engine engine, q0, v0, double t_end, double output_dt, doubl
     if not (t_end > 0 and output_dt > 0 and rtol > 0 and atol > 0 and h0 >= 0):
         raise ValueError("need t_end, output_dt, rtol, atol > 0 and h0 >= 0")
     cdef double[::1] qv = engine.vector(q0, "q0"), vv = engine.vector(v0, "v0")
+    engine.reset_warm_start()           # a run does not depend on earlier solves
     if not (np.all(np.isfinite(qv)) and np.all(np.isfinite(vv))):
         raise ValueError("q0 and v0 must be finite")
     cdef Py_ssize_t n = engine.n

@@ -342,6 +342,10 @@ cdef class Engine:
                     rank=self.sol.r, n_q=self.n, n_g=self.m,
                     nullity=self.sol.nr)
 
+    def reset_warm_start(self):
+        """Nothing to reset: the dense path's solves carry nothing from one to the next
+        (the sparse path's carry the accelerations' multipliers, _al_refine.pyx)."""
+
     def set_time(self, double t):
         """Evaluate later calls at the time t (models with drivers; Assembler.set_time)."""
         self.asm.put_time(t)

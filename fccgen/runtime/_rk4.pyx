@@ -356,6 +356,7 @@ def _simulate(Engine engine, q0, v0, double t_end, double dt, long n_steps,
     if not (0 < t_end - (n_steps - 1) * dt <= dt * (1 + 1e-9)):
         raise ValueError(f"{n_steps} steps of {dt!r} do not end at t_end = {t_end!r}")
     cdef double[::1] qv = engine.vector(q0, "q0"), vv = engine.vector(v0, "v0")
+    engine.reset_warm_start()           # a run does not depend on earlier solves
     if not (np.all(np.isfinite(qv)) and np.all(np.isfinite(vv))):
         raise ValueError("q0 and v0 must be finite")
     cdef Py_ssize_t n = engine.n
