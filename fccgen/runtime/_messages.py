@@ -21,6 +21,11 @@ def error_message(rec: dict, in_run: bool) -> str:
                 f"matrix (dimension {rec['nullity']}: {rec['n_q']} coordinates, "
                 f"constraint Jacobian of rank {rec['rank']} with {rec['n_g']} rows) is not "
                 f"positive definite at pivot {rec['info']}")
+        if rec.get("sparse"):
+            what += ("; on the sparse path it also is when a motion is about 1e9 or more "
+                     "times lighter than the heaviest coordinate (the LDL^T of "
+                     "M + B^T alpha B loses its pivot): if the model is meant so, use "
+                     "--linear-solver dense (docs/reliability.md)")
     elif code == ERR_LAPACK:
         what = f"LAPACK reported error {rec['info']} in the constrained solve"
     elif code == ERR_NONFINITE_INPUT:

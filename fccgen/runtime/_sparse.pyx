@@ -446,6 +446,6 @@ cdef class SparseEngine(ALRefinement):
     cdef dict error_record(self):
         rec = Engine.error_record(self)
         rank = self.sol.rank_fixed
-        rec.update(rank=rank, nullity=self.n - rank if rank >= 0 else self.n)
+        rec.update(rank=rank, nullity=self.n - rank if rank >= 0 else self.n, sparse=True)
         return rec
 
