@@ -43,7 +43,8 @@ def test_every_format_keeps_how_the_run_was_made(run, tmp_path, suffix):
     assert info["t_end"] == 0.2 and info["steps"] > 0 and "warnings" in info
     assert set(info["solver"]) == {"rank_tol", "position_tol", "max_newton",
                                    "linear_solver", "path"}
-    assert info["solver"]["path"] == "dense"     # 6 coordinates: auto takes the dense path
+    # 6 coordinates, well posed at the start (runtime/paths.py): auto takes the sparse path
+    assert info["solver"]["path"] == "sparse"
     assert info["events"] == EVENTS
     np.testing.assert_array_equal(back["P2.x"], run["P2.x"])
     del run.info["events"]

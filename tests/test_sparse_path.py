@@ -115,10 +115,17 @@ def test_a_projection_removing_kinetic_energy_is_flagged_on_the_sparse_path(comp
 def test_the_path_is_chosen_by_size_unless_forced(compiled):
     small = compiled("four_bar")
     assert small.n_q < SPARSE_MIN_COORDINATES
-    assert small.linear_solver == "auto" and not small.sparse
+    fresh = CompiledSolver(small.plan, small.module)    # before any rank decision: dense
+    assert fresh.linear_solver == "auto" and not fresh.sparse
+    assert not isinstance(fresh._engine, SparseEngine)
+    fresh.initial_state()                               # decided: well posed, sparse
+    assert fresh.sparse and isinstance(fresh._engine, SparseEngine)
     a02 = compiled("a02_n_four_bar")
     assert a02.n_q >= SPARSE_MIN_COORDINATES and a02.sparse
     assert isinstance(a02._engine, SparseEngine)
+    forced = CompiledSolver(small.plan, small.module, linear_solver="dense")
+    forced.initial_state()
+    assert not forced.sparse and not isinstance(forced._engine, SparseEngine)
     forced = CompiledSolver(small.plan, small.module, linear_solver="sparse")
     assert forced.sparse and isinstance(forced._engine, SparseEngine)
     with pytest.raises(ValueError, match="linear_solver must be one of auto, dense, sparse"):

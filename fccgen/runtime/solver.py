@@ -24,7 +24,8 @@ from ..progress import run_reporter
 from ..results import InitialState, Result, timed_run
 from ._assemble import FLAGS, Assembler
 from ._dopri5 import simulate_dopri5
-from .paths import make_engine, pattern_samples, use_sparse
+from .paths import (SPARSE_MIN_COORDINATES, make_engine, pattern_samples,
+                    reduced_mass_spread, small_model_path, use_sparse)
 from ._rk4 import simulate_baumgarte, simulate_rk4
 from .energy_check import check_energy
 
@@ -135,6 +136,10 @@ class CompiledSolver:
                                  f"{dense_only} yet; use 'dense' or 'auto' (auto takes the "
                                  "dense path for such models)")
             self.sparse = False
+        # auto below SPARSE_MIN_COORDINATES: dense until a rank decision shows the
+        # sparse solve well posed (paths.small_model_path), decided again every run
+        self._auto_small = (self.linear_solver == "auto" and not dense_only
+                            and self.n_q < SPARSE_MIN_COORDINATES)
         self._engine = make_engine(self._asm, self.rank_tol, self.position_tol,
                                    self.max_newton, self.sparse,
                                    at=pattern_samples(plan.q0, plan.v_target,
@@ -143,6 +148,7 @@ class CompiledSolver:
         self._manifold_key = None
         self._manifold_kept = 0.0
         self._dense_engine = None if self.sparse else self._engine
+        self._sparse_engine = self._engine if self.sparse else None
 
     # -- global quantities ------------------------------------------------------------
     def _get(self, name, q, v=None):
@@ -256,8 +262,8 @@ class CompiledSolver:
     def _full_pattern(self) -> None:
         """The sparse engine again, on the full pattern of A (every element block
         full), with the rank decided where the last decision was made."""
-        self._engine = make_engine(self._asm, self.rank_tol, self.position_tol,
-                                   self.max_newton, True)
+        self._engine = self._sparse_engine = make_engine(
+            self._asm, self.rank_tol, self.position_tol, self.max_newton, True)
         if self._decided_at is not None:
             self.decide_rank(self._decided_at)
 
@@ -399,12 +405,30 @@ class CompiledSolver:
         count QR pivots above rank_tol."""
         decision = rank_rule.decide(self._jacobian_for_rank(q), self.n_q, self.row_groups)
         self._decided_at = np.array(q, dtype=float)
+        if self._auto_small:
+            self._choose_small_path(q, decision)
         self._engine.decide_rank(q, decision.rank)
         if self._dense_engine is not None and self._dense_engine is not self._engine:
             self._dense_engine.decide_rank(q, decision.rank)
         if self.sparse:
             self._engine.set_beyond_rank(self._manifold_redundancy(q, decision))
         return decision
+
+    def _choose_small_path(self, q, decision) -> None:
+        """The path of a small model under "auto" from the decision at q
+        (paths.small_model_path): the solver's engine becomes the sparse one (built
+        on first use) or the dense one."""
+        B = self.constraint_jacobian(q)
+        scaled = B / rank_rule.row_scales(B, self.row_groups)[:, None] if B.size else B
+        path = small_model_path(decision.gap[0], self._manifold_redundancy(q, decision),
+                                reduced_mass_spread(self.mass_matrix(q), scaled,
+                                                    decision.rank))
+        self.sparse = path == "sparse"
+        if self.sparse and self._sparse_engine is None:
+            self._sparse_engine = make_engine(
+                self._asm, self.rank_tol, self.position_tol, self.max_newton, True,
+                at=pattern_samples(self.plan.q0, self.plan.v_target, self.length_scale))
+        self._engine = self._sparse_engine if self.sparse else self.dense_engine()
 
     def _manifold_redundancy(self, q, decision) -> float:
         """For the sparse path's solves (_al_refine.pyx, "Directions beyond the decided
