@@ -36,17 +36,19 @@ class FccgenModel:
     ``point()`` the tracked point's (x, y) at the end of the last run."""
 
     def __init__(self, system: str, n: int, dt: float, *, build_dir=None,
-                 linear_solver: str = "auto", models: Path = MODELS):
+                 linear_solver: str = "auto", models: Path = MODELS, project: bool = True):
         path = model_file(system, n, models)
         self.solver = load_solver(path, str(build_dir or ROOT / "generated"), linear_solver)
         init = self.solver.initial_state()
         self.q0, self.v0 = init.q, init.v
         self.dt = dt
+        self.project = project
         self.name = tracked_point(system, n)
         self.result = None
 
     def advance(self, n_steps: int, method: str = "rk4", **options) -> None:
         t_end = n_steps * self.dt
+        options.setdefault("project", self.project)
         self.result = self.solver.simulate(t_end=t_end, dt=self.dt, method=method,
                                            output_dt=t_end, q0=self.q0, v0=self.v0,
                                            **options)

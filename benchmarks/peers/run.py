@@ -2,6 +2,7 @@
 
     python benchmarks/peers/run.py [--system a02|cart] [--sizes N ...] [--reps R]
                                    [--fccgen-solver auto|dense|sparse] [--dt 1e-3]
+                                   [--fccgen-no-projection]
 
 Needs the ``peers`` extra (``pip install -e .[peers]``: mujoco, exudyn). Systems: the
 A02 N-four-bar chain (N loops) and the n-link pendulum on a cart (``systems.py``); the
@@ -11,8 +12,10 @@ fccgen: RK4 with projection (its default); MuJoCo: its RK4, loops closed by soft
 step as in ``timing.py`` (CPU, warm, medians of interleaved repetitions). Prints the
 table of times and ratios and the exponent p of time ~ N^p (least squares of log time
 on log N over the sizes >= --fit-from); writes ``peers_scaling.csv`` and
-``peers_scaling.png`` (log-log) into --out-dir. Run with single-threaded BLAS (set
-here before NumPy loads), as the other benchmarks.
+``peers_scaling.png`` (log-log) into --out-dir. ``--fccgen-no-projection`` runs
+fccgen's RK4 without the projection after each step (``project=False``: what that
+projection costs; its constraint drift is then the integrator's). Run with
+single-threaded BLAS (set here before NumPy loads), as the other benchmarks.
 """
 from __future__ import annotations
 
@@ -35,20 +38,22 @@ TOOLS = ("fccgen", "mujoco", "exudyn")
 DEFAULT_SIZES = {"a02": (5, 10, 20, 40, 80, 160, 320), "cart": (1, 2, 5, 10, 20, 50, 100, 200)}
 
 
-def make_models(system, n, dt, fccgen_solver):
+def make_models(system, n, dt, fccgen_solver, project=True):
     import exudyn_models
     import fccgen_models
     import mujoco_models
-    return {"fccgen": fccgen_models.make(system, n, dt, linear_solver=fccgen_solver),
+    return {"fccgen": fccgen_models.make(system, n, dt, linear_solver=fccgen_solver,
+                                         project=project),
             "mujoco": mujoco_models.make(system, n, dt),
             "exudyn": exudyn_models.make(system, n, dt)}
 
 
-def measure(system, sizes, dt, reps, fccgen_solver, log):
+def measure(system, sizes, dt, reps, fccgen_solver, log, project=True):
     from timing import time_interleaved
     rows = []
     for n in sizes:
-        timings = time_interleaved(make_models(system, n, dt, fccgen_solver), reps)
+        timings = time_interleaved(make_models(system, n, dt, fccgen_solver, project),
+                                   reps)
         for t in timings.values():
             rows.append(dict(system=system, n=n, n_q=n_coordinates(system, n), tool=t.tool,
                              seconds_per_step=t.per_step, steps=t.steps, setup=t.setup,
@@ -129,6 +134,8 @@ def main(argv=None) -> int:
     ap.add_argument("--dt", type=float, default=1e-3, help="step of every tool (s)")
     ap.add_argument("--fccgen-solver", default="auto", choices=("auto", "dense", "sparse"),
                     help="fccgen's linear_solver option (passed only when not auto)")
+    ap.add_argument("--fccgen-no-projection", action="store_true",
+                    help="fccgen's RK4 without the projection after each step")
     ap.add_argument("--fit-from", type=int, default=10,
                     help="smallest size in the fit of the exponents")
     ap.add_argument("--out-dir", type=Path, default=ROOT / "docs" / "performance")
@@ -141,8 +148,9 @@ def main(argv=None) -> int:
     rows = []
     for system in systems:
         rows += measure(system, args.sizes or DEFAULT_SIZES[system], args.dt, args.reps,
-                        args.fccgen_solver, log)
-    note = (f"dt {args.dt:g} s, fccgen linear_solver {args.fccgen_solver}, "
+                        args.fccgen_solver, log, not args.fccgen_no_projection)
+    note = (f"dt {args.dt:g} s, fccgen linear_solver {args.fccgen_solver}"
+            f"{', no projection' if args.fccgen_no_projection else ''}, "
             f"{args.reps} reps; {platform.machine()} {platform.system()}, "
             f"{os.cpu_count()} CPUs, Python {platform.python_version()}, "
             f"{time.strftime('%Y-%m-%d')}")
