@@ -96,8 +96,9 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--linear-solver", choices=LINEAR_SOLVERS,
                    help="the compiled runtime's constrained solve: dense (pivoted QR), "
                         "sparse (LDL^T over a pattern fixed at load, linear in the size) "
-                        "or auto (by size; default: model's simulate.linear_solver, "
-                        "else auto; see docs/performance.md)")
+                        "or auto (sparse from 25 coordinates, below where each run's "
+                        "rank decision shows it well posed; default: model's "
+                        "simulate.linear_solver, else auto; see docs/performance.md)")
     s.add_argument("--max-newton", type=int, metavar="N",
                    help="Newton iteration limit of the position projection (default: "
                         "model's simulate.max_newton, else 20)")

@@ -301,7 +301,8 @@ def solver_tolerances(defaults, length_scale: float, rank_tol=None, position_tol
 
 # The compiled runtime's linear solver (fccgen.runtime.paths): "dense" (pivoted QR of B
 # and a null-space basis), "sparse" (LDL^T of M + B^T alpha B over a pattern fixed at
-# load time), or "auto": sparse from fccgen.runtime.paths.SPARSE_MIN_COORDINATES on.
+# load time), or "auto": sparse from fccgen.runtime.paths.SPARSE_MIN_COORDINATES on,
+# and below where each run's rank decision shows it well posed (paths.small_model_path).
 LINEAR_SOLVERS = ("auto", "dense", "sparse")
 
 

@@ -113,9 +113,9 @@ cdef class ALRefinement(SparseBlocks):
         self.al_max = AL_MAX
 
     def __dealloc__(self):
-        free(self.lam); free(self.lam_warm); free(self.r2); free(self.bdx); free(self.res); free(self.mu)
-        free(self.p); free(self.sp); free(self.u); free(self.w_n); free(self.r1)
-        free(self.dx); free(self.base)
+        free(self.lam); free(self.lam_warm); free(self.r2); free(self.bdx); free(self.res)
+        free(self.mu); free(self.p); free(self.sp); free(self.u); free(self.w_n)
+        free(self.r1); free(self.dx); free(self.base)
 
     def limit_refinement(self, int corrections=REFINE_MAX, int cg_steps=CG_MAX,
                          int al_steps=AL_MAX):
