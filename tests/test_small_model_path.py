@@ -98,7 +98,7 @@ def test_the_path_is_decided_again_at_every_run(compiled, monkeypatch):
     assert dense_run.info["solver"]["path"] == "dense" and not solver.sparse
     for column in sparse_run.columns:
         assert np.max(np.abs(sparse_run[column] - dense_run[column])) < 1e-9, column
-    monkeypatch.setattr(paths, "SMALL_MASS_MIN", 1e-6)
+    monkeypatch.undo()
     with warnings.catch_warnings():
         warnings.simplefilter("error", RunWarning)
         assert solver.simulate(t_end=0.01).info["solver"]["path"] == "sparse"

@@ -116,7 +116,6 @@ cdef class SparseEngine(ALRefinement):
         (a run from its initial state) reuses that start's basis instead of a new SVD."""
         cdef double[::1] saved
         Engine.decide_rank(self, q, rank)
-        self.reset_warm_start()
         self.n_factor = self.n_solves = self.n_iterations = self.n_unconverged = 0
         self.n_beyond_rank = 0
         self.n_fallback = 0

@@ -7,13 +7,14 @@ LDL^T of M + B^T alpha B over a pattern fixed at load time (runtime/sparsity.py)
 in the size for chains and trees. "auto" takes the sparse path from
 SPARSE_MIN_COORDINATES coordinates on (docs/performance.md, "Dense and sparse paths").
 Below, where the dense path costs little more, it takes the sparse path (measured
-1.4-2.3 times faster on every example) only when the rank decision at the run's start
-shows it well posed (small_model_path): no row dependent only on the constraint
-manifold (Bricard's kind: a third of its sparse solves would be redone densely,
-docs/reliability.md), every kept direction of B resolved by the augmented-Lagrangian
-steps at a rate of 1e-3 or better, and no motion so much lighter than the heaviest
-coordinate that a pivot of M + B^T alpha B nears the factorisation's limit (masses
-1e10 apart). Otherwise the dense path, whose rank logic handles all three.
+1.4-4.3 times faster on every example, benchmarks/small_paths.py) only when the rank
+decision at the run's start shows it well posed (small_model_path): no row dependent
+only on the constraint manifold (Bricard's kind: a third of its sparse solves would be
+redone densely, docs/reliability.md), every kept direction of B resolved by the
+augmented-Lagrangian steps at a rate of 1e-3 or better, and no motion so much lighter
+than the heaviest coordinate that a pivot of M + B^T alpha B nears the factorisation's
+limit (masses 1e10 apart). Otherwise the dense path, whose rank logic handles all
+three.
 """
 from __future__ import annotations
 
