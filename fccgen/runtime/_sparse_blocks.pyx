@@ -53,6 +53,24 @@ cdef void *alloc_zeroed(size_t n, size_t size) except NULL:
     return p
 
 
+cdef int *int_array(values) except NULL:
+    """A new C array (alloc_zeroed) holding the integers in values."""
+    cdef Py_ssize_t i, n = len(values)
+    cdef int *p = <int *>alloc_zeroed(n, sizeof(int))
+    for i in range(n):
+        p[i] = values[i]
+    return p
+
+
+cdef double *double_array(values) except NULL:
+    """A new C array (alloc_zeroed) holding the numbers in values."""
+    cdef Py_ssize_t i, n = len(values)
+    cdef double *p = <double *>alloc_zeroed(n, sizeof(double))
+    for i in range(n):
+        p[i] = values[i]
+    return p
+
+
 # A block entry zero where the pattern of A was taken (SparseBlocks.planar_pattern)
 # may grow to GUARD_TOL of its block's largest entry before the pattern trips: the
 # factor of A then misses entries of that relative size. The refinement's residuals
@@ -297,7 +315,7 @@ cdef class SparseBlocks(Engine):
         g at each position projection): otherwise the pattern trips and the solver
         redoes the call on the full pattern, as for planar_pattern. Returns the number
         of pinned coordinates (0: the full view is kept)."""
-        cdef int e, a, r, nq, ng, k, i, row, at, nf
+        cdef int e, a, r, nq, ng, k, row, at, nf
         cdef const fcc_element_class *c
         cdef double[:, ::1] qs = np.ascontiguousarray(np.atleast_2d(samples), dtype=float)
         if self.ready or self.compact:
@@ -374,20 +392,16 @@ cdef class SparseBlocks(Engine):
         self.Bc = <double *>alloc_zeroed(total_b, sizeof(double))
         # the fixed rows: constant norms, no penalty, and their guards
         self.n_pinned = len(pinned)
-        self.pinned = <int *>alloc_zeroed(self.n_pinned, sizeof(int))
-        for i, a in enumerate(sorted(pinned)):
-            self.pinned[i] = a
+        self.pinned = int_array(sorted(pinned))
         self.n_fixed_rows = len(fixed)
-        self.fixed_rows = <int *>alloc_zeroed(len(fixed), sizeof(int))
-        self.fixed_g_tol = <double *>alloc_zeroed(len(fixed), sizeof(double))
+        self.fixed_rows = int_array(fixed)
+        self.fixed_g_tol = double_array([self.position_tol * norms[row] for row in fixed])
         offsets, values, tols = [], [], []
-        for i, row in enumerate(fixed):
+        for row in fixed:
             e, r = where[row]
             nq = self.asm.cls[e].n_q
             at = self.bptr[e] + r * nq
             entries = blocks[0][at:at + nq]
-            self.fixed_rows[i] = row
-            self.fixed_g_tol[i] = self.position_tol * norms[row]
             self.rnorm[row] = norms[row]
             self.alpha[row] = 0.0
             if norms[row] > self.efix[e]:
@@ -396,13 +410,9 @@ cdef class SparseBlocks(Engine):
             values += entries.tolist()
             tols += [GUARD_TOL * float(np.max(np.abs(entries)))] * nq
         self.n_fixed = len(offsets)
-        self.fixed_off = <int *>alloc_zeroed(self.n_fixed, sizeof(int))
-        self.fixed_val = <double *>alloc_zeroed(self.n_fixed, sizeof(double))
-        self.fixed_tol = <double *>alloc_zeroed(self.n_fixed, sizeof(double))
-        for i in range(self.n_fixed):
-            self.fixed_off[i] = offsets[i]
-            self.fixed_val[i] = values[i]
-            self.fixed_tol[i] = tols[i]
+        self.fixed_off = int_array(offsets)
+        self.fixed_val = double_array(values)
+        self.fixed_tol = double_array(tols)
         return self.n_pinned
 
     def solve_elements(self):
@@ -527,16 +537,10 @@ cdef class SparseBlocks(Engine):
         tol_m = GUARD_TOL * np.repeat(scale_m, m_len)[offs_m]
         tol_b = GUARD_TOL * np.repeat(scale_b, b_len)[offs_b]
         free(self.zero_m); free(self.zero_b); free(self.zero_m_tol); free(self.zero_b_tol)
-        self.zero_m = <int *>alloc_zeroed(offs_m.size, sizeof(int))
-        self.zero_b = <int *>alloc_zeroed(offs_b.size, sizeof(int))
-        self.zero_m_tol = <double *>alloc_zeroed(offs_m.size, sizeof(double))
-        self.zero_b_tol = <double *>alloc_zeroed(offs_b.size, sizeof(double))
-        for a in range(offs_m.size):
-            self.zero_m[a] = offs_m[a]
-            self.zero_m_tol[a] = tol_m[a]
-        for a in range(offs_b.size):
-            self.zero_b[a] = offs_b[a]
-            self.zero_b_tol[a] = tol_b[a]
+        self.zero_m = int_array(offs_m)
+        self.zero_m_tol = double_array(tol_m)
+        self.zero_b = int_array(offs_b)
+        self.zero_b_tol = double_array(tol_b)
         self.n_zero_m, self.n_zero_b = offs_m.size, offs_b.size
         self.tripped = False
         if not self.compact:
