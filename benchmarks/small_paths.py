@@ -51,14 +51,12 @@ class Run:
 
 
 def signals(solver) -> tuple[float, float, float]:
-    """(kept sigma, manifold sigma, reduced mass spread) at the initial state, as
-    CompiledSolver._choose_small_path reads them."""
+    """(kept sigma, manifold sigma, reduced mass spread) at the initial state
+    (CompiledSolver.small_path_signals)."""
     q = solver.initial_state().q
     B = solver.constraint_jacobian(q)
-    decision = rank_rule.decide(B, solver.n_q, solver.row_groups)
-    scaled = B / rank_rule.row_scales(B, solver.row_groups)[:, None] if B.size else B
-    return (decision.gap[0], solver._manifold_redundancy(q, decision),
-            paths.reduced_mass_spread(solver.mass_matrix(q), scaled, decision.rank))
+    return solver.small_path_signals(q, B, rank_rule.decide(B, solver.n_q,
+                                                            solver.row_groups))
 
 
 def main(argv=None) -> int:

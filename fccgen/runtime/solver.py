@@ -403,10 +403,11 @@ class CompiledSolver:
         the engine's factorisations (runs and direct calls) until the next decision.
         Every run decides at its start; before the first decision the factorisations
         count QR pivots above rank_tol."""
-        decision = rank_rule.decide(self._jacobian_for_rank(q), self.n_q, self.row_groups)
+        B = self._jacobian_for_rank(q)
+        decision = rank_rule.decide(B, self.n_q, self.row_groups)
         self._decided_at = np.array(q, dtype=float)
         if self._auto_small:
-            self._choose_small_path(q, decision)
+            self._choose_small_path(q, B, decision)
         self._engine.decide_rank(q, decision.rank)
         if self._dense_engine is not None and self._dense_engine is not self._engine:
             self._dense_engine.decide_rank(q, decision.rank)
@@ -414,16 +415,19 @@ class CompiledSolver:
             self._engine.set_beyond_rank(self._manifold_redundancy(q, decision))
         return decision
 
-    def _choose_small_path(self, q, decision) -> None:
+    def small_path_signals(self, q, B, decision) -> tuple[float, float, float]:
+        """What paths.small_model_path reads at q, B (dense) and its rank decision:
+        the smallest kept scaled singular value, the manifold redundancy
+        (_manifold_redundancy) and the reduced mass spread (paths.reduced_mass_spread)."""
+        scaled = B / rank_rule.row_scales(B, self.row_groups)[:, None] if B.size else B
+        return (decision.gap[0], self._manifold_redundancy(q, decision),
+                reduced_mass_spread(self.mass_matrix(q), scaled, decision.rank))
+
+    def _choose_small_path(self, q, B, decision) -> None:
         """The path of a small model under "auto" from the decision at q
         (paths.small_model_path): the solver's engine becomes the sparse one (built
         on first use) or the dense one."""
-        B = self.constraint_jacobian(q)
-        scaled = B / rank_rule.row_scales(B, self.row_groups)[:, None] if B.size else B
-        path = small_model_path(decision.gap[0], self._manifold_redundancy(q, decision),
-                                reduced_mass_spread(self.mass_matrix(q), scaled,
-                                                    decision.rank))
-        self.sparse = path == "sparse"
+        self.sparse = small_model_path(*self.small_path_signals(q, B, decision)) == "sparse"
         if self.sparse and self._sparse_engine is None:
             self._sparse_engine = make_engine(
                 self._asm, self.rank_tol, self.position_tol, self.max_newton, True,
