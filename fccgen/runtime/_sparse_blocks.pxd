@@ -17,6 +17,8 @@ cdef class SparseBlocks(Engine):
     cdef double *ly               # local: an element's share of a product
     cdef double *alpha            # m: penalty per row
     cdef double *rnorm            # m: ||B_k||
+    cdef bint norms_fresh         # rnorm is of the Jacobian blocks held
+    cdef bint held                # an LDL^T of A is held (the last factor succeeded)
     cdef int *perm                # new -> old
     cdef int *Ap
     cdef int *Ai
@@ -78,6 +80,7 @@ cdef class SparseBlocks(Engine):
     cdef void mult_b(self, const double *x, double *y) noexcept nogil
     cdef void mult_bt(self, const double *z, const double *s, double *y) noexcept nogil
     cdef void gather_dense(self) noexcept nogil
-    cdef double row_norms(self) noexcept nogil
+    cdef void row_norms(self) noexcept nogil
+    cdef double penalties(self) noexcept nogil
     cdef double scaled_residual_sparse(self) noexcept nogil
     cdef void solve_a(self, double *x) noexcept nogil

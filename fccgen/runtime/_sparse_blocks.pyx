@@ -592,6 +592,7 @@ cdef class SparseBlocks(Engine):
                         for b in range(nf):
                             dst[a * nf + b] = src[loc[a] * nq + loc[b]]
             if flags & ASM_B and k.constraint_jacobian != NULL:
+                self.norms_fresh = False
                 k.constraint_jacobian(self.lq, p, self.Bblk + self.bptr[e])
                 if self.compact:
                     src = self.Bblk + self.bptr[e]
@@ -699,17 +700,37 @@ cdef class SparseBlocks(Engine):
                 for a in range(nq):
                     Bd[(row + r) * n + idx[a]] += blk[r * nq + a]
 
-    cdef double row_norms(self) noexcept nogil:
-        """rnorm_k = ||B_k|| (the whole row, pinned coordinates too); alpha_k =
-        RHO m_ref / s_k^2 with s_k = max(||B_k||, ROW_FLOOR * the largest row norm of
-        B_k's element), 0 for a zero row; m_ref = the largest diagonal entry of M (on
-        the solve's view). Fixed rows (set_pinned) keep their constant norms and no
-        penalty. Returns m_ref."""
-        cdef int e, r, j, nq, nf, ng, row
-        cdef double acc, largest, s, mref = 0.0
+    cdef void row_norms(self) noexcept nogil:
+        """rnorm_k = ||B_k|| (the whole row, pinned coordinates too) of the kept rows,
+        from the Jacobian blocks; once per assembly of B (norms_fresh)."""
+        cdef int e, r, j, nq
+        cdef double acc
         cdef const double *blk
         cdef const int *rows
         cdef const int *rl
+        for e in range(self.asm.n_el):
+            nq = self.asm.cls[e].n_q
+            blk = self.Bblk + self.bptr[e]
+            rows = self.srow + self.sgptr[e]
+            rl = self.srloc + self.sgptr[e]
+            for r in range(self.sng[e]):
+                acc = 0.0
+                for j in range(nq):
+                    acc += blk[rl[r] * nq + j] * blk[rl[r] * nq + j]
+                self.rnorm[rows[r]] = sqrt(acc)
+        self.norms_fresh = True
+
+    cdef double penalties(self) noexcept nogil:
+        """alpha_k = RHO m_ref / s_k^2 with s_k = max(||B_k||, ROW_FLOOR * the largest
+        row norm of B_k's element), 0 for a zero row; m_ref = the largest diagonal
+        entry of M (on the solve's view). Fixed rows (set_pinned) keep their constant
+        norms and no penalty. The row norms first, unless fresh. Returns m_ref."""
+        cdef int e, r, j, nf, ng, row
+        cdef double largest, s, mref = 0.0
+        cdef const double *blk
+        cdef const int *rows
+        if not self.norms_fresh:
+            self.row_norms()
         for e in range(self.asm.n_el):
             if self.mcptr[e + 1] == self.mcptr[e]:
                 continue
@@ -721,17 +742,10 @@ cdef class SparseBlocks(Engine):
         if not mref > 0.0:
             mref = 1.0
         for e in range(self.asm.n_el):
-            nq = self.asm.cls[e].n_q
             ng = self.sng[e]
-            blk = self.Bblk + self.bptr[e]
             rows = self.srow + self.sgptr[e]
-            rl = self.srloc + self.sgptr[e]
             largest = self.efix[e]
             for r in range(ng):
-                acc = 0.0
-                for j in range(nq):
-                    acc += blk[rl[r] * nq + j] * blk[rl[r] * nq + j]
-                self.rnorm[rows[r]] = sqrt(acc)
                 if self.rnorm[rows[r]] > largest:
                     largest = self.rnorm[rows[r]]
             for r in range(ng):
@@ -747,7 +761,8 @@ cdef class SparseBlocks(Engine):
         assembled g and the row norms of the Jacobian blocks."""
         cdef int k
         cdef double worst = 0.0, val
-        self.row_norms()
+        if not self.norms_fresh:
+            self.row_norms()
         for k in range(self.m):
             val = fabs(self.asm.g[k])
             if self.rnorm[k] > 0.0:
@@ -768,11 +783,12 @@ cdef class SparseBlocks(Engine):
         cdef const double *bb
         cdef double val
         self.factor_valid = False
+        self.held = False
         if not self.ready:
             return self.fail(ERR_LAPACK, -1, 0)
         if self.tripped:
             return self.fail(ERR_PATTERN, 0, 0)
-        self.row_norms()
+        self.penalties()
         memset(self.Ax, 0, <size_t>self.nnz_a * sizeof(double))
         for e in range(self.asm.n_el):
             if self.emap_ptr[e + 1] == self.emap_ptr[e]:
@@ -798,6 +814,7 @@ cdef class SparseBlocks(Engine):
         info = ldl_numeric(self.n, self.Ap, self.Ai, self.Ax, self.Lp, self.Li, self.Rp,
                            self.Rj, self.Rpos, self.Lx, self.D, self.Y, PIVOT_TOL)
         if info == 0:
+            self.held = True
             return 0
         bad = self.nonfinite_input(q, NULL, ASM_M | ASM_B)
         if bad:
