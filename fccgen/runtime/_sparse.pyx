@@ -96,6 +96,7 @@ cdef class SparseEngine(ALRefinement):
     cdef object start_basis           # the watch's basis from the SVD at that start
     cdef int start_n_track
     cdef long n_fallback              # unconverged solves redone by the dense solve
+    cdef double *mv                   # n: M v of the velocity projection
     cdef readonly int dense_fallback_max
 
     def __cinit__(self, *args, **kwargs):
@@ -103,10 +104,11 @@ cdef class SparseEngine(ALRefinement):
         self.bn = <double *>alloc_zeroed(self.m * TRACK_MAX, sizeof(double))
         self.xw = <double *>alloc_zeroed(self.n, sizeof(double))
         self.rs = <double *>alloc_zeroed(self.m, sizeof(double))
+        self.mv = <double *>alloc_zeroed(self.n, sizeof(double))
         self.dense_fallback_max = DENSE_FALLBACK_MAX
 
     def __dealloc__(self):
-        free(self.track); free(self.bn); free(self.xw); free(self.rs)
+        free(self.track); free(self.bn); free(self.xw); free(self.rs); free(self.mv)
 
     def decide_rank(self, q, rank):
         """Keep the decision for the reports (the solve itself needs no rank), start
@@ -262,7 +264,8 @@ cdef class SparseEngine(ALRefinement):
         if self.factor(q) < 0:
             return -1
         self.velocity_targets(q, self.nb)
-        self.solve_constrained(NULL, v, self.nb, self.vtmp)
+        self.mult_m_full(v, self.mv, False)     # M v whole: v may move pinned coordinates
+        self.solve_constrained(self.mv, NULL, self.nb, self.vtmp)
         if self.finish(q, v, self.vtmp, ASM_M | ASM_B) < 0:
             return -1
         self.watch_kinetic_energy(v, self.vtmp)
@@ -426,16 +429,23 @@ cdef class SparseEngine(ALRefinement):
             b[i] = -self.asm.gt[i]
 
     cdef void watch_kinetic_energy(self, const double *v, const double *w) noexcept nogil:
-        """As Engine.watch_kinetic_energy, with M v from the blocks."""
+        """As Engine.watch_kinetic_energy, with M v from the velocity projection (mv).
+        The energy removed is (v - w)^T M (v - w) = (v - w)^T M v - w^T B^T mu, and
+        B w = 0 when no constraint depends on time: then one product, M v, gives both
+        numbers (w^T M (v - w) is rounding, about 1e-16 |w| |M (v - w)|); with
+        time-dependent constraints, a second product with v - w."""
         cdef int i, n = self.n
         cdef double before = 0.0, cut = 0.0
-        self.mult_m_full(v, self.r1, False)
         for i in range(n):
             self.dx[i] = v[i] - w[i]
-        self.mult_m_full(self.dx, self.t, False)
-        for i in range(n):
-            before += v[i] * self.r1[i]
-            cut += self.dx[i] * self.t[i]
+            before += v[i] * self.mv[i]
+        if self.asm.n_time:
+            self.mult_m_full(self.dx, self.t, False)
+            for i in range(n):
+                cut += self.dx[i] * self.t[i]
+        else:
+            for i in range(n):
+                cut += self.dx[i] * self.mv[i]
         if before > self.ke_peak:
             self.ke_peak = before
         if before > 1e-6 * self.ke_peak and before > 0.0 and cut / before > self.ke_cut_max:
