@@ -31,6 +31,6 @@ cdef class ALRefinement(SparseBlocks):
     cdef void first_pass(self, const double *b, bint warm, double *y) noexcept nogil
     cdef int correction(self, double *rz_stop) noexcept nogil
     cdef bint kkt_solve(self, const double *Q, const double *w, const double *b,
-                        double *x, bint warm) noexcept nogil
+                        double *x, bint warm, bint newton) noexcept nogil
     cdef int refine(self, const double *b, double *x, bint warm,
-                    int *solves) noexcept nogil
+                    int *solves, double stop) noexcept nogil

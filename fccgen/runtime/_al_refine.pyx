@@ -53,6 +53,13 @@ from ._sparse_blocks import PENALTY
 # that chain takes 180 steps there (80 eigenvalues of diag(alpha) B A^{-1} B^T spread
 # between 1e-10 and 0.99: every loop's row nearly dependent).
 cdef double AL_STOP = 1e-15
+# A Newton step of the position projection stops at NEWTON_STOP instead (kkt_solve's
+# newton): an error e |dq| in the step leaves about e times the residual it removes,
+# and moves q by e |dq| along the constraints, with |dq| about the position tolerance
+# (1e-11 of the model's size); the next residual check judges the step. Where the
+# rows are well conditioned the second step's estimate is about 1e-14 |x|, so these
+# solves take two steps instead of three.
+cdef double NEWTON_STOP = 1e-8
 cdef int AL_MAX = 8
 cdef double SLOW = 0.05
 cdef double CG_TOL = 1e-8
@@ -303,13 +310,14 @@ cdef class ALRefinement(SparseBlocks):
         return self.cg_steps + 1
 
     cdef bint kkt_solve(self, const double *Q, const double *w, const double *b,
-                        double *x, bint warm) noexcept nogil:
+                        double *x, bint warm, bint newton) noexcept nogil:
         """x of M x + B^T lambda = Q + M w, B x = b (Q, w, b may be NULL: zero):
         iterative refinement with the true residuals r1 = Q + M w - M x - B^T lambda,
         r2 = b - B x (:meth:`refine`). warm (the accelerations): lambda starts from
         the last converged acceleration solve's multipliers (module constants, "Warm
         start"), else from zero; a warm start that meets a slow step starts again
-        from zero. Returns whether the refinement converged."""
+        from zero. newton: a Newton step's solve, whose augmented-Lagrangian steps
+        stop at NEWTON_STOP. Returns whether the refinement converged."""
         cdef int i, status, solves = 0, n = self.n, m = self.m
         memset(self.base, 0, <size_t>n * sizeof(double))
         if Q != NULL:
@@ -322,10 +330,11 @@ cdef class ALRefinement(SparseBlocks):
         status = -1
         if warm and self.warm_valid:
             memcpy(self.lam, self.lam_warm, <size_t>m * sizeof(double))
-            status = self.refine(b, x, True, &solves)
+            status = self.refine(b, x, True, &solves, AL_STOP)
         if status < 0:
             memset(self.lam, 0, <size_t>m * sizeof(double))
-            status = self.refine(b, x, False, &solves)
+            status = self.refine(b, x, False, &solves,
+                                 NEWTON_STOP if newton else AL_STOP)
         if warm:
             self.warm_valid = status == 1
             if status == 1:
@@ -338,9 +347,10 @@ cdef class ALRefinement(SparseBlocks):
         return status == 1
 
     cdef int refine(self, const double *b, double *x, bint warm,
-                    int *solves) noexcept nogil:
+                    int *solves, double stop) noexcept nogil:
         """The refinement of kkt_solve from x = 0 and the multipliers in lam (zero
-        unless warm), the solves with A added to solves[0]. Each correction is one
+        unless warm), the solves with A added to solves[0]; the augmented-Lagrangian
+        steps stop when the estimated remaining change is at most stop |x|. Each correction is one
         augmented-Lagrangian step (module docstring), its right-hand side and the
         previous step's multiplier update formed in one pass (:meth:`residual_pass`),
         while those converge fast; once a step shrinks the change by less than SLOW
@@ -389,7 +399,7 @@ cdef class ALRefinement(SparseBlocks):
                     return 0
             elif it > 0:
                 rate = nd / prev
-                if rate < 0.5 and nd * rate / (1.0 - rate) <= AL_STOP * nx:
+                if rate < 0.5 and nd * rate / (1.0 - rate) <= stop * nx:
                     return 1
                 if rate > SLOW:
                     cg = 1

@@ -64,6 +64,7 @@ cdef class Engine:
     cdef double constraint_residual(self) noexcept nogil
     cdef void solve_constrained(self, const double *Q, const double *w, const double *b,
                                 double *x) noexcept nogil
+    cdef void solve_newton(self, const double *b, double *x) noexcept nogil
     cdef int project_positions_at(self, double *q, int *iterations) noexcept nogil
     cdef int project_velocities_at(self, const double *q, double *v,
                                    bint have_B) noexcept nogil

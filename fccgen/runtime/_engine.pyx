@@ -226,13 +226,19 @@ cdef class Engine:
         the factorisation at hand."""
         csolve_apply(&self.sol, Q, w, b, x)
 
+    cdef void solve_newton(self, const double *b, double *x) noexcept nogil:
+        """x of a Newton step, M x + B^T mu = 0, B x = b, with the factorisation at
+        hand. Its accuracy need only be far below the step's own (the next residual
+        check judges the step): the sparse path stops its refinement sooner."""
+        self.solve_constrained(NULL, NULL, b, x)
+
     cdef int project_positions_at(self, double *q, int *iterations) noexcept nogil:
         """Newton on g(q) = 0, in place: dq = argmin dq^T M dq / 2 subject to
         B dq = -g, with g and B at every iterate and the metric M at the starting
         point. Returns 0 (converged), 1 (not within max_newton) or -1 (error). Leaves g
         and B assembled at the final q. One loop for both paths: the assembly, the
         residual and the solve are the engine's own (assemble_constraints,
-        constraint_residual, solve_constrained)."""
+        constraint_residual, solve_newton)."""
         cdef int i, it = 0
         cdef double res
         self.assemble_constraints(q, ASM_G | ASM_B)
@@ -259,7 +265,7 @@ cdef class Engine:
                 return -1
             for i in range(self.m):
                 self.nb[i] = -self.asm.g[i]
-            self.solve_constrained(NULL, NULL, self.nb, self.dq)
+            self.solve_newton(self.nb, self.dq)
             for i in range(self.n):
                 q[i] += self.dq[i]
             it += 1

@@ -198,7 +198,7 @@ cdef class SparseEngine(ALRefinement):
             self.rhs[i] = self.asm.f[i] - self.asm.h[i]
         for i in range(self.m):
             self.nb[i] = -self.asm.c[i]
-        self.solve_kkt(self.rhs, NULL, self.nb, a, True)
+        self.solve_kkt(self.rhs, NULL, self.nb, a, True, False)
         return self.finish(q, v, a, flags)
 
     cdef int baumgarte_at(self, const double *q, const double *v, double *a,
@@ -212,7 +212,7 @@ cdef class SparseEngine(ALRefinement):
         for i in range(self.n):
             self.rhs[i] = self.asm.f[i] - self.asm.h[i]
         self.baumgarte_targets(v, alpha, beta, self.nb)
-        self.solve_kkt(self.rhs, NULL, self.nb, a, True)
+        self.solve_kkt(self.rhs, NULL, self.nb, a, True, False)
         return self.finish(q, v, a, flags)
 
     cdef void baumgarte_targets(self, const double *v, double alpha, double beta,
@@ -243,15 +243,20 @@ cdef class SparseEngine(ALRefinement):
 
     cdef void solve_constrained(self, const double *Q, const double *w, const double *b,
                                 double *x) noexcept nogil:
-        """solve_kkt, started from zero multipliers (projections and Newton steps)."""
-        self.solve_kkt(Q, w, b, x, False)
+        """solve_kkt, started from zero multipliers (projections)."""
+        self.solve_kkt(Q, w, b, x, False, False)
+
+    cdef void solve_newton(self, const double *b, double *x) noexcept nogil:
+        """solve_kkt of a Newton step (_al_refine.pyx, NEWTON_STOP)."""
+        self.solve_kkt(NULL, NULL, b, x, False, True)
 
     cdef void solve_kkt(self, const double *Q, const double *w, const double *b,
-                        double *x, bint warm) noexcept nogil:
-        """kkt_solve (warm: from the last accelerations' multipliers); when it did
-        not converge, the dense solve instead (module docstring) if the model is small
-        enough and M, B factor there."""
-        if self.kkt_solve(Q, w, b, x, warm) or self.n > self.dense_fallback_max:
+                        double *x, bint warm, bint newton) noexcept nogil:
+        """kkt_solve (warm: from the last accelerations' multipliers; newton: a Newton
+        step's); when it did not converge, the dense solve instead (module docstring)
+        if the model is small enough and M, B factor there."""
+        if (self.kkt_solve(Q, w, b, x, warm, newton)
+                or self.n > self.dense_fallback_max):
             return
         self.gather_dense()
         if csolve_factor(&self.sol, self.asm.M, self.asm.B) == 0:
