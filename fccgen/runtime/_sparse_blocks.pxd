@@ -23,8 +23,11 @@ cdef class SparseBlocks(Engine):
     cdef int *Ap
     cdef int *Ai
     cdef double *Ax
-    cdef int *emap_ptr
-    cdef int *emap
+    cdef int *ent_ptr             # per element: start of its entries of A (n_el + 1)
+    cdef int *ent_a               # each entry's local row and column on the view
+    cdef int *ent_b
+    cdef int *ent_pos             # and its place in Ax
+    cdef double *lb               # local: an element's rows times their penalties
     cdef int *Lp
     cdef int *Li
     cdef int *Rp                  # row patterns of L (_ldl.ldl_rows)

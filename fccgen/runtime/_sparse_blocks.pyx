@@ -227,8 +227,8 @@ cdef class SparseBlocks(Engine):
         free(self.mptr); free(self.bptr); free(self.Mblk); free(self.Bblk); free(self.lq)
         free(self.ly); free(self.alpha); free(self.rnorm); free(self.t)
         free(self.zero_m); free(self.zero_b); free(self.zero_m_tol); free(self.zero_b_tol)
-        free(self.perm); free(self.Ap); free(self.Ai); free(self.Ax); free(self.emap_ptr)
-        free(self.emap); free(self.Lp); free(self.Li); free(self.Lx); free(self.D)
+        free(self.perm); free(self.Ap); free(self.Ai); free(self.Ax); free(self.ent_ptr)
+        free(self.ent_a); free(self.ent_b); free(self.ent_pos); free(self.lb); free(self.Lp); free(self.Li); free(self.Lx); free(self.D)
         free(self.parent); free(self.Lnz); free(self.flag); free(self.pattern)
         free(self.Y); free(self.Rp); free(self.Rj); free(self.Rpos)
 
@@ -242,7 +242,7 @@ cdef class SparseBlocks(Engine):
         cdef int[::1] aiv = np.ascontiguousarray(Ai, dtype=np.intc)
         cdef int[::1] epv = np.ascontiguousarray(emap_ptr, dtype=np.intc)
         cdef int[::1] ev = np.ascontiguousarray(emap, dtype=np.intc)
-        cdef int n = self.n, i, k
+        cdef int n = self.n, i, k, e, nq
         if pv.shape[0] != n or apv.shape[0] != n + 1 or epv.shape[0] != self.asm.n_el + 1:
             raise ValueError("the structure does not match the engine's sizes")
         if sorted(np.asarray(pv).tolist()) != list(range(n)):
@@ -252,20 +252,34 @@ cdef class SparseBlocks(Engine):
         self.Ap = <int *>alloc_zeroed(n + 1, sizeof(int))
         self.Ai = <int *>alloc_zeroed(self.nnz_a, sizeof(int))
         self.Ax = <double *>alloc_zeroed(self.nnz_a, sizeof(double))
-        self.emap_ptr = <int *>alloc_zeroed(self.asm.n_el + 1, sizeof(int))
-        self.emap = <int *>alloc_zeroed(ev.shape[0], sizeof(int))
         for i in range(n):
             self.perm[i] = pv[i]
         for i in range(n + 1):
             self.Ap[i] = apv[i]
         for i in range(self.nnz_a):
             self.Ai[i] = aiv[i]
-        for i in range(self.asm.n_el + 1):
-            self.emap_ptr[i] = epv[i]
         for i in range(ev.shape[0]):
             if not -1 <= ev[i] < self.nnz_a:
                 raise ValueError("scatter map index out of range")
-            self.emap[i] = ev[i]
+        # each element's entries of A as a list (local a, b; place in Ax), without
+        # the pairs the map leaves out (the lower triangle, entries zero in the plane)
+        ent_a, ent_b, ent_pos, ent_ptr, largest = [], [], [], [0], 1
+        for e in range(self.asm.n_el):
+            nq = self.snq[e]
+            if epv[e + 1] > epv[e] and epv[e + 1] - epv[e] != nq * nq:
+                raise ValueError("the scatter map does not match the solve's view")
+            for i in range(epv[e], epv[e + 1]):
+                if ev[i] >= 0:
+                    ent_a.append((i - epv[e]) // nq)
+                    ent_b.append((i - epv[e]) % nq)
+                    ent_pos.append(ev[i])
+            ent_ptr.append(len(ent_pos))
+            largest = max(largest, nq * self.sng[e])
+        self.ent_ptr = int_array(ent_ptr)
+        self.ent_a = int_array(ent_a)
+        self.ent_b = int_array(ent_b)
+        self.ent_pos = int_array(ent_pos)
+        self.lb = <double *>alloc_zeroed(largest, sizeof(double))
         self.Lp = <int *>alloc_zeroed(n + 1, sizeof(int))
         self.parent = <int *>alloc_zeroed(n, sizeof(int))
         self.Lnz = <int *>alloc_zeroed(n, sizeof(int))
@@ -776,8 +790,8 @@ cdef class SparseBlocks(Engine):
     # -- factorisation and solve ----------------------------------------------------
     cdef int factor(self, const double *q) noexcept nogil:
         """A = M + B^T diag(alpha) B from the blocks, and its LDL^T."""
-        cdef int e, a, b, r, nq, ng, pos, info, bad
-        cdef const int *em
+        cdef int e, a, b, r, nq, ng, info, bad
+        cdef int t
         cdef const int *rows
         cdef const double *mb
         cdef const double *bb
@@ -791,23 +805,23 @@ cdef class SparseBlocks(Engine):
         self.penalties()
         memset(self.Ax, 0, <size_t>self.nnz_a * sizeof(double))
         for e in range(self.asm.n_el):
-            if self.emap_ptr[e + 1] == self.emap_ptr[e]:
+            if self.ent_ptr[e + 1] == self.ent_ptr[e]:
                 continue
             nq = self.snq[e]
             ng = self.sng[e]
-            em = self.emap + self.emap_ptr[e]
             mb = self.Mc + self.mcptr[e] if self.mcptr[e + 1] > self.mcptr[e] else NULL
             bb = self.Bc + self.bcptr[e]
             rows = self.srow + self.sgptr[e]
-            for a in range(nq):
-                for b in range(nq):
-                    pos = em[a * nq + b]
-                    if pos < 0:
-                        continue
-                    val = mb[a * nq + b] if mb != NULL else 0.0
-                    for r in range(ng):
-                        val += bb[r * nq + a] * self.alpha[rows[r]] * bb[r * nq + b]
-                    self.Ax[pos] += val
+            for r in range(ng):                 # the rows scaled by their penalties
+                for a in range(nq):
+                    self.lb[r * nq + a] = bb[r * nq + a] * self.alpha[rows[r]]
+            for t in range(self.ent_ptr[e], self.ent_ptr[e + 1]):
+                a = self.ent_a[t]
+                b = self.ent_b[t]
+                val = mb[a * nq + b] if mb != NULL else 0.0
+                for r in range(ng):
+                    val += self.lb[r * nq + a] * bb[r * nq + b]
+                self.Ax[self.ent_pos[t]] += val
         for a in range(self.n_pinned):      # pinned: a unit diagonal, nothing else
             self.Ax[self.pin_diag[a]] = 1.0
         self.n_factor += 1
