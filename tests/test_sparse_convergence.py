@@ -149,3 +149,64 @@ def test_newton_steps_stop_sooner_and_land_where_the_dense_ones_do(compiled):
     assert after["iterations"] - before["iterations"] == 2 * its
     assert np.max(np.abs(init.q)) <= 40.0
     assert np.max(np.abs(qs - qd)) < 1e-13
+
+
+def test_the_projection_after_a_step_takes_chord_steps(compiled):
+    """After an RK4 step the position projection's Newton steps are chord steps with
+    the last stage's M, B and factorisation (runtime/_sparse.pyx, "Chord steps"): over
+    0.5 s of the four-bar every Newton step is one and none is undone, so a step makes
+    four factorisations (the velocity projection's serves the next first stage) and
+    max |g| stays within the tolerance. The runs' agreement with the dense path is
+    tests/test_sparse_path.py's."""
+    shared = compiled("four_bar")
+    solver = CompiledSolver(shared.plan, shared.module, linear_solver="sparse")
+    init = solver.initial_state()
+    result = solver.simulate(t_end=0.5, dt=1e-3, output_dt=0.1, reactions=False,
+                             q0=init.q, v0=init.v)
+    stats = solver._engine.rank_statistics()
+    assert result.info["newton_iterations"] > 50
+    assert stats["chord_steps"] == result.info["newton_iterations"]
+    assert stats["chord_steps_undone"] == 0
+    assert stats["factorisations"] == 4 * result.info["steps"] + 1
+    assert result.info["max_constraint_error"] <= solver.position_tol * 10
+
+
+def test_chord_steps_are_kept_only_where_they_match_the_exact_ones(compiled):
+    """With a factorisation made 1e-6 m from q (as after an RK4 step), a chord step
+    from 1e-10 m off the constraints is kept and lands within 1e-14 m of the exact
+    projection (its move along the constraints is about the step times the relative
+    change d of B, 1e-5); from 1e-7 m off, the same move (measured 1.7e-12 m) would
+    pass CHORD_DRIFT of the tolerance, so it is undone; with a factorisation made at a
+    position of the loop about 0.05 m away, the step leaves more than CHORD_GAIN of
+    the residual and is undone. Undone steps leave exact steps, which give the exact
+    projection's point. (B at q with the stage's factorisation would move q by about
+    1e7 d times the step.)"""
+    shared = compiled("four_bar")
+    solver = CompiledSolver(shared.plan, shared.module, linear_solver="sparse")
+    engine = solver._engine
+    init = solver.initial_state()
+    kick = np.random.default_rng(11).standard_normal(solver.n_q)
+    kick[2::3] = 0.0
+    zeros_q, zeros_g = np.zeros(solver.n_q), np.zeros(solver.n_g)
+
+    def chord(q, factor_at):
+        exact, _, ok, _ = engine.project_positions(q)
+        assert ok
+        engine.solve_at(factor_at, zeros_q, zeros_g)
+        before = engine.rank_statistics()
+        got, iterations, ok, _ = engine.project_positions(q, reuse=True)
+        after = engine.rank_statistics()
+        assert ok and iterations >= 1
+        kept = after["chord_steps"] - before["chord_steps"]
+        undone = after["chord_steps_undone"] - before["chord_steps_undone"]
+        return kept, undone, float(np.max(np.abs(got - exact)))
+
+    q = init.q + 1e-10 * kick
+    kept, undone, off = chord(q, q + 1e-6 * kick)
+    assert kept >= 1 and undone == 0 and off < 1e-14
+    q = init.q + 1e-7 * kick
+    kept, undone, off = chord(q, q + 1e-6 * kick)
+    assert kept == 0 and undone == 1 and off < 1e-15
+    far, _ = solver.project_positions(init.q + 0.05 * kick)   # another position
+    kept, undone, off = chord(q, far)
+    assert kept == 0 and undone == 1 and off < 1e-15

@@ -164,17 +164,18 @@ cdef void _dense(Run *r, double h) noexcept nogil:
                           + D5 * r.k[4][i] + D6 * r.k[5][i] + D7 * r.k[6][i])
 
 
-cdef int _project(Engine e, Run *r, double *y) noexcept nogil:
-    """Position then velocity projection of y = (q, v), in place."""
+cdef int _project(Engine e, Run *r, double *y, bint reuse) noexcept nogil:
+    """Position then velocity projection of y = (q, v), in place; reuse: M, B and the
+    factorisation held are the last stage's, at y (Engine.project_positions_at)."""
     cdef int rc, it = 0, n = r.n2 // 2
     e.err_where = AT_POSITIONS
-    rc = e.project_positions_at(y, &it)
+    rc = e.project_positions_at(y, &it, reuse)
     if rc < 0:
         return -1
     r.failures += rc
     r.newton_total += it
     e.err_where = AT_VELOCITIES
-    if e.project_velocities_at(y, y + n, True) < 0:
+    if e.project_velocities_at(y, y + n, e.b_fresh) < 0:
         return -1
     if r.ev != NULL:
         return ev_correct(e, r.ev, y, y + n)
@@ -265,7 +266,7 @@ cdef int _record(Engine e, Run *r) noexcept nogil:
         _dense_at(r, (r.t_req[j] - r.t0) / r.h, r.yt)
         if r.project:
             e.asm.put_time(r.t_req[j])
-            if _project(e, r, r.yt) < 0:
+            if _project(e, r, r.yt, False) < 0:
                 return -1
             e.factor_valid = False        # the factorisation is not the one at r.y
     else:
@@ -281,6 +282,7 @@ cdef int _record(Engine e, Run *r) noexcept nogil:
 cdef int _accept(Engine e, Run *r, double h) noexcept nogil:
     """Take the accepted step y -> y1: outputs in (t, t + h], projection, next K1."""
     cdef int n = r.n2 // 2, k = -1
+    cdef long recorded
     cdef double th = 1.0, t1
     _dense(r, h)
     r.t0 = r.t
@@ -294,6 +296,7 @@ cdef int _accept(Engine e, Run *r, double h) noexcept nogil:
             _dense_at(r, th, r.y1)
     r.t = t1
     r.accepted += 1
+    recorded = r.n_out
     while r.n_out < r.n_req and r.t_req[r.n_out] <= r.t * (1 + 4 * UROUND):
         if _record(e, r) < 0:
             return -1
@@ -304,7 +307,8 @@ cdef int _accept(Engine e, Run *r, double h) noexcept nogil:
         return e.fail(ERR_NONFINITE_INPUT, 0, 1 if not finite(r.y, n) else 2)
     if r.project:
         e.asm.put_time(r.t)
-        if _project(e, r, r.y) < 0:
+        # stage 7's M, B and factorisation are at y1, unless a record projected since
+        if _project(e, r, r.y, r.n_out == recorded and r.ev == NULL) < 0:
             return -1
         if r.ev != NULL:
             if _after_event(e, r, k) < 0:

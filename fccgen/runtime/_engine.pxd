@@ -42,6 +42,7 @@ cdef class Engine:
     cdef int *row_group                  # per constraint row: its element's first row
     cdef double *stages                  # 10 n numbers for an integrator's stages
     cdef bint factor_valid               # sol holds the factorisation of M, B at the state
+    cdef bint b_fresh                    # the last position projection left B at its q
     cdef bint running                    # an integrator is using the engine
     # rank decisions: each accepted increase of the decided rank (time, old, new)
     cdef double ke_peak                  # largest kinetic energy met by a velocity projection
@@ -65,7 +66,10 @@ cdef class Engine:
     cdef void solve_constrained(self, const double *Q, const double *w, const double *b,
                                 double *x) noexcept nogil
     cdef void solve_newton(self, const double *b, double *x) noexcept nogil
-    cdef int project_positions_at(self, double *q, int *iterations) noexcept nogil
+    cdef int project_positions_at(self, double *q, int *iterations,
+                                  bint reuse) noexcept nogil
+    cdef bint chord_ready(self) noexcept nogil
+    cdef int chord_step(self, double *q, double *res) noexcept nogil
     cdef int project_velocities_at(self, const double *q, double *v,
                                    bint have_B) noexcept nogil
     cdef void watch_kinetic_energy(self, const double *v, const double *w) noexcept nogil

@@ -232,16 +232,23 @@ cdef class Engine:
         check judges the step): the sparse path stops its refinement sooner."""
         self.solve_constrained(NULL, NULL, b, x)
 
-    cdef int project_positions_at(self, double *q, int *iterations) noexcept nogil:
+    cdef int project_positions_at(self, double *q, int *iterations,
+                                  bint reuse) noexcept nogil:
         """Newton on g(q) = 0, in place: dq = argmin dq^T M dq / 2 subject to
         B dq = -g, with g and B at every iterate and the metric M at the starting
         point. Returns 0 (converged), 1 (not within max_newton) or -1 (error). Leaves g
-        and B assembled at the final q. One loop for both paths: the assembly, the
-        residual and the solve are the engine's own (assemble_constraints,
-        constraint_residual, solve_newton)."""
+        assembled at the final q, and B when b_fresh. One loop for both paths: the
+        assembly, the residual and the solve are the engine's own
+        (assemble_constraints, constraint_residual, solve_newton). reuse: M, B and the
+        factorisation held are an integrator's last stage's, near q; an engine that can
+        (chord_ready) first takes chord steps with them (chord_step), and the first one
+        that does not converge as it should is undone: exact steps from there."""
         cdef int i, it = 0
         cdef double res
-        self.assemble_constraints(q, ASM_G | ASM_B)
+        cdef bint exact = False
+        reuse = reuse and self.chord_ready()
+        self.b_fresh = not reuse
+        self.assemble_constraints(q, ASM_G if reuse else ASM_G | ASM_B)
         res = self.constraint_residual()
         while True:
             if not isfinite(res):
@@ -258,8 +265,18 @@ cdef class Engine:
             if it >= self.max_newton:
                 iterations[0] = it
                 return 1
-            if it == 0:
-                self.assemble_constraints(q, ASM_M)
+            if reuse:
+                i = self.chord_step(q, &res)
+                if i < 0:
+                    iterations[0] = it
+                    return -1
+                if i == 1:
+                    it += 1
+                    continue
+                reuse = False
+            if not exact:                       # the metric: M at the first exact step
+                self.assemble_constraints(q, ASM_M if self.b_fresh else ASM_M | ASM_B)
+                self.b_fresh = exact = True
             if self.factor(q) < 0:
                 iterations[0] = it
                 return -1
@@ -272,6 +289,17 @@ cdef class Engine:
             self.assemble_constraints(q, ASM_G | ASM_B)
             res = self.constraint_residual()
         iterations[0] = it
+        return 0
+
+    cdef bint chord_ready(self) noexcept nogil:
+        """Whether chord_step can be taken (the dense path: never; its factorisation
+        is a pivoted QR of one B, without the M and B it was made from)."""
+        return False
+
+    cdef int chord_step(self, double *q, double *res) noexcept nogil:
+        """A chord step from q (g assembled there, residual res[0]) with the M, B and
+        factorisation held: 1 when kept (q moved, g assembled there, res[0] its
+        residual), 0 when undone (q and g as they were), -1 on an error."""
         return 0
 
     cdef int project_velocities_at(self, const double *q, double *v,
@@ -380,13 +408,15 @@ cdef class Engine:
             self.raise_error(AT_CALL)
         return a
 
-    def project_positions(self, q):
+    def project_positions(self, q, bint reuse=False):
         """(q_new, iterations, converged, residual): Newton projection of q onto
-        g(q) = 0; residual is max_k |g_k| / ||B_k|| at q_new."""
+        g(q) = 0; residual is max_k |g_k| / ||B_k|| at q_new. reuse: chord steps first
+        with the M, B and factorisation held (as after an integrator's step; for
+        tests)."""
         cdef double[::1] qv = self.vector(q, "q")
         cdef int rc, it = 0
         with nogil:
-            rc = self.project_positions_at(&qv[0], &it)
+            rc = self.project_positions_at(&qv[0], &it, reuse)
         if rc < 0:
             self.raise_error(AT_POSITIONS)
         return np.asarray(qv), it, rc == 0, self.constraint_residual()

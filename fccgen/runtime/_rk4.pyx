@@ -112,7 +112,8 @@ cdef int _step(Engine e, Run *r, double t, double h) noexcept nogil:
 
 
 cdef int _after_step(Engine e, Run *r) noexcept nogil:
-    """Check the new state, project it (if asked) and track max |g|."""
+    """Check the new state, project it (if asked) and track max |g|. Follows a
+    _step, whose last stage left M, B and their factorisation at q + h v3."""
     cdef int rc, it = 0
     cdef double cerr
     if not (finite(r.q, e.n) and finite(r.v, e.n)):
@@ -123,7 +124,7 @@ cdef int _after_step(Engine e, Run *r) noexcept nogil:
         return e.fail(ERR_DIVERGED, 0, 1 if e.err_bound == r.q_bound else 2)
     if r.project:
         e.err_where = AT_POSITIONS
-        rc = e.project_positions_at(r.q, &it)
+        rc = e.project_positions_at(r.q, &it, True)  # M, B, factor held: stage 4's
         if rc < 0:
             return -1
         r.failures += rc
@@ -132,7 +133,7 @@ cdef int _after_step(Engine e, Run *r) noexcept nogil:
             r.newton_max = it
         cerr = e.asm.max_abs_g()             # g is left assembled at the final q
         e.err_where = AT_VELOCITIES
-        if e.project_velocities_at(r.q, r.v, True) < 0:
+        if e.project_velocities_at(r.q, r.v, e.b_fresh) < 0:
             return -1
         if r.ev != NULL and ev_correct(e, r.ev, r.q, r.v) < 0:
             return -1
