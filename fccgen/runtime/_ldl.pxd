@@ -7,7 +7,7 @@ cdef void ldl_rows(int n, const int *Ap, const int *Ai, const int *Lp, const int
                    int *flag) noexcept nogil
 cdef int ldl_numeric(int n, const int *Ap, const int *Ai, const double *Ax,
                      const int *Lp, const int *Li, const int *Rp, const int *Rj,
-                     const int *Rpos, double *Lx, double *D, double *Y,
+                     const int *Rpos, double *Lx, double *Dinv, double *Y,
                      double pivot_tol) noexcept nogil
 cdef void ldl_solve(int n, const int *Lp, const int *Li, const double *Lx,
-                    const double *D, double *x) noexcept nogil
+                    const double *Dinv, double *x) noexcept nogil

@@ -80,11 +80,13 @@ cdef void ldl_rows(int n, const int *Ap, const int *Ai, const int *Lp, const int
 
 cdef int ldl_numeric(int n, const int *Ap, const int *Ai, const double *Ax,
                      const int *Lp, const int *Li, const int *Rp, const int *Rj,
-                     const int *Rpos, double *Lx, double *D, double *Y,
+                     const int *Rpos, double *Lx, double *Dinv, double *Y,
                      double pivot_tol) noexcept nogil:
-    """L (unit lower, strict part in Lp/Li/Lx) and D of A = L D L^T over the pattern of
-    ldl_rows. Y (n) must be zero on entry and is left zero. Returns 0, or k + 1 for the
-    first pivot D_k not above pivot_tol A_kk (not positive definite)."""
+    """L (unit lower, strict part in Lp/Li/Lx) and the reciprocal pivots Dinv = 1 / D
+    of A = L D L^T over the pattern of ldl_rows: one division per pivot, where
+    L_ki = y_i / D_i would take one per entry of L and each solve one per row. Y (n)
+    must be zero on entry and is left zero. Returns 0, or k + 1 for the first pivot
+    D_k not above pivot_tol A_kk (not positive definite)."""
     cdef int i, k, p, p2, t
     cdef double yi, l_ki, akk, dk
     for k in range(n):
@@ -102,28 +104,27 @@ cdef int ldl_numeric(int n, const int *Ap, const int *Ai, const double *Ax,
             p2 = Rpos[t]
             for p in range(Lp[i], p2):
                 Y[Li[p]] -= Lx[p] * yi
-            l_ki = yi / D[i]
+            l_ki = yi * Dinv[i]
             dk -= l_ki * yi
             Lx[p2] = l_ki
-        D[k] = dk
         if not dk > pivot_tol * akk:            # (Y is zero: row k is done)
             return k + 1
+        Dinv[k] = 1.0 / dk
     return 0
 
 
 cdef void ldl_solve(int n, const int *Lp, const int *Li, const double *Lx,
-                    const double *D, double *x) noexcept nogil:
-    """x <- A^{-1} x with A = L D L^T (in the permuted numbering)."""
+                    const double *Dinv, double *x) noexcept nogil:
+    """x <- A^{-1} x with A = L D L^T (in the permuted numbering): L y = x, then
+    L^T x = D^{-1} y, the scaling done in the backward sweep."""
     cdef int j, p
     cdef double xj
     for j in range(n):
         xj = x[j]
         for p in range(Lp[j], Lp[j + 1]):
             x[Li[p]] -= Lx[p] * xj
-    for j in range(n):
-        x[j] /= D[j]
     for j in range(n - 1, -1, -1):
-        xj = x[j]
+        xj = x[j] * Dinv[j]
         for p in range(Lp[j], Lp[j + 1]):
             xj -= Lx[p] * x[Li[p]]
         x[j] = xj

@@ -34,7 +34,7 @@ cdef class SparseBlocks(Engine):
     cdef int *Rj
     cdef int *Rpos
     cdef double *Lx
-    cdef double *D
+    cdef double *Dinv             # n: the reciprocal pivots 1 / D_k of the LDL^T
     cdef int *parent
     cdef int *Lnz
     cdef int *flag

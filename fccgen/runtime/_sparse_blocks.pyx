@@ -228,7 +228,8 @@ cdef class SparseBlocks(Engine):
         free(self.ly); free(self.alpha); free(self.rnorm); free(self.t)
         free(self.zero_m); free(self.zero_b); free(self.zero_m_tol); free(self.zero_b_tol)
         free(self.perm); free(self.Ap); free(self.Ai); free(self.Ax); free(self.ent_ptr)
-        free(self.ent_a); free(self.ent_b); free(self.ent_pos); free(self.lb); free(self.Lp); free(self.Li); free(self.Lx); free(self.D)
+        free(self.ent_a); free(self.ent_b); free(self.ent_pos); free(self.lb)
+        free(self.Lp); free(self.Li); free(self.Lx); free(self.Dinv)
         free(self.parent); free(self.Lnz); free(self.flag); free(self.pattern)
         free(self.Y); free(self.Rp); free(self.Rj); free(self.Rpos)
 
@@ -285,7 +286,7 @@ cdef class SparseBlocks(Engine):
         self.Lnz = <int *>alloc_zeroed(n, sizeof(int))
         self.flag = <int *>alloc_zeroed(n, sizeof(int))
         self.pattern = <int *>alloc_zeroed(n, sizeof(int))
-        self.D = <double *>alloc_zeroed(n, sizeof(double))
+        self.Dinv = <double *>alloc_zeroed(n, sizeof(double))
         self.Y = <double *>alloc_zeroed(n, sizeof(double))
         ldl_symbolic(n, self.Ap, self.Ai, self.Lp, self.parent, self.Lnz, self.flag)
         self.nnz_l = self.Lp[n]
@@ -826,7 +827,7 @@ cdef class SparseBlocks(Engine):
             self.Ax[self.pin_diag[a]] = 1.0
         self.n_factor += 1
         info = ldl_numeric(self.n, self.Ap, self.Ai, self.Ax, self.Lp, self.Li, self.Rp,
-                           self.Rj, self.Rpos, self.Lx, self.D, self.Y, PIVOT_TOL)
+                           self.Rj, self.Rpos, self.Lx, self.Dinv, self.Y, PIVOT_TOL)
         if info == 0:
             self.held = True
             return 0
@@ -840,7 +841,7 @@ cdef class SparseBlocks(Engine):
         cdef int i, n = self.n
         for i in range(n):
             self.t[i] = x[self.perm[i]]
-        ldl_solve(n, self.Lp, self.Li, self.Lx, self.D, self.t)
+        ldl_solve(n, self.Lp, self.Li, self.Lx, self.Dinv, self.t)
         for i in range(n):
             x[self.perm[i]] = self.t[i]
 
