@@ -7,6 +7,7 @@ cdef class ALRefinement(SparseBlocks):
     cdef double *r1
     cdef double *dx
     cdef double *base
+    cdef double *lz               # local: an element's row multipliers in a pass
     cdef double *lam              # m-vectors
     cdef double *lam_warm         # the last converged acceleration solve's multipliers
     cdef bint warm_valid          # lam_warm holds them (reset_warm_start: not)

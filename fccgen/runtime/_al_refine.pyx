@@ -115,6 +115,8 @@ cdef class ALRefinement(SparseBlocks):
         self.r1 = <double *>alloc_zeroed(n, sizeof(double))
         self.dx = <double *>alloc_zeroed(n, sizeof(double))
         self.base = <double *>alloc_zeroed(n, sizeof(double))
+        self.lz = <double *>alloc_zeroed(max([asm.cls[e].n_g for e in range(asm.n_el)]
+                                             + [1]), sizeof(double))
         self.cg_max = CG_MAX
         self.refine_max = REFINE_MAX
         self.al_max = AL_MAX
@@ -122,7 +124,7 @@ cdef class ALRefinement(SparseBlocks):
     def __dealloc__(self):
         free(self.lam); free(self.lam_warm); free(self.r2); free(self.bdx); free(self.res)
         free(self.mu); free(self.p); free(self.sp); free(self.u); free(self.w_n)
-        free(self.r1); free(self.dx); free(self.base)
+        free(self.r1); free(self.dx); free(self.base); free(self.lz)
 
     def limit_refinement(self, int corrections=REFINE_MAX, int cg_steps=CG_MAX,
                          int al_steps=AL_MAX):
@@ -165,14 +167,15 @@ cdef class ALRefinement(SparseBlocks):
         y = base - M x - B^T (lambda - alpha r2) when penalised (the right-hand side
         r1 + B^T alpha r2 of the next correction), y = r1 = base - M x - B^T lambda
         otherwise; rho = r2^T diag(alpha) r2. Each element's coordinates are gathered
-        and scattered once."""
-        cdef int e, a, r, nq, ng, row
+        and scattered once; each of its coordinates' share is summed in a register
+        (M row, then the rows' terms in order), not through memory."""
+        cdef int e, a, c, r, nq, ng, row
         cdef const int *idx
         cdef const int *rows
         cdef const double *mb
         cdef const double *bb
         cdef double *xl = self.lq
-        cdef double *yl = self.ly
+        cdef double *zl = self.lz
         cdef double acc, z
         memcpy(y, self.base, <size_t>self.n * sizeof(double))
         self.rho = 0.0
@@ -185,13 +188,6 @@ cdef class ALRefinement(SparseBlocks):
             idx = self.sidx + self.sptr[e]
             for a in range(nq):
                 xl[a] = x[idx[a]]
-                yl[a] = 0.0
-            if mb != NULL:
-                for a in range(nq):
-                    acc = 0.0
-                    for r in range(nq):
-                        acc += mb[a * nq + r] * xl[r]
-                    yl[a] = acc
             bb = self.Bc + self.bcptr[e]
             rows = self.srow + self.sgptr[e]
             for r in range(ng):
@@ -207,11 +203,15 @@ cdef class ALRefinement(SparseBlocks):
                 z = self.lam[row]
                 if penalised:
                     z -= self.alpha[row] * acc
-                if z != 0.0:
-                    for a in range(nq):
-                        yl[a] += bb[r * nq + a] * z
+                zl[r] = z
             for a in range(nq):
-                y[idx[a]] -= yl[a]
+                acc = 0.0
+                if mb != NULL:
+                    for c in range(nq):
+                        acc += mb[a * nq + c] * xl[c]
+                for r in range(ng):
+                    acc += bb[r * nq + a] * zl[r]
+                y[idx[a]] -= acc
 
     cdef void first_pass(self, const double *b, bint warm, double *y) noexcept nogil:
         """residual_pass at x = 0 (not pending, penalised), with lambda = 0 or (warm)
@@ -222,8 +222,8 @@ cdef class ALRefinement(SparseBlocks):
         cdef const int *idx
         cdef const int *rows
         cdef const double *bb
-        cdef double *yl = self.ly
-        cdef double z
+        cdef double *zl = self.lz
+        cdef double acc, z
         memcpy(y, self.base, <size_t>self.n * sizeof(double))
         if b == NULL and not warm:
             return
@@ -235,18 +235,17 @@ cdef class ALRefinement(SparseBlocks):
             idx = self.sidx + self.sptr[e]
             bb = self.Bc + self.bcptr[e]
             rows = self.srow + self.sgptr[e]
-            for a in range(nq):
-                yl[a] = 0.0
             for r in range(ng):
                 row = rows[r]
                 z = self.lam[row] if warm else 0.0
                 if b != NULL:
                     z -= self.alpha[row] * b[row]
-                if z != 0.0:
-                    for a in range(nq):
-                        yl[a] += bb[r * nq + a] * z
+                zl[r] = z
             for a in range(nq):
-                y[idx[a]] -= yl[a]
+                acc = 0.0
+                for r in range(ng):
+                    acc += bb[r * nq + a] * zl[r]
+                y[idx[a]] -= acc
 
     cdef int correction(self, double *rz_stop) noexcept nogil:
         """(dx, dlam) of M dx + B^T dlam = r1, B dx = r2: conjugate gradients on the
