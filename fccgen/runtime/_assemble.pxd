@@ -57,3 +57,25 @@ cdef class Assembler:
     cdef double scaled_residual(self) noexcept nogil
     cdef double max_abs_g(self) noexcept nogil
     cdef void put_time(self, double t) noexcept nogil
+
+
+cdef inline void element_vectors(const fcc_element_class *k, const double *lq,
+                                 const double *lv, const double *p, const int *idx,
+                                 int row, int flags, double *o, double *h, double *f,
+                                 double *c) noexcept nogil:
+    """One element's h (ASM_H), f (ASM_F) and c (ASM_C) at its gathered (lq, lv),
+    added into h and f at its coordinates idx and written into c from its first row;
+    o: room for the kernel's output."""
+    cdef int i
+    if flags & ASM_H and k.h_vector != NULL:
+        k.h_vector(lq, lv, p, o)
+        for i in range(k.n_q):
+            h[idx[i]] += o[i]
+    if flags & ASM_F and k.applied_forces != NULL:
+        k.applied_forces(lq, lv, p, o)
+        for i in range(k.n_q):
+            f[idx[i]] += o[i]
+    if flags & ASM_C and k.constraint_bias != NULL:
+        k.constraint_bias(lq, lv, p, o)
+        for i in range(k.n_g):
+            c[row + i] = o[i]

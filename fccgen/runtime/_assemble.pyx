@@ -211,14 +211,8 @@ cdef class Assembler:
                 for i in range(n):
                     for j in range(n):
                         self.M[idx[i] * N + idx[j]] += o[i * n + j]
-            if flags & ASM_H and k.h_vector != NULL:
-                k.h_vector(self.lq, self.lv, p, o)
-                for i in range(n):
-                    self.h[idx[i]] += o[i]
-            if flags & ASM_F and k.applied_forces != NULL:
-                k.applied_forces(self.lq, self.lv, p, o)
-                for i in range(n):
-                    self.f[idx[i]] += o[i]
+            element_vectors(k, self.lq, self.lv, p, idx, row, flags & (ASM_H | ASM_F),
+                            o, self.h, self.f, self.c)
             if flags & ASM_G and k.constraints != NULL:
                 k.constraints(self.lq, p, o)
                 for r in range(n_g):
@@ -228,10 +222,8 @@ cdef class Assembler:
                 for r in range(n_g):
                     for j in range(n):
                         self.B[(row + r) * N + idx[j]] += o[r * n + j]
-            if flags & ASM_C and k.constraint_bias != NULL:
-                k.constraint_bias(self.lq, self.lv, p, o)
-                for r in range(n_g):
-                    self.c[row + r] = o[r]
+            element_vectors(k, self.lq, self.lv, p, idx, row, flags & ASM_C, o, self.h,
+                            self.f, self.c)
             if flags & ASM_E and k.energy != NULL:
                 k.energy(self.lq, self.lv, p, o)
                 self.energy[0] += o[0]

@@ -225,10 +225,11 @@ cdef class SparseEngine(ALRefinement):
     cdef int accelerations_at(self, const double *q, const double *v, double *a,
                               bint reuse) noexcept nogil:
         cdef int i, flags = ASM_H | ASM_F | ASM_C
-        self.asm.assemble(q, v, flags)
-        if not reuse:
+        if reuse:
+            self.asm.assemble(q, v, flags)
+        else:
             flags |= ASM_M | ASM_B
-            self.assemble_mb(q, ASM_M | ASM_B)
+            self.assemble_blocks(q, v, flags)
             if self.factor(q) < 0:
                 return -1
         for i in range(self.n):

@@ -77,6 +77,8 @@ cdef class SparseBlocks(Engine):
     cdef double *fixed_g_tol      # |g_k| each may reach: position_tol ||B_k||
 
     cdef void assemble_mb(self, const double *q, int flags) noexcept nogil
+    cdef void assemble_blocks(self, const double *q, const double *v,
+                              int flags) noexcept nogil
     cdef void check_fixed_g(self) noexcept nogil
     cdef void mult_m(self, const double *x, double *y, bint add) noexcept nogil
     cdef void mult_m_full(self, const double *x, double *y, bint add) noexcept nogil

@@ -20,7 +20,8 @@ from libc.string cimport memset
 
 import numpy as np
 
-from ._assemble cimport ASM_B, ASM_C, ASM_F, ASM_G, ASM_H, ASM_M, Assembler
+from ._assemble cimport (ASM_B, ASM_C, ASM_F, ASM_G, ASM_H, ASM_M, Assembler,
+                        element_vectors)
 from ._engine cimport (ERR_LAPACK, ERR_NONFINITE_INPUT, ERR_PATTERN, ERR_SINGULAR, Engine,
                        finite)
 from ._ldl cimport ldl_numeric, ldl_rows, ldl_solve, ldl_symbolic
@@ -578,6 +579,12 @@ cdef class SparseBlocks(Engine):
         """The mass (ASM_M) and Jacobian (ASM_B) blocks of every element at q, and
         their compact copies on the solve's view (set_pinned); the guards of the
         entries left out (planar_pattern) and of the fixed rows."""
+        self.assemble_blocks(q, NULL, flags)
+
+    cdef void assemble_blocks(self, const double *q, const double *v,
+                              int flags) noexcept nogil:
+        """assemble_mb, and in the same pass over the elements the assembler's h
+        (ASM_H), f (ASM_F) and c (ASM_C) at (q, v), as Assembler.assemble."""
         cdef int e, i, a, b, r, nq, nf, ng
         cdef const fcc_element_class *k
         cdef const int *idx
@@ -586,16 +593,30 @@ cdef class SparseBlocks(Engine):
         cdef const double *p
         cdef const double *src
         cdef double *dst
+        cdef double *o = self.asm.out
+        cdef double *lv = self.asm.lv
+        cdef double *hv = self.asm.h
+        cdef double *fv = self.asm.f
+        cdef double *cv = self.asm.c
+        cdef int vec = flags & (ASM_H | ASM_F | ASM_C)
+        if flags & ASM_H: memset(hv, 0, <size_t>self.n * sizeof(double))
+        if flags & ASM_F: memset(fv, 0, <size_t>self.n * sizeof(double))
+        if flags & ASM_C: memset(cv, 0, <size_t>self.m * sizeof(double))
         for e in range(self.asm.n_el):
             k = self.asm.cls[e]
             nq = k.n_q
             idx = self.asm.qidx + self.asm.qptr[e]
             p = self.asm.params + self.asm.pptr[e]
             if not ((flags & ASM_M and k.mass_matrix != NULL)
-                    or (flags & ASM_B and k.constraint_jacobian != NULL)):
+                    or (flags & ASM_B and k.constraint_jacobian != NULL) or vec):
                 continue
             for i in range(nq):
                 self.lq[i] = q[idx[i]]
+            if vec:
+                for i in range(nq):
+                    lv[i] = v[idx[i]]
+                element_vectors(k, self.lq, lv, p, idx, self.asm.gptr[e], vec, o, hv,
+                                fv, cv)
             nf = self.snq[e]
             loc = self.sloc + self.sptr[e]
             if flags & ASM_M and k.mass_matrix != NULL:
