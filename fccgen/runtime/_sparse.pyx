@@ -16,8 +16,11 @@ blocks and the LDL^T of A = M + B^T diag(alpha) B of _sparse_blocks.pyx:
 Chord steps. After an RK4 step the blocks and the factorisation held are those of its
 last stage, at q + h v3, about h^2 a / 2 from the new q (5e-6 m on the cart of 20
 links at dt 1e-3). A Newton step with them, M4 dq + B4^T mu = 0, B4 dq = -g(q), is a
-chord step: a consistent system, solved as accurately as an exact step, whose only
-error is B4 - B(q), relative size d (about the distance over the model's size). It
+chord step: a consistent system, whose error is B4 - B(q), relative size d (about
+the distance over the model's size). It is solved by one augmented-Lagrangian step
+from zero multipliers, dq = A4^{-1} B4^T alpha (-g), off by about
+1 / (1 + alpha sigma^2 / m) of itself (1e-7 where the rows are well conditioned,
+more near a singular position, where it shows in the residual as d does). The step
 leaves about d of the residual (1e-6 .. 1e-5 measured after RK4 steps at dt 1e-3),
 and moves q along the constraints, where no residual sees it, by about d times the
 step; its metric is M at the stage's positions instead of the new ones, a change of
@@ -285,7 +288,8 @@ cdef class SparseEngine(ALRefinement):
         return self.held and not self.tripped and self.beyond_quotient == 0.0
 
     cdef int chord_step(self, double *q, double *res) noexcept nogil:
-        """A Newton step with the blocks and factorisation held, kept (1) when it
+        """A Newton step with the blocks and factorisation held (one augmented-
+        Lagrangian step: module docstring, "Chord steps"), kept (1) when it
         leaves at most CHORD_GAIN of the residual and its estimated move along the
         constraints, (residual left / residual before) max |dq|, is at most
         CHORD_DRIFT of the position tolerance; else undone (0)."""
@@ -293,7 +297,9 @@ cdef class SparseEngine(ALRefinement):
         cdef double trial, step = 0.0
         for i in range(self.m):
             self.nb[i] = -self.asm.g[i]
-        self.solve_newton(self.nb, self.dq)
+        memset(self.base, 0, <size_t>n * sizeof(double))
+        self.first_pass(self.nb, False, self.dq)   # B^T alpha (-g)
+        self.solve_a(self.dq)
         memcpy(self.qsave, q, <size_t>n * sizeof(double))
         for i in range(n):
             q[i] += self.dq[i]
