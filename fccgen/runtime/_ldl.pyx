@@ -12,8 +12,10 @@ The pattern is the same at every factorisation, so all of the symbolic work is d
 once (ldl_symbolic, ldl_rows): the elimination tree, the column pointers Lp and row
 indices Li of L, and for every row k the columns j of its entries in the order of the
 triangular solve (Rp/Rj) with the place of L_kj in Lx (Rpos). ldl_numeric then only
-does arithmetic, in the same order as Davis' ldl_numeric (the same rounding). Every
-array is allocated by the caller: the per-step work is allocation-free.
+does arithmetic, in the same order as Davis' ldl_numeric, but keeping the reciprocal
+pivots 1 / D_k: each L_kj is a product where Davis divides (one rounding apart), and
+the solves multiply too. Every array is allocated by the caller: the per-step work is
+allocation-free.
 """
 
 

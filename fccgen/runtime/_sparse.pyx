@@ -15,7 +15,7 @@ blocks and the LDL^T of A = M + B^T diag(alpha) B of _sparse_blocks.pyx:
 
 Chord steps. After an RK4 step the blocks and the factorisation held are those of its
 last stage, at q + h v3, about h^2 a / 2 from the new q (5e-6 m on the cart of 20
-links at dt 1e-3). A Newton step with them, M4 dq + B4^T mu = 0, B4 dq = -g(q), is a
+links at dt 1e-3; DOPRI5's last stage is at the new q itself). A Newton step with them, M4 dq + B4^T mu = 0, B4 dq = -g(q), is a
 chord step: a consistent system, whose error is B4 - B(q), relative size d (about
 the distance over the model's size). It is solved by one augmented-Lagrangian step
 from zero multipliers, dq = A4^{-1} B4^T alpha (-g), off by about
@@ -24,14 +24,14 @@ more near a singular position, where it shows in the residual as d does). The st
 leaves about d of the residual (1e-6 .. 1e-5 measured after RK4 steps at dt 1e-3),
 and moves q along the constraints, where no residual sees it, by about d times the
 step; its metric is M at the stage's positions instead of the new ones, a change of
-the same order. It saves the factorisation and the assembly of M and B that an exact
-step makes first, about a seventh of the cart's RK4 step. A chord step is kept when
-it leaves at most CHORD_GAIN of the residual and that move, estimated as the fraction
-of the residual left times the step's largest component, is at most CHORD_DRIFT of
-the position tolerance; otherwise (a factorisation made far from q, a row that nearly
-vanishes there, or a large step: the double pendulum at dt 0.05, where d is about
-1e-2 and the steps 1e-4 m, moved 1e-8 m off the exact projections' trajectory in
-20 steps) it is undone and exact steps take over. The blocks must be
+the same order. It saves the factorisation, the assembly of M and B and the refined
+solve of an exact step: a sixth of the cart's RK4 step at n = 20. A chord step is
+kept when it leaves at most CHORD_GAIN of the residual and that move, estimated as
+the fraction of the residual left times the step's largest component, is at most
+CHORD_DRIFT of the position tolerance; otherwise (a factorisation made far from q, a
+row that nearly vanishes there, or a large step: the double pendulum at dt 0.05,
+where d is about 1e-2 and the steps 1e-4 m, moved 1e-8 m off the exact projections'
+trajectory in 20 steps) it is undone and exact steps take over. The blocks must be
 the factorisation's own: B at the new q with the stage's factor makes the penalised
 system inconsistent by alpha |B| |B4 - B(q)|, and the step then moves q along the
 constraints by about RHO d times its size (100 times on the cart). Models with rows
