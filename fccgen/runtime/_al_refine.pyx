@@ -318,9 +318,10 @@ cdef class ALRefinement(SparseBlocks):
         from zero. newton: a Newton step's solve, whose augmented-Lagrangian steps
         stop at NEWTON_STOP. Returns whether the refinement converged."""
         cdef int i, status, solves = 0, n = self.n, m = self.m
-        memset(self.base, 0, <size_t>n * sizeof(double))
         if Q != NULL:
             memcpy(self.base, Q, <size_t>n * sizeof(double))
+        else:
+            memset(self.base, 0, <size_t>n * sizeof(double))
         if w != NULL:                       # M w whole: w may move pinned coordinates
             self.mult_m_full(w, self.base, True)
         for i in range(self.n_pinned):      # pinned coordinates: x stays 0 there

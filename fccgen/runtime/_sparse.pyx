@@ -345,7 +345,10 @@ cdef class SparseEngine(ALRefinement):
         if self.factor(q) < 0:
             return -1
         self.velocity_targets(q, self.nb)
-        self.mult_m_full(v, self.mv, False)     # M v whole: v may move pinned coordinates
+        if self.pinned_still(v):                # M v on the view is enough
+            self.mult_m(v, self.mv, False)
+        else:                                   # M v whole: v moves pinned coordinates
+            self.mult_m_full(v, self.mv, False)
         self.solve_constrained(self.mv, NULL, self.nb, self.vtmp)
         if self.finish(q, v, self.vtmp, ASM_M | ASM_B) < 0:
             return -1
@@ -508,6 +511,16 @@ cdef class SparseEngine(ALRefinement):
         self.asm.assemble(q, NULL, ASM_T)
         for i in range(self.m):
             b[i] = -self.asm.gt[i]
+
+    cdef bint pinned_still(self, const double *v) noexcept nogil:
+        """v is zero on every pinned coordinate (as after a projection): then the
+        products with M on the solve's view give M v on the free coordinates, all that
+        the velocity projection's solve and energy watch read (w is zero there too)."""
+        cdef int i
+        for i in range(self.n_pinned):
+            if v[self.pinned[i]] != 0.0:
+                return False
+        return True
 
     cdef void watch_kinetic_energy(self, const double *v, const double *w) noexcept nogil:
         """As Engine.watch_kinetic_energy, with M v from the velocity projection (mv).
