@@ -30,8 +30,8 @@ kept when it leaves at most CHORD_GAIN of the residual and that move, estimated 
 the fraction of the residual left times the step's largest component, is at most
 CHORD_DRIFT of the position tolerance; otherwise (a factorisation made far from q, a
 row that nearly vanishes there, or a large step: the double pendulum at dt 0.05,
-where d is about 1e-2 and the steps 1e-4 m, moved 1e-8 m off the exact projections'
-trajectory in 20 steps) it is undone and exact steps take over. The blocks must be
+where d is about 1e-2 and the steps about 1e-7 m, moved 1.4e-8 m off the exact
+projections' trajectory in 20 steps) it is undone and exact steps take over. The blocks must be
 the factorisation's own: B at the new q with the stage's factor makes the penalised
 system inconsistent by alpha |B| |B4 - B(q)|, and the step then moves q along the
 constraints by about RHO d times its size (100 times on the cart). Models with rows
