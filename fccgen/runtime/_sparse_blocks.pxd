@@ -14,7 +14,6 @@ cdef class SparseBlocks(Engine):
     cdef double *Mblk
     cdef double *Bblk
     cdef double *lq               # local: an element's coordinates
-    cdef double *ly               # local: an element's share of a product
     cdef double *alpha            # m: penalty per row
     cdef double *rnorm            # m: ||B_k||
     cdef bint norms_fresh         # rnorm is of the Jacobian blocks held
