@@ -140,10 +140,7 @@ class CompiledSolver:
         # sparse solve well posed (paths.small_model_path), decided again every run
         self._auto_small = (self.linear_solver == "auto" and not dense_only
                             and self.n_q < SPARSE_MIN_COORDINATES)
-        self._engine = make_engine(self._asm, self.rank_tol, self.position_tol,
-                                   self.max_newton, self.sparse,
-                                   at=pattern_samples(plan.q0, plan.v_target,
-                                                      self.length_scale))
+        self._engine = self._new_engine(self.sparse)
         self._decided_at = None
         self._manifold_key = None
         self._manifold_kept = 0.0
@@ -259,11 +256,19 @@ class CompiledSolver:
     def _pattern_tripped(self) -> bool:
         return self.sparse and getattr(self._engine, "pattern_tripped", False)
 
+    def _new_engine(self, sparse: bool, full_pattern: bool = False):
+        """An engine of this solver's tolerances (paths.make_engine); a sparse one takes
+        its pattern at the model's written positions (paths.pattern_samples) unless
+        full_pattern."""
+        at = (pattern_samples(self.plan.q0, self.plan.v_target, self.length_scale)
+              if sparse and not full_pattern else None)
+        return make_engine(self._asm, self.rank_tol, self.position_tol, self.max_newton,
+                           sparse, at=at)
+
     def _full_pattern(self) -> None:
         """The sparse engine again, on the full pattern of A (every element block
         full), with the rank decided where the last decision was made."""
-        self._engine = self._sparse_engine = make_engine(
-            self._asm, self.rank_tol, self.position_tol, self.max_newton, True)
+        self._engine = self._sparse_engine = self._new_engine(True, full_pattern=True)
         if self._decided_at is not None:
             self.decide_rank(self._decided_at)
 
@@ -360,8 +365,7 @@ class CompiledSolver:
     def dense_engine(self):
         """The dense path's engine (the solver's own unless it takes the sparse one)."""
         if self._dense_engine is None:
-            self._dense_engine = make_engine(self._asm, self.rank_tol, self.position_tol,
-                                             self.max_newton, False)
+            self._dense_engine = self._new_engine(False)
             self._dense_engine.decide_rank(None, self._engine.decided_rank)
         return self._dense_engine
 
@@ -429,9 +433,7 @@ class CompiledSolver:
         on first use) or the dense one."""
         self.sparse = small_model_path(*self.small_path_signals(q, B, decision)) == "sparse"
         if self.sparse and self._sparse_engine is None:
-            self._sparse_engine = make_engine(
-                self._asm, self.rank_tol, self.position_tol, self.max_newton, True,
-                at=pattern_samples(self.plan.q0, self.plan.v_target, self.length_scale))
+            self._sparse_engine = self._new_engine(True)
         self._engine = self._sparse_engine if self.sparse else self.dense_engine()
 
     def _manifold_redundancy(self, q, decision) -> float:
