@@ -11,6 +11,7 @@ import numpy as np
 import fccgen
 from conftest import example_module
 from fccgen.runtime import CompiledSolver
+from fccgen.runtime.sparsity import isolated_last
 
 
 def _cart(tmp_path, build_dir, n=10):
@@ -38,6 +39,24 @@ def test_the_cart_pins_its_rail_and_out_of_plane_coordinates(tmp_path, build_dir
         ["C.y", "C.z", "D.y", "D.z"] + [f"P{k}.z" for k in range(1, 11)])
     assert len(fixed) == 14
     assert len(full._engine.pinned_coordinates[0]) == 0
+
+
+def test_the_factorisation_leaves_out_the_pinned_coordinates(tmp_path, build_dir):
+    """The order puts the pinned coordinates (coupled to nothing) last, and the
+    LDL^T and its solves stop before them: 36 - 14 columns for n = 10; the
+    full-pattern engine factors all 36. Every pinned coordinate comes after every
+    free one in the order (sparsity.isolated_last)."""
+    sparse, _, full = _cart(tmp_path, build_dir)
+    assert sparse._engine.factored_columns == 36 - 14
+    assert full._engine.factored_columns == 36
+
+
+def test_isolated_coordinates_go_last_in_their_order():
+    """isolated_last keeps the coupled coordinates' order and appends the others in
+    theirs."""
+    perm = np.array([4, 0, 5, 2, 1, 3], dtype=np.intc)
+    groups = [np.array([0, 2]), np.array([2, 4])]
+    assert isolated_last(perm, groups).tolist() == [4, 0, 2, 5, 1, 3]
 
 
 def test_pinned_solves_equal_the_full_and_the_dense_solves(tmp_path, build_dir):

@@ -19,6 +19,8 @@ cdef class SparseBlocks(Engine):
     cdef bint norms_fresh         # rnorm is of the Jacobian blocks held
     cdef bint held                # an LDL^T of A is held (the last factor succeeded)
     cdef int *perm                # new -> old
+    cdef int n_lead               # the leading columns of P A P^T that the LDL^T and its
+                                  # solves cover; the rest are pinned: unit diagonals
     cdef int *Ap
     cdef int *Ai
     cdef double *Ax

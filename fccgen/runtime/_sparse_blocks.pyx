@@ -301,11 +301,21 @@ cdef class SparseBlocks(Engine):
         self.pin_diag = <int *>alloc_zeroed(self.n_pinned, sizeof(int))
         pinv = np.empty(n, dtype=np.intc)
         pinv[np.asarray(pv)] = np.arange(n, dtype=np.intc)
+        is_pinned = np.zeros(n, dtype=bool)
         for i in range(self.n_pinned):
             k = pinv[self.pinned[i]]          # the diagonal closes its column
             self.pin_diag[i] = self.Ap[k + 1] - 1
             if self.Ai[self.pin_diag[i]] != k:
                 raise ValueError("the pattern of A lacks a pinned coordinate's diagonal")
+            is_pinned[k] = True
+        # Trailing pinned columns (sparsity.isolated_last puts them there) are unit
+        # diagonals with nothing in their rows: L is the identity there and a solve
+        # leaves x as it is, so the factorisation and the solves stop before them.
+        self.n_lead = n
+        while (self.n_lead > 0 and is_pinned[self.n_lead - 1]
+               and self.Ap[self.n_lead] - self.Ap[self.n_lead - 1] == 1
+               and self.Lp[self.n_lead] == self.Lp[self.n_lead - 1]):
+            self.n_lead -= 1
         self.ready = True
 
     def set_pinned(self, samples):
@@ -572,6 +582,12 @@ cdef class SparseBlocks(Engine):
     def nonzeros(self):
         """(nonzeros of upper(A), nonzeros of the strict lower part of L)."""
         return self.nnz_a, self.nnz_l
+
+    @property
+    def factored_columns(self):
+        """The columns the LDL^T and its solves cover (set_structure: all but the
+        trailing pinned ones)."""
+        return self.n_lead
 
     # -- element blocks ------------------------------------------------------------
     cdef void assemble_mb(self, const double *q, int flags) noexcept nogil:
@@ -846,8 +862,9 @@ cdef class SparseBlocks(Engine):
         for a in range(self.n_pinned):      # pinned: a unit diagonal, nothing else
             self.Ax[self.pin_diag[a]] = 1.0
         self.n_factor += 1
-        info = ldl_numeric(self.n, self.Ap, self.Ai, self.Ax, self.Lp, self.Li, self.Rp,
-                           self.Rj, self.Rpos, self.Lx, self.Dinv, self.Y, PIVOT_TOL)
+        info = ldl_numeric(self.n_lead, self.Ap, self.Ai, self.Ax, self.Lp, self.Li,
+                           self.Rp, self.Rj, self.Rpos, self.Lx, self.Dinv, self.Y,
+                           PIVOT_TOL)
         if info == 0:
             self.held = True
             return 0
@@ -857,8 +874,9 @@ cdef class SparseBlocks(Engine):
         return self.fail(ERR_SINGULAR, info, 0)
 
     cdef void solve_a(self, double *x) noexcept nogil:
-        """x <- A^{-1} x through the permutation."""
-        cdef int i, n = self.n
+        """x <- A^{-1} x through the permutation (pinned coordinates past n_lead: x
+        as it is, A's unit diagonal there)."""
+        cdef int i, n = self.n_lead
         for i in range(n):
             self.t[i] = x[self.perm[i]]
         ldl_solve(n, self.Lp, self.Li, self.Lx, self.Dinv, self.t)

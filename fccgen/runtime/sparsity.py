@@ -12,8 +12,9 @@ maps before any number is computed. Here, once per solver:
    or move are moved (paths.pattern_samples, SparseBlocks.planar_pattern): a model
    written in a plane leaves out its out-of-plane couplings, guarded at every
    assembly;
-1. a fill-reducing order of the coordinate graph (:func:`fill_reducing_order`:
-   minimum degree, ties by index; reverse Cuthill-McKee as the alternative);
+1. a fill-reducing order of the coordinate graph (ORDERS:
+   minimum degree, ties by index; reverse Cuthill-McKee as the alternative), with
+   the coordinates no element couples (the pinned ones) moved to its end;
 2. the upper triangle of the permuted A in compressed sparse columns (Ap, Ai);
 3. for each element, where each of its local entries (a, b) goes: the index in A's
    value array of (perm(i), perm(j)), i = idx[a], j = idx[b], when perm(i) <= perm(j),
@@ -102,6 +103,17 @@ def rcm(n: int, groups) -> np.ndarray:
 ORDERS = {"minimum_degree": minimum_degree, "rcm": rcm}
 
 
+def isolated_last(perm: np.ndarray, groups) -> np.ndarray:
+    """perm with the coordinates that no group holds moved to its end, in their order.
+    They couple to nothing, so the fill is the same; at the end they are columns that
+    the factorisation and solves can leave out (SparseBlocks.set_structure: the pinned
+    coordinates, whose column of A is a unit diagonal)."""
+    held = np.zeros(len(perm), dtype=bool)
+    for g in groups:
+        held[np.asarray(g, dtype=np.intp)] = True
+    return np.concatenate([perm[held[perm]], perm[~held[perm]]]).astype(np.intc)
+
+
 def masked_edges(q_ptr, q_idx, couples, masks) -> list[np.ndarray]:
     """The coordinate pairs (i, j), i < j, that some element's block of A holds
     (masks: (mask_ptr, mask), element e's n_q x n_q mask row-major), each a 2-array."""
@@ -131,7 +143,7 @@ def structure(n: int, q_ptr, q_idx, couples, order: str = "minimum_degree",
     q_idx = np.asarray(q_idx, dtype=np.intp)
     groups = (cliques(q_ptr, q_idx, couples) if masks is None
               else masked_edges(q_ptr, q_idx, couples, masks))
-    perm = ORDERS[order](n, [g for g in groups if len(g)])
+    perm = isolated_last(ORDERS[order](n, [g for g in groups if len(g)]), groups)
     pinv = np.empty(n, dtype=np.intp)
     pinv[perm] = np.arange(n)
     entries = set((k, k) for k in range(n))          # the diagonal is always there
