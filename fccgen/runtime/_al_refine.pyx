@@ -378,17 +378,18 @@ cdef class ALRefinement(SparseBlocks):
                     self.residual_pass(x, b, pending, True, self.dx, NULL)
                     if it == 1:
                         rz_stop = CG_TOL * CG_TOL * self.rho
-                self.solve_a(self.dx)
+                self.solve_a_add(self.dx, x, &nd, &nx)
                 pending = True
                 solves[0] += 1
-            nd = 0.0
-            nx = 0.0
-            for i in range(n):
-                x[i] += self.dx[i]
-                if fabs(self.dx[i]) > nd:
-                    nd = fabs(self.dx[i])
-                if fabs(x[i]) > nx:
-                    nx = fabs(x[i])
+            if cg:
+                nd = 0.0
+                nx = 0.0
+                for i in range(n):
+                    x[i] += self.dx[i]
+                    if fabs(self.dx[i]) > nd:
+                        nd = fabs(self.dx[i])
+                    if fabs(x[i]) > nx:
+                        nx = fabs(x[i])
             if not nd > 0.0:                    # zero, or NaN (the caller checks x)
                 return 1
             if cg:

@@ -15,8 +15,8 @@ cdef class SparseBlocks(Engine):
     cdef double *Bblk
     cdef double *lq               # local: an element's coordinates
     cdef double *alpha            # m: penalty per row
-    cdef double *rnorm            # m: ||B_k||
-    cdef bint norms_fresh         # rnorm is of the Jacobian blocks held
+    cdef double *rnorm            # m: ||B_k|| of the Jacobian blocks held
+    cdef double mref              # the largest diagonal entry of the mass blocks held
     cdef bint held                # an LDL^T of A is held (the last factor succeeded)
     cdef int *perm                # new -> old
     cdef int n_lead               # the leading columns of P A P^T that the LDL^T and its
@@ -86,7 +86,8 @@ cdef class SparseBlocks(Engine):
     cdef void mult_b(self, const double *x, double *y) noexcept nogil
     cdef void mult_bt(self, const double *z, const double *s, double *y) noexcept nogil
     cdef void gather_dense(self) noexcept nogil
-    cdef void row_norms(self) noexcept nogil
-    cdef double penalties(self) noexcept nogil
+    cdef void penalties(self) noexcept nogil
     cdef double scaled_residual_sparse(self) noexcept nogil
     cdef void solve_a(self, double *x) noexcept nogil
+    cdef void solve_a_add(self, const double *y, double *x, double *step,
+                          double *size) noexcept nogil

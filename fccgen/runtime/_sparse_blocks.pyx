@@ -599,12 +599,17 @@ cdef class SparseBlocks(Engine):
     cdef void assemble_blocks(self, const double *q, const double *v,
                               int flags) noexcept nogil:
         """assemble_mb, and in the same pass over the elements the assembler's h
-        (ASM_H), f (ASM_F) and c (ASM_C) at (q, v), as Assembler.assemble."""
+        (ASM_H), f (ASM_F) and c (ASM_C) at (q, v), as Assembler.assemble. With the
+        blocks, while they are at hand: rnorm_k = ||B_k|| of the kept rows (the
+        whole row, pinned coordinates too) and mref, the largest diagonal entry of M
+        on the solve's view (1 if none is positive), for the penalties."""
         cdef int e, i, a, b, r, nq, nf, ng
         cdef const fcc_element_class *k
         cdef const int *idx
         cdef const int *loc
         cdef const int *rl
+        cdef const int *rows
+        cdef double norm, mref = 0.0
         cdef const double *p
         cdef const double *src
         cdef double *dst
@@ -642,17 +647,28 @@ cdef class SparseBlocks(Engine):
                     for a in range(nf):
                         for b in range(nf):
                             dst[a * nf + b] = src[loc[a] * nq + loc[b]]
+                dst = self.Mc + self.mcptr[e]
+                for a in range(nf):
+                    if dst[a * nf + a] > mref:
+                        mref = dst[a * nf + a]
             if flags & ASM_B and k.constraint_jacobian != NULL:
-                self.norms_fresh = False
                 k.constraint_jacobian(self.lq, p, self.Bblk + self.bptr[e])
+                src = self.Bblk + self.bptr[e]
+                rl = self.srloc + self.sgptr[e]
+                rows = self.srow + self.sgptr[e]
+                ng = self.sng[e]
+                for r in range(ng):
+                    norm = 0.0
+                    for i in range(nq):
+                        norm += src[rl[r] * nq + i] * src[rl[r] * nq + i]
+                    self.rnorm[rows[r]] = sqrt(norm)
                 if self.compact:
-                    src = self.Bblk + self.bptr[e]
                     dst = self.Bc + self.bcptr[e]
-                    rl = self.srloc + self.sgptr[e]
-                    ng = self.sng[e]
                     for r in range(ng):
                         for a in range(nf):
                             dst[r * nf + a] = src[rl[r] * nq + loc[a]]
+        if flags & ASM_M:
+            self.mref = mref if mref > 0.0 else 1.0
         if flags & ASM_M:
             for i in range(self.n_zero_m):
                 if not fabs(self.Mblk[self.zero_m[i]]) <= self.zero_m_tol[i]:
@@ -751,47 +767,14 @@ cdef class SparseBlocks(Engine):
                 for a in range(nq):
                     Bd[(row + r) * n + idx[a]] += blk[r * nq + a]
 
-    cdef void row_norms(self) noexcept nogil:
-        """rnorm_k = ||B_k|| (the whole row, pinned coordinates too) of the kept rows,
-        from the Jacobian blocks; once per assembly of B (norms_fresh)."""
-        cdef int e, r, j, nq
-        cdef double acc
-        cdef const double *blk
+    cdef void penalties(self) noexcept nogil:
+        """alpha_k = RHO mref / s_k^2 with s_k = max(||B_k||, ROW_FLOOR * the largest
+        row norm of B_k's element), 0 for a zero row (the norms and mref of the
+        blocks held: assemble_blocks). Fixed rows (set_pinned) keep their constant
+        norms and no penalty."""
+        cdef int e, r, ng, row
+        cdef double largest, s
         cdef const int *rows
-        cdef const int *rl
-        for e in range(self.asm.n_el):
-            nq = self.asm.cls[e].n_q
-            blk = self.Bblk + self.bptr[e]
-            rows = self.srow + self.sgptr[e]
-            rl = self.srloc + self.sgptr[e]
-            for r in range(self.sng[e]):
-                acc = 0.0
-                for j in range(nq):
-                    acc += blk[rl[r] * nq + j] * blk[rl[r] * nq + j]
-                self.rnorm[rows[r]] = sqrt(acc)
-        self.norms_fresh = True
-
-    cdef double penalties(self) noexcept nogil:
-        """alpha_k = RHO m_ref / s_k^2 with s_k = max(||B_k||, ROW_FLOOR * the largest
-        row norm of B_k's element), 0 for a zero row; m_ref = the largest diagonal
-        entry of M (on the solve's view). Fixed rows (set_pinned) keep their constant
-        norms and no penalty. The row norms first, unless fresh. Returns m_ref."""
-        cdef int e, r, j, nf, ng, row
-        cdef double largest, s, mref = 0.0
-        cdef const double *blk
-        cdef const int *rows
-        if not self.norms_fresh:
-            self.row_norms()
-        for e in range(self.asm.n_el):
-            if self.mcptr[e + 1] == self.mcptr[e]:
-                continue
-            nf = self.snq[e]
-            blk = self.Mc + self.mcptr[e]
-            for j in range(nf):
-                if blk[j * nf + j] > mref:
-                    mref = blk[j * nf + j]
-        if not mref > 0.0:
-            mref = 1.0
         for e in range(self.asm.n_el):
             ng = self.sng[e]
             rows = self.srow + self.sgptr[e]
@@ -804,16 +787,13 @@ cdef class SparseBlocks(Engine):
                 s = self.rnorm[row]
                 if s < ROW_FLOOR * largest:
                     s = ROW_FLOOR * largest
-                self.alpha[row] = RHO * mref / (s * s) if s > 0.0 else 0.0
-        return mref
+                self.alpha[row] = RHO * self.mref / (s * s) if s > 0.0 else 0.0
 
     cdef double scaled_residual_sparse(self) noexcept nogil:
         """max_k |g_k| / ||B_k|| (|g_k| for a zero row; NaN if a g_k is not), with the
         assembled g and the row norms of the Jacobian blocks."""
         cdef int k
         cdef double worst = 0.0, val
-        if not self.norms_fresh:
-            self.row_norms()
         for k in range(self.m):
             val = fabs(self.asm.g[k])
             if self.rnorm[k] > 0.0:
@@ -882,6 +862,28 @@ cdef class SparseBlocks(Engine):
         ldl_solve(n, self.Lp, self.Li, self.Lx, self.Dinv, self.t)
         for i in range(n):
             x[self.perm[i]] = self.t[i]
+
+    cdef void solve_a_add(self, const double *y, double *x, double *step,
+                          double *size) noexcept nogil:
+        """x += A^{-1} y, with step = max |A^{-1} y| and size = max |x| after it, in
+        the pass that scatters the solve. y must be zero on the pinned coordinates
+        past n_lead (a solve leaves it so there) and x too: they are not visited."""
+        cdef int i, j, n = self.n_lead
+        cdef double d, xj, nd = 0.0, nx = 0.0
+        for i in range(n):
+            self.t[i] = y[self.perm[i]]
+        ldl_solve(n, self.Lp, self.Li, self.Lx, self.Dinv, self.t)
+        for i in range(n):
+            j = self.perm[i]
+            d = self.t[i]
+            xj = x[j] + d
+            x[j] = xj
+            if fabs(d) > nd:
+                nd = fabs(d)
+            if fabs(xj) > nx:
+                nx = fabs(xj)
+        step[0] = nd
+        size[0] = nx
 
     # -- the Engine's building block that reads the blocks ----------------------------
     cdef int nonfinite_input(self, const double *q, const double *v, int flags) noexcept nogil:
