@@ -64,17 +64,25 @@ def adjacency(n: int, groups) -> list[set]:
 
 def minimum_degree(n: int, groups) -> np.ndarray:
     """Minimum-degree elimination order of the coordinate graph (eliminating a node
-    joins its neighbours into a clique; the lowest current degree goes first, ties by
-    index). Exact degrees, a heap with lazy deletion: fine for the few thousand
-    coordinates of a model, run once per solver."""
+    joins its neighbours into a clique; the lowest current degree goes first). Ties go
+    to the node with the shorter chain of eliminations below it (its level: one more
+    than the highest level of the neighbours eliminated before it), then by index.
+    The tie-break leaves the fill as it is and shortens the elimination tree: a chain
+    of bodies is eliminated from both ends at once, in alternation, so that the
+    factorisation and the triangular solves, which go down the tree one column after
+    another, see two independent chains of arithmetic instead of one twice as long
+    (the cart of 20 links: a tree 22 columns high instead of 42). Exact degrees, a
+    heap with lazy deletion: fine for the few thousand coordinates of a model, run
+    once per solver."""
     adj = adjacency(n, groups)
-    heap = [(len(adj[i]), i) for i in range(n)]
+    level = [0] * n
+    heap = [(len(adj[i]), 0, i) for i in range(n)]
     heapq.heapify(heap)
     done = np.zeros(n, dtype=bool)
     order = []
     while heap:
-        d, i = heapq.heappop(heap)
-        if done[i] or d != len(adj[i]):
+        d, h, i = heapq.heappop(heap)
+        if done[i] or d != len(adj[i]) or h != level[i]:
             continue
         done[i] = True
         order.append(i)
@@ -83,7 +91,8 @@ def minimum_degree(n: int, groups) -> np.ndarray:
             adj[j].discard(i)
             adj[j].update(nbrs)
             adj[j].discard(j)
-            heapq.heappush(heap, (len(adj[j]), j))
+            level[j] = max(level[j], level[i] + 1)
+            heapq.heappush(heap, (len(adj[j]), level[j], j))
         adj[i] = set()
     return np.asarray(order, dtype=np.intc)
 
