@@ -32,7 +32,7 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from systems import ROOT, SYSTEMS, TITLES, n_coordinates  # noqa: E402
+from systems import ROOT, SYSTEMS, TIMED_SPAN, TITLES, n_coordinates  # noqa: E402
 
 TOOLS = ("fccgen", "mujoco", "exudyn")
 DEFAULT_SIZES = {"a02": (5, 10, 20, 40, 80, 160, 320), "cart": (1, 2, 5, 10, 20, 50, 100, 200)}
@@ -49,11 +49,13 @@ def make_models(system, n, dt, fccgen_solver, project=True):
 
 
 def measure(system, sizes, dt, reps, fccgen_solver, log, project=True):
-    from timing import time_interleaved
+    from timing import MAX_STEPS, time_interleaved
+    span = TIMED_SPAN[system]
+    max_steps = MAX_STEPS if span is None else max(1, min(MAX_STEPS, int(span / (2 * dt))))
     rows = []
     for n in sizes:
         timings = time_interleaved(make_models(system, n, dt, fccgen_solver, project),
-                                   reps)
+                                   reps, max_steps)
         for t in timings.values():
             rows.append(dict(system=system, n=n, n_q=n_coordinates(system, n), tool=t.tool,
                              seconds_per_step=t.per_step, steps=t.steps, setup=t.setup,

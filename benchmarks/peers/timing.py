@@ -34,17 +34,20 @@ def cpu_time(run, *args) -> float:
     return time.process_time() - start
 
 
-def calibrate(model, probe: int = 10) -> int:
-    """k such that a k-step run takes about TARGET_SECONDS (after a warm-up run)."""
+def calibrate(model, probe: int = 10, max_steps: int = MAX_STEPS) -> int:
+    """k such that a k-step run takes about TARGET_SECONDS (after a warm-up run), at
+    most max_steps."""
     model.advance(probe)
     per_step = max((cpu_time(model.advance, 2 * probe) - cpu_time(model.advance, probe))
                    / probe, 1e-7)
-    return int(min(MAX_STEPS, max(MIN_STEPS, round(TARGET_SECONDS / per_step))))
+    return int(min(max_steps, max(MIN_STEPS, round(TARGET_SECONDS / per_step))))
 
 
-def time_interleaved(models: dict, reps: int) -> dict[str, Timing]:
-    """{tool: Timing} of models {tool: model with advance(n_steps)}."""
-    steps = {tool: calibrate(m) for tool, m in models.items()}
+def time_interleaved(models: dict, reps: int, max_steps: int = MAX_STEPS
+                     ) -> dict[str, Timing]:
+    """{tool: Timing} of models {tool: model with advance(n_steps)}; k at most
+    max_steps (the long runs: 2 max_steps steps)."""
+    steps = {tool: calibrate(m, max_steps=max_steps) for tool, m in models.items()}
     short = {tool: [] for tool in models}
     long = {tool: [] for tool in models}
     for _ in range(reps):
