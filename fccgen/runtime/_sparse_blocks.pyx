@@ -669,7 +669,6 @@ cdef class SparseBlocks(Engine):
                             dst[r * nf + a] = src[rl[r] * nq + loc[a]]
         if flags & ASM_M:
             self.mref = mref if mref > 0.0 else 1.0
-        if flags & ASM_M:
             for i in range(self.n_zero_m):
                 if not fabs(self.Mblk[self.zero_m[i]]) <= self.zero_m_tol[i]:
                     self.tripped = True

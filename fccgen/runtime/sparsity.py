@@ -12,9 +12,10 @@ maps before any number is computed. Here, once per solver:
    or move are moved (paths.pattern_samples, SparseBlocks.planar_pattern): a model
    written in a plane leaves out its out-of-plane couplings, guarded at every
    assembly;
-1. a fill-reducing order of the coordinate graph (ORDERS:
-   minimum degree, ties by index; reverse Cuthill-McKee as the alternative), with
-   the coordinates no element couples (the pinned ones) moved to its end;
+1. a fill-reducing order of the coordinate graph (ORDERS: minimum degree, ties to
+   the shorter chain of eliminations, then by index; reverse Cuthill-McKee as the
+   alternative), with the coordinates no element couples (the pinned ones) moved to
+   its end;
 2. the upper triangle of the permuted A in compressed sparse columns (Ap, Ai);
 3. for each element, where each of its local entries (a, b) goes: the index in A's
    value array of (perm(i), perm(j)), i = idx[a], j = idx[b], when perm(i) <= perm(j),
@@ -67,13 +68,14 @@ def minimum_degree(n: int, groups) -> np.ndarray:
     joins its neighbours into a clique; the lowest current degree goes first). Ties go
     to the node with the shorter chain of eliminations below it (its level: one more
     than the highest level of the neighbours eliminated before it), then by index.
-    The tie-break leaves the fill as it is and shortens the elimination tree: a chain
-    of bodies is eliminated from both ends at once, in alternation, so that the
-    factorisation and the triangular solves, which go down the tree one column after
-    another, see two independent chains of arithmetic instead of one twice as long
-    (the cart of 20 links: a tree 22 columns high instead of 42). Exact degrees, a
-    heap with lazy deletion: fine for the few thousand coordinates of a model, run
-    once per solver."""
+    The tie-break only chooses among equal degrees, and on the models measured the
+    fill is the same as with ties by index (docs/performance.md); what it changes is
+    the elimination tree: a chain of bodies is eliminated from both ends at once, in
+    alternation, so that the factorisation and the triangular solves, which go down
+    the tree one column after another, see two independent chains of arithmetic
+    instead of one twice as long (the cart of 20 links: a tree 22 columns high
+    instead of 42). Exact degrees, a heap with lazy deletion: fine for the few
+    thousand coordinates of a model, run once per solver."""
     adj = adjacency(n, groups)
     level = [0] * n
     heap = [(len(adj[i]), 0, i) for i in range(n)]
