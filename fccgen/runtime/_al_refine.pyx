@@ -348,15 +348,15 @@ cdef class ALRefinement(SparseBlocks):
 
     cdef int refine(self, const double *b, double *x, bint warm,
                     int *solves, double stop) noexcept nogil:
-        """The refinement of kkt_solve from x = 0 and the multipliers in lam (zero
-        unless warm), the solves with A added to solves[0]; the augmented-Lagrangian
-        steps stop when the estimated remaining change is at most stop |x|. Each correction is one
+        """The refinement of kkt_solve from x = 0 and the multipliers in lam (zero unless
+        warm), the solves with A added to solves[0]; the augmented-Lagrangian steps stop
+        when the estimated remaining change is at most stop |x|. Each correction is one
         augmented-Lagrangian step (module docstring), its right-hand side and the
         previous step's multiplier update formed in one pass (:meth:`residual_pass`),
-        while those converge fast; once a step shrinks the change by less than SLOW
-        (a nearly singular B: near a singular position), the corrections are
-        conjugate-gradient solves (:meth:`correction`). Returns 1 when it converged,
-        0 when not, -1 when a warm start met that slow step (not continued: the
+        while those converge fast; once a step shrinks the change by less than SLOW (a
+        nearly singular B: near a singular position), the corrections are
+        conjugate-gradient solves (:meth:`correction`). Returns 1 when it converged, 0
+        when not, -1 when a warm start met that slow step (not continued: the
         conjugate-gradient bounds are set from a cold start's first residual)."""
         cdef int i, it, n = self.n, m = self.m, cg = 0
         cdef double nd, nx, prev = 0.0, rate, rz_stop = -1.0
@@ -371,6 +371,14 @@ cdef class ALRefinement(SparseBlocks):
                     return 0
                 for i in range(m):
                     self.lam[i] += self.bdx[i]
+                nd = 0.0
+                nx = 0.0
+                for i in range(n):
+                    x[i] += self.dx[i]
+                    if fabs(self.dx[i]) > nd:
+                        nd = fabs(self.dx[i])
+                    if fabs(x[i]) > nx:
+                        nx = fabs(x[i])
             else:
                 if it == 0:
                     self.first_pass(b, warm, self.dx)
@@ -381,15 +389,6 @@ cdef class ALRefinement(SparseBlocks):
                 self.solve_a_add(self.dx, x, &nd, &nx)
                 pending = True
                 solves[0] += 1
-            if cg:
-                nd = 0.0
-                nx = 0.0
-                for i in range(n):
-                    x[i] += self.dx[i]
-                    if fabs(self.dx[i]) > nd:
-                        nd = fabs(self.dx[i])
-                    if fabs(x[i]) > nx:
-                        nx = fabs(x[i])
             if not nd > 0.0:                    # zero, or NaN (the caller checks x)
                 return 1
             if cg:

@@ -14,30 +14,29 @@ blocks and the LDL^T of A = M + B^T diag(alpha) B of _sparse_blocks.pyx:
   integrator's step, first chord steps (below).
 
 Chord steps. After an RK4 step the blocks and the factorisation held are those of its
-last stage, at q + h v3, about h^2 a / 2 from the new q (5e-6 m on the cart of 20
-links at dt 1e-3; DOPRI5's last stage is at the new q itself). A Newton step with them, M4 dq + B4^T mu = 0, B4 dq = -g(q), is a
-chord step: a consistent system, whose error is B4 - B(q), relative size d (about
-the distance over the model's size). It is solved by one augmented-Lagrangian step
-from zero multipliers, dq = A4^{-1} B4^T alpha (-g), off by about
-1 / (1 + alpha sigma^2 / m) of itself (1e-7 where the rows are well conditioned,
-more near a singular position, where it shows in the residual as d does). The step
-leaves about d of the residual (1e-6 .. 1e-5 measured after RK4 steps at dt 1e-3),
-and moves q along the constraints, where no residual sees it, by about d times the
-step; its metric is M at the stage's positions instead of the new ones, a change of
+last stage, at q + h v3, about h^2 a / 2 from the new q (5e-6 m on the cart of 20 links
+at dt 1e-3; DOPRI5's last stage is at the new q itself). A Newton step with them,
+M4 dq + B4^T mu = 0, B4 dq = -g(q), is a chord step: a consistent system, whose error
+is B4 - B(q), relative size d (about the distance over the model's size). It is solved
+by one augmented-Lagrangian step from zero multipliers, dq = A4^{-1} B4^T alpha (-g),
+off by about 1 / (1 + alpha sigma^2 / m) of itself (1e-7 where the rows are well
+conditioned, more near a singular position, where it shows in the residual as d does).
+The step leaves about d of the residual (1e-6 .. 1e-5, measured after RK4 steps of
+1e-3 s), and moves q along the constraints, where no residual sees it, by about d times
+the step; its metric is M at the stage's positions instead of the new ones, a change of
 the same order. It saves the factorisation, the assembly of M and B and the refined
-solve of an exact step: a sixth of the cart's RK4 step at n = 20. A chord step is
-kept when it leaves at most CHORD_GAIN of the residual and that move, estimated as
-the fraction of the residual left times the step's largest component, is at most
-CHORD_DRIFT of the position tolerance; otherwise (a factorisation made far from q, a
-row that nearly vanishes there, or a large step: the double pendulum at dt 0.05,
-where d is about 1e-2 and the steps about 1e-7 m, moved 1.4e-8 m off the exact
-projections' trajectory in 20 steps) it is undone and exact steps take over. The blocks must be
-the factorisation's own: B at the new q with the stage's factor makes the penalised
-system inconsistent by alpha |B| |B4 - B(q)|, and the step then moves q along the
-constraints by about RHO d times its size (100 times on the cart). Models with rows
-dependent only on the constraint manifold (_al_refine.pyx, "Directions beyond the
-decided rank") take exact steps only, whose solves fall back to the dense path's
-treatment of those rows.
+solve of an exact step: a sixth of the cart's RK4 step at n = 20. A chord step is kept
+when it leaves at most CHORD_GAIN of the residual and that move, estimated as the
+fraction of the residual left times the step's largest component, is at most CHORD_DRIFT
+of the position tolerance; otherwise (a factorisation made far from q, a row that nearly
+vanishes there, or a large step: the double pendulum at dt 0.05, where d is about 1e-2
+and the steps about 1e-7 m, moved 1.4e-8 m off the exact projections' trajectory in 20
+steps) it is undone and exact steps take over. The blocks must be the factorisation's
+own: B at the new q with the stage's factor makes the penalised system inconsistent by
+alpha |B| |B4 - B(q)|, and the step then moves q along the constraints by about RHO d
+times its size (100 times on the cart). Models with rows dependent only on the
+constraint manifold (_al_refine.pyx, "Directions beyond the decided rank") take exact
+steps only, whose solves fall back to the dense path's treatment of those rows.
 
 A solve whose refinement did not converge (constraints so ill-conditioned that the
 conjugate-gradient corrections run out of steps: _al_refine.pyx) is counted, and
@@ -68,7 +67,7 @@ follows sigma_{r+1} within a constant on a mechanism leaving a singular position
 at least twice, so that SVDs stay rare near singular positions, and at most ten
 times (the dense path's rule for its pivot).
 """
-from libc.math cimport INFINITY, fabs, sqrt
+from libc.math cimport INFINITY, sqrt
 from libc.stdlib cimport free
 from libc.string cimport memcpy, memset
 
@@ -294,17 +293,13 @@ cdef class SparseEngine(ALRefinement):
         constraints, (residual left / residual before) max |dq|, is at most
         CHORD_DRIFT of the position tolerance; else undone (0)."""
         cdef int i, n = self.n
-        cdef double trial, step = 0.0
+        cdef double trial, step, size
         for i in range(self.m):
             self.nb[i] = -self.asm.g[i]
         memset(self.base, 0, <size_t>n * sizeof(double))
-        self.first_pass(self.nb, False, self.dq)   # B^T alpha (-g)
-        self.solve_a(self.dq)
+        self.first_pass(self.nb, False, self.dq)   # B^T alpha (-g): zero where pinned
         memcpy(self.qsave, q, <size_t>n * sizeof(double))
-        for i in range(n):
-            q[i] += self.dq[i]
-            if fabs(self.dq[i]) > step:
-                step = fabs(self.dq[i])
+        self.solve_a_add(self.dq, q, &step, &size)
         self.assemble_constraints(q, ASM_G)
         trial = self.constraint_residual()
         if (trial <= CHORD_GAIN * res[0]

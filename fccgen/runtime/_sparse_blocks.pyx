@@ -866,7 +866,9 @@ cdef class SparseBlocks(Engine):
                           double *size) noexcept nogil:
         """x += A^{-1} y, with step = max |A^{-1} y| and size = max |x| after it, in
         the pass that scatters the solve. y must be zero on the pinned coordinates
-        past n_lead (a solve leaves it so there) and x too: they are not visited."""
+        past n_lead (A^{-1} y is then zero there too): they are not visited, so x
+        keeps its values there, and size counts them only if they are zero (as in
+        the refinement, whose x stays zero on them)."""
         cdef int i, j, n = self.n_lead
         cdef double d, xj, nd = 0.0, nx = 0.0
         for i in range(n):
