@@ -63,6 +63,7 @@ def simulate_dopri5(solver, q, v, sched, opts, project, progress=None):
     constraint_max = [0.0]
 
     set_time = getattr(solver, "set_time", lambda _t: None)   # models with drivers
+    rebase = getattr(solver, "rebase_angles", lambda _q: None)  # springs: count turns
 
     def f(y, t):
         stats["rhs_evaluations"] += 1
@@ -112,8 +113,10 @@ def simulate_dopri5(solver, q, v, sched, opts, project, progress=None):
             if project:
                 qp, vp = _project(solver, y[:n], y[n:], stats)
                 y = np.concatenate([qp, vp])
+                rebase(qp)
                 k1 = f(y, t)
             else:
+                rebase(y[:n])
                 k1 = k[6]
                 constraint_max[0] = max(constraint_max[0],
                                         float(np.max(np.abs(solver.constraints(y[:n])),

@@ -26,6 +26,7 @@ from ..results import InitialState, Result, keep_rows, timed_run
 from .constrained import RankKeeper, constrained_solve, scaled_residual
 from .dopri5 import simulate_dopri5
 from .elements import element_kernels
+from .references import AngleReferences
 from . import sparse_projection
 
 
@@ -58,6 +59,14 @@ class NumericSolver:
                             for k, el in enumerate(plan.elements)
                             if "t" in el.cls.param_names]
         self.t = 0.0
+        # turn counting of springs and loads of joint angles (numeric/references.py)
+        self.references = AngleReferences(plan, self._params, self._index)
+
+    def rebase_angles(self, q) -> None:
+        """Move the elements' angle references to their angles at q (after every
+        accepted step of a run; numeric/references.py)."""
+        if self.references:
+            self.references.rebase(q)
 
     def set_time(self, t) -> None:
         """Evaluate the kernels at the time t from now on (models with drivers)."""
@@ -283,6 +292,7 @@ class NumericSolver:
         project = bool(project) and m.projects
         decision = self.decide_rank(q0)
         report = run_reporter(progress, sched.t_end)
+        self.references.start()
         try:
             result = timed_run(self.plan, m, sched, opts, project,
                                lambda: INTEGRATORS[m.name](
@@ -291,6 +301,10 @@ class NumericSolver:
                                settings=self.settings())
         except SimulationError as exc:
             raise explained(exc, self, q0) from None
+        finally:
+            turn = self.references.largest_turn
+            self.references.restore()          # direct kernel calls: as planned
+        numeric_turn_check(result, turn)
         if report is not None:
             report.finish(result.t[-1])          # the run's end: 100%
         add_driver_columns(self, result)
@@ -377,6 +391,7 @@ def simulate_rk4(solver: NumericSolver, q, v, sched, opts, project, progress=Non
     positions and then the speeds are projected onto the constraints (if ``project``).
     progress(t) about every 0.5 s of wall time. Returns (arrays, stats)."""
     accelerations = accelerations or solver.accelerations
+    rebase = getattr(solver, "rebase_angles", lambda _q: None)  # springs: count turns
     n_steps, every, dt, t_end = sched.n_steps, sched.every, sched.dt, sched.t_end
     record = _Recorder(solver)
     record(0.0, q, v)
@@ -393,6 +408,7 @@ def simulate_rk4(solver: NumericSolver, q, v, sched, opts, project, progress=Non
             solver._rank.t = t                 # the projected state is at the step's end
             if project:
                 q, v = _project(solver, q, v, stats)
+            rebase(q)
         except SimulationError as exc:
             stopped = SimulationError(f"simulation stopped at t = {t:.10g} (step {k}): "
                                       f"{exc}")
@@ -422,7 +438,8 @@ def simulate_scipy(method: str):
     """The integrator of SciPy's ``method`` on the numeric right-hand side."""
     def run(solver, q, v, sched, opts, project, progress=None):
         from ..runtime import scipy_ivp           # pure Python; SciPy loaded on use
-        return scipy_ivp.run(solver, method, sched, opts, q, v, progress)
+        return scipy_ivp.run(solver, method, sched, opts, q, v, progress,
+                             refresh=getattr(solver, "rebase_angles", None))
     return run
 
 
@@ -430,6 +447,20 @@ INTEGRATORS = {"rk4": simulate_rk4, "dopri5": simulate_dopri5,
                "baumgarte": simulate_baumgarte,
                **{f"scipy-{m}": simulate_scipy(m)
                   for m in ("RK45", "DOP853", "Radau", "BDF", "LSODA")}}
+
+
+def numeric_turn_check(result, turn: tuple[float, str]) -> None:
+    """Warn when an element's angle moved more than a quarter turn between two
+    re-basings (the compiled runtime's turn_check, on the NumPy references)."""
+    import warnings
+
+    from ..errors import RunWarning
+    if turn[0] > 0.5 * np.pi:
+        text = (f"the angle of {turn[1]} turned {turn[0]:.3g} rad within one step: angles "
+                f"are counted over turns from step to step and need less than half a turn "
+                f"per step; rerun with a smaller dt (or tighter rtol) and compare")
+        result.info.setdefault("warnings", []).append(text)
+        warnings.warn(text, RunWarning, stacklevel=3)
 
 
 def _amax(x) -> float:

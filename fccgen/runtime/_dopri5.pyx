@@ -308,7 +308,8 @@ cdef int _accept(Engine e, Run *r, double h) noexcept nogil:
     if r.project:
         e.asm.put_time(r.t)
         # stage 7's M, B and factorisation are at y1, unless a record projected since
-        if _project(e, r, r.y, r.n_out == recorded and r.ev == NULL) < 0:
+        # (or an event function moved y1: with events, a set with some)
+        if _project(e, r, r.y, r.n_out == recorded and (r.ev == NULL or r.ev.ne == 0)) < 0:
             return -1
         if r.ev != NULL:
             if _after_event(e, r, k) < 0:
@@ -318,6 +319,8 @@ cdef int _accept(Engine e, Run *r, double h) noexcept nogil:
         e.err_where = AT_STAGE
         return _f(e, r, 1, r.t, r.y, r.k[0], e.factor_valid)
     memcpy(r.k[0], r.k[6], r.n2 * sizeof(double))        # FSAL
+    if r.ev != NULL:                          # angle references only (no projection)
+        ev_refresh(r.ev, r.y)
     e.asm.assemble(r.y, NULL, ASM_G)
     if not e.asm.max_abs_g() <= r.max_cerr:
         r.max_cerr = e.asm.max_abs_g()
@@ -446,7 +449,8 @@ def simulate_dopri5(Engine engine, q0, v0, double t_end, double output_dt, doubl
     engine.err = ERR_NONE
     r.ev, r.stopped, r.t_stop, r.t0 = NULL, False, t_end, 0.0
     if events is not None:
-        if not project:
+        # a set without event functions only re-bases angle references (springs)
+        if not project and events.n_events:
             raise ValueError("events need the projected DOPRI5 (projection on)")
         r.ev = ev_state(events)
         events.reset(qv, engine)

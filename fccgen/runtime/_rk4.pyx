@@ -336,14 +336,15 @@ def simulate_rk4(Engine engine, q0, v0, double t_end, double dt, long n_steps,
 
 def simulate_baumgarte(Engine engine, q0, v0, double t_end, double dt, long n_steps,
                        long output_every, double alpha, double beta, progress=None,
-                       double progress_interval=0.5):
+                       double progress_interval=0.5, events=None):
     """RK4 on the index-1 equations with Baumgarte stabilisation,
     B q'' = -(dB/dt) q' - 2 alpha B q' - beta^2 g, without projection; otherwise as
-    :func:`simulate_rk4` (same arguments, records and stats)."""
+    :func:`simulate_rk4` (same arguments, records and stats; events: a set without
+    event functions, whose angle references it re-bases after every step)."""
     if not (alpha >= 0 and beta >= 0):
         raise ValueError("Baumgarte alpha and beta must be non-negative")
     return _simulate(engine, q0, v0, t_end, dt, n_steps, output_every, False, True,
-                     alpha, beta, progress, progress_interval)
+                     alpha, beta, progress, progress_interval, events)
 
 
 def _simulate(Engine engine, q0, v0, double t_end, double dt, long n_steps,
@@ -375,7 +376,8 @@ def _simulate(Engine engine, q0, v0, double t_end, double dt, long n_steps,
     _start(engine, &r, qv, vv, arrays)
     r.ev, r.stopped, r.t_stop = NULL, False, t_end
     if events is not None:
-        if baumgarte or not project:
+        # a set without event functions only re-bases angle references (springs)
+        if (baumgarte or not project) and events.n_events:
             raise ValueError("events need the projected RK4 (method rk4, projection on)")
         saved = np.zeros(2 * n)
         r.eq, r.evv = _data(saved), _data(saved) + n

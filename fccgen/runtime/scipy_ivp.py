@@ -53,10 +53,12 @@ def output_times(t_end: float, output_dt: float) -> np.ndarray:
 
 def integrate(accelerations, q0, v0, t_end: float, output_dt: float, method: str,
               rtol: float, atol: float, first_step=None, progress=None,
-              progress_interval: float = 0.5, set_time=None):
+              progress_interval: float = 0.5, set_time=None, refresh=None):
     """Integrate with SciPy's ``method`` (one of SCIPY_METHODS) from (q0, v0) to t_end.
 
-    Returns (t, q, v, stats): outputs at :func:`output_times`, and stats steps,
+    refresh(q): called after every accepted step (angle references of springs,
+    fccgen.events.references). Returns (t, q, v, stats): outputs at
+    :func:`output_times`, and stats steps,
     rejected_steps (None where SciPy does not expose it), rhs_evaluations, njev, nlu.
     Raises SimulationError when SciPy fails (step size too small) or the state
     stops being finite.
@@ -86,6 +88,8 @@ def integrate(accelerations, q0, v0, t_end: float, output_dt: float, method: str
         if not np.all(np.isfinite(ode.y)):
             raise SimulationError(f"simulation stopped at t = {ode.t:.10g}: SciPy {method} "
                                   f"produced a non-finite state (the solution diverged)")
+        if refresh is not None:
+            refresh(ode.y[:n])
         stop = np.searchsorted(t_out, ode.t, side="right")
         if stop > k:
             y_out[k:stop] = ode.dense_output()(t_out[k:stop]).T
@@ -102,12 +106,14 @@ def integrate(accelerations, q0, v0, t_end: float, output_dt: float, method: str
     return t_out, y_out[:, :n].copy(), y_out[:, n:].copy(), stats
 
 
-def run(solver, scipy_method: str, sched, opts: dict, q0, v0, progress=None):
+def run(solver, scipy_method: str, sched, opts: dict, q0, v0, progress=None,
+        refresh=None):
     """(arrays, stats) of a run of SciPy's ``scipy_method`` on ``solver.accelerations``
-    (a compiled or numeric solver); sched: a fccgen.methods.Schedule; opts: rtol, atol."""
+    (a compiled or numeric solver); sched: a fccgen.methods.Schedule; opts: rtol, atol;
+    refresh: see :func:`integrate`."""
     t, q, v, stats = integrate(solver.accelerations, q0, v0, sched.t_end, sched.output_dt,
                                scipy_method, opts["rtol"], opts["atol"], sched.dt, progress,
-                               set_time=getattr(solver, "set_time", None))
+                               set_time=getattr(solver, "set_time", None), refresh=refresh)
     return record(solver, t, q, v, stats), stats
 
 
