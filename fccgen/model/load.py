@@ -114,7 +114,8 @@ class _ModelReader(Reader):
         loads = items.loads(e["loads"]) if "loads" in e else []
         initial = items.initial(e["initial"], joints) if "initial" in e else Initial()
         simulate = items.simulate(e.get("simulate"), METHODS, self.values_per_output())
-        events = EventReader(self.source, self.points, joints).events(e.get("events"))
+        events = EventReader(self.source, self.points, joints, drivers).events(
+            e.get("events"))
         return Model(name=name, source=self.source, gravity=gravity, points=self.points,
                      vectors=self.vectors, bodies=self.bodies, constraints=constraints,
                      loads=loads, initial=initial, simulate=simulate,
