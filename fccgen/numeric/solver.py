@@ -14,6 +14,7 @@ import numpy as np
 from .. import methods as registry
 from .. import rank as rank_rule
 from ..diagnose import explained
+from ..mechanism.driver_branch import check_driver_branches
 from ..mechanism.driver_forces import add_driver_columns, driver_rows
 from ..mechanism.initial_positions import assemble_at_joints
 from ..mechanism.initial_speeds import initial_speeds
@@ -308,6 +309,7 @@ class NumericSolver:
         if report is not None:
             report.finish(result.t[-1])          # the run's end: 100%
         add_driver_columns(self, result)
+        check_driver_branches(self.plan, result)
         rank_rule.report_run(result, decision, self._rank.stats,
                              driven=bool(driver_rows(self.plan)))
         return add_reactions(self, result) if reactions else result

@@ -14,6 +14,7 @@ import numpy as np
 from .. import methods as registry
 from .. import rank as rank_rule
 from ..diagnose import explained
+from ..mechanism.driver_branch import check_driver_branches
 from ..mechanism.driver_forces import add_driver_columns, driver_rows
 from ..mechanism.initial_positions import assemble_at_joints
 from ..mechanism.initial_speeds import initial_speeds
@@ -359,6 +360,7 @@ class CompiledSolver:
              result.info["event_energy_loss"]) = energy_balance(result.t, result["energy"],
                                                                 result.events)
         add_driver_columns(self, result)
+        check_driver_branches(self.plan, result)
         used = self.dense_engine() if m.name == "ali3p" else self._engine
         stats = used.rank_statistics()
         rank_rule.report_run(result, decision, stats,
