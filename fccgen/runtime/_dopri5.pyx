@@ -29,7 +29,7 @@ from ._engine cimport (AT_POSITIONS, AT_STAGE, AT_STEP, AT_VELOCITIES, ERR_NONE,
                        ERR_NONFINITE_INPUT, Engine, finite)
 from ._events cimport Bracket, EvC, ev_apply, ev_bracket, ev_bracket_open, \
     ev_bracket_trial, ev_bracket_update, ev_constrain, ev_correct, ev_crossed, ev_crosses, \
-    ev_leaving, ev_refresh, ev_state, ev_watch
+    ev_leaving, ev_refresh, ev_state, ev_watch, ev_watched
 from ._runloop cimport RUN_DONE, RUN_ERROR, RUN_PAUSE, now, write_record
 
 from ._messages import error_message
@@ -223,7 +223,7 @@ cdef int _first_event(Engine e, Run *r, double h, double t1, double *theta) noex
         return -1
     theta[0], first = 1.0, k
     for j in range(k, 2 * ev.ne):
-        if j > k and not ev_crosses(ev, j, ev.s0[j], ev.s1[j]):
+        if j > k and not ev_watched(ev, j, ev.s0, ev.s1):     # not a held lock
             continue
         if _locate(e, r, j, h, &th) < 0:
             return -2
@@ -297,7 +297,10 @@ cdef int _accept(Engine e, Run *r, double h) noexcept nogil:
     r.t = t1
     r.accepted += 1
     recorded = r.n_out
-    while r.n_out < r.n_req and r.t_req[r.n_out] <= r.t * (1 + 4 * UROUND):
+    # a record at an event's time shows the state after it (as RK4's do): the next
+    # step, starting there, writes it (_flush at the end of the run)
+    while r.n_out < r.n_req and (r.t_req[r.n_out] < r.t if k >= 0 else
+                                 r.t_req[r.n_out] <= r.t * (1 + 4 * UROUND)):
         if _record(e, r) < 0:
             return -1
     memcpy(r.y, r.y1, r.n2 * sizeof(double))
@@ -325,6 +328,18 @@ cdef int _accept(Engine e, Run *r, double h) noexcept nogil:
     if not e.asm.max_abs_g() <= r.max_cerr:
         r.max_cerr = e.asm.max_abs_g()
     return 0
+
+
+cdef void _flush(Engine e, Run *r) noexcept nogil:
+    """Records left at the end of the run (an event at t_end): the state there."""
+    cdef int n = r.n2 // 2
+    cdef double cerr
+    while r.n_out < r.n_req:
+        cerr = write_record(e, r.n_out, r.y, r.y + n, r.q_out, r.v_out, r.body_out,
+                            r.e_out, r.c_out)
+        if not cerr <= r.max_cerr:
+            r.max_cerr = cerr
+        r.n_out += 1
 
 
 cdef int _run(Engine e, Run *r, double deadline) noexcept nogil:
@@ -359,6 +374,7 @@ cdef int _run(Engine e, Run *r, double deadline) noexcept nogil:
             r.last_rejected = True
         if r.t < r.t_end and now() >= deadline:
             return RUN_PAUSE
+    _flush(e, r)
     return RUN_DONE
 
 

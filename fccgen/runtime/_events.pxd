@@ -97,6 +97,7 @@ cdef void ev_values(EvC *ev, const double *q, const double *v, double t,
                     double *out) noexcept nogil
 cdef int ev_watch(Engine e, EvC *ev, const double *q, const double *v, double t,
                   double *out) noexcept nogil
+cdef bint ev_watched(EvC *ev, int k, const double *a, const double *b) noexcept nogil
 cdef int ev_crossed(EvC *ev, const double *a, const double *b) noexcept nogil
 cdef bint ev_crosses(EvC *ev, int k, double a, double b) noexcept nogil
 cdef int ev_constrain(Engine e, EvC *ev, const double *q, const double *v,

@@ -163,16 +163,23 @@ cdef bint _rests(EvC *ev, int k) noexcept nogil:
     return ev.rested[k] and ev.row[k] >= 0 and ev.active[ev.row[k]]
 
 
+cdef bint ev_watched(EvC *ev, int k, const double *a, const double *b) noexcept nogil:
+    """Watched value k (event function k < ne, or release function of resting bounce
+    k - ne) crosses from a to b and counts: a lock or rest whose rows hold hovers at
+    zero by the position tolerance, and its crossings are that noise, not events."""
+    if k < ev.ne:
+        return ev_crosses(ev, k, a[k], b[k]) and not _locked(ev, k)
+    return _rests(ev, k - ev.ne) and ev_crosses(ev, k, a[k], b[k])
+
+
 cdef int ev_crossed(EvC *ev, const double *a, const double *b) noexcept nogil:
-    """The first watched value that crosses from a to b, or -1: an event function
-    k < ne, or the release function ne + k of a resting bounce k."""
+    """The first watched value that crosses from a to b and counts (ev_watched), or
+    -1: an event function k < ne, or the release function ne + k of a resting bounce
+    k."""
     cdef int k
-    for k in range(ev.ne):
-        if ev_crosses(ev, k, a[k], b[k]) and not _locked(ev, k):
+    for k in range(2 * ev.ne):
+        if ev_watched(ev, k, a, b):
             return k
-    for k in range(ev.ne):
-        if _rests(ev, k) and ev_crosses(ev, ev.ne + k, a[ev.ne + k], b[ev.ne + k]):
-            return ev.ne + k
     return -1
 
 

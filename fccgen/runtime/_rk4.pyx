@@ -20,7 +20,7 @@ from libc.math cimport fabs
 
 from ._events cimport Bracket, EvC, ev_apply, ev_bracket, ev_bracket_open, \
     ev_bracket_trial, ev_bracket_update, ev_constrain, ev_correct, ev_crossed, ev_crosses, \
-    ev_leaving, ev_refresh, ev_state, ev_watch
+    ev_leaving, ev_refresh, ev_state, ev_watch, ev_watched
 from ._engine cimport (AT_POSITIONS, AT_STAGE, AT_STEP, AT_VELOCITIES, ERR_DIVERGED,
                        ERR_NONE, ERR_NONFINITE_INPUT, Engine, finite)
 from ._runloop cimport RUN_DONE, RUN_ERROR, RUN_PAUSE, now, write_record
@@ -228,7 +228,7 @@ cdef int _events(Engine e, Run *r, double t0, double h) noexcept nogil:
             return ev_watch(e, ev, r.q, r.v, t0 + h, ev.s0)
         best, first = h, k
         for j in range(k, 2 * ev.ne):           # the earliest of those that crossed
-            if j > k and not ev_crosses(ev, j, ev.s0[j], ev.s1[j]):
+            if j > k and not ev_watched(ev, j, ev.s0, ev.s1):     # not a held lock
                 continue
             if _locate(e, r, j, t0, h, &tau) < 0:
                 return -1
