@@ -28,7 +28,8 @@ from ._dopri5 import simulate_dopri5
 from .paths import (SPARSE_MIN_COORDINATES, make_engine, pattern_samples,
                     reduced_mass_spread, small_model_path, use_sparse)
 from ._rk4 import simulate_baumgarte, simulate_rk4
-from .energy_check import check_energy
+from .energy_check import check_energy, kinetic_peak, work_tracker
+from .guards import check_constraint_drift
 from .turns import REBASING, turn_check
 
 
@@ -196,6 +197,9 @@ class CompiledSolver:
         kinetic, potential = self._get("energy", q, v)
         return float(kinetic + potential)
 
+    def kinetic_energy(self, q, v) -> float:
+        return float(self._get("energy", q, v)[0])
+
     def body_outputs(self, q, v) -> np.ndarray:
         """(n_bodies, 6): mass centre and angular velocity (global frame) per body."""
         return self._get("body_outputs", q, v)
@@ -334,10 +338,16 @@ class CompiledSolver:
         report = run_reporter(progress, sched.t_end)
         decision = self.decide_rank(q0)
         events = self._event_set(event_tol, rest_speed)
+        tracker, untracked = work_tracker(self.plan, m.name, self.sparse)
+        kept = {}
+
+        def run():
+            arrays, stats = self._run(m, sched, opts, project, q0, v0, report, events,
+                                      tracker)
+            kept["work"] = arrays.get("work") if tracker is not None else None
+            return arrays, stats
         try:
-            result = timed_run(self.plan, m, sched, opts, project,
-                               lambda: self._run(m, sched, opts, project, q0, v0, report,
-                                                 events),
+            result = timed_run(self.plan, m, sched, opts, project, run,
                                settings=self.settings())
         except SimulationError as exc:
             raise explained(exc, self, q0) from None
@@ -368,7 +378,10 @@ class CompiledSolver:
         if events is not None and events.n_events:
             from ..events.table import final_dof
             result.info["final_dof"] = final_dof(result.info, result.events)
-        check_energy(result, self.plan, stats.get("kinetic_energy_peak"))
+        check_constraint_drift(self, result, project)
+        check_energy(result, self.plan,
+                     kinetic_peak(self, result, stats.get("kinetic_energy_peak")),
+                     kept.get("work"), untracked)
         return add_reactions(self, result) if reactions else result
 
     def dense_engine(self):
@@ -485,7 +498,7 @@ class CompiledSolver:
             v0 = self.project_velocities(q0, self.plan.v_target)
         return q0, v0
 
-    def _run(self, m, sched, opts, project, q0, v0, report, events=None):
+    def _run(self, m, sched, opts, project, q0, v0, report, events=None, work=None):
         """(arrays, stats) of one run of method m."""
         s, e = sched, self._engine
         if model_events(self.plan) and m.name not in ("rk4", "dopri5"):
@@ -493,14 +506,15 @@ class CompiledSolver:
                              f"by {m.name}")
         if m.name == "rk4":
             return simulate_rk4(e, q0, v0, s.t_end, s.dt, s.n_steps, s.every, project,
-                                report, events=events)
+                                report, events=events, work=work)
         if m.name == "baumgarte":
             return simulate_baumgarte(e, q0, v0, s.t_end, s.dt, s.n_steps, s.every,
-                                      opts["alpha"], opts["beta"], report, events=events)
+                                      opts["alpha"], opts["beta"], report, events=events,
+                                      work=work)
         if m.name == "dopri5":
             return simulate_dopri5(e, q0, v0, s.t_end, s.output_dt, opts["rtol"],
                                    opts["atol"], s.dt or 0.0, project, report,
-                                   events=events)
+                                   events=events, work=work)
         if m.name == "ali3p":                # assembles dense M and B itself
             from ._ali3p import simulate_ali3p
             return simulate_ali3p(self.dense_engine(), q0, v0, s.t_end, s.dt, s.n_steps, s.every, opts,
@@ -508,7 +522,9 @@ class CompiledSolver:
         if m.name.startswith("scipy-"):
             from . import scipy_ivp              # imports scipy.integrate: only when used
             return scipy_ivp.run(self, m.name[len("scipy-"):], s, opts, q0, v0, report,
-                                 refresh=None if events is None else events.refresh)
+                                 refresh=None if events is None else events.refresh,
+                                 power=None if work is None else (
+                                     lambda q, v, a: work.power(self._engine, q, v, a)))
         raise AssertionError(f"no compiled dispatch for method {m.name!r}")
 
     # -- other numbers, pickling (fccgen.runtime.params) --------------------------------
