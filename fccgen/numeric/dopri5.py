@@ -80,7 +80,7 @@ def simulate_dopri5(solver, q, v, sched, opts, project, progress=None, ctx=None)
         return np.concatenate([y[n:], a])
 
     t_req = _output_times(t_end, sched.output_dt)
-    record = Recorder(solver)
+    record = Recorder(solver, ctx.power is not None)
     record(0.0, q, v)
     y, t, last_rejected, work = np.concatenate([q, v]), 0.0, False, 0.0
     if ev is not None:

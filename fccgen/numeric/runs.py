@@ -51,8 +51,8 @@ class RunContext:
 class Recorder:
     """Records t, q, v, body outputs, energy, max |g| and the work of output states."""
 
-    def __init__(self, solver):
-        self.solver = solver
+    def __init__(self, solver, tracked: bool = False):
+        self.solver, self.tracked = solver, tracked
         self.rows: dict[str, list] = {k: [] for k in ("t", "q", "v", "body", "energy",
                                                       "constraint_error", "work")}
 
@@ -67,8 +67,11 @@ class Recorder:
         out["work"].append(float(work))
 
     def arrays(self) -> dict[str, np.ndarray]:
+        """The records (with "work" only when a power was integrated: tracked)."""
         a = {k: np.array(v, float) for k, v in self.rows.items()}
         a["body"] = a["body"].reshape(len(a["t"]), len(self.solver.plan.bodies), 6)
+        if not self.tracked:
+            del a["work"]
         return a
 
 
@@ -122,7 +125,7 @@ def simulate_rk4(solver, q, v, sched, opts, project_on, progress=None,
                                       else solver.accelerations)
     set_time = getattr(solver, "set_time", None)
     n_steps, every, dt, t_end = sched.n_steps, sched.every, sched.dt, sched.t_end
-    record = Recorder(solver)
+    record = Recorder(solver, ctx.power is not None)
     record(0.0, q, v)
     deadline = time.monotonic() + 0.5
     stats = dict(steps=n_steps, rhs_evaluations=4 * n_steps, rejected_steps=0,
@@ -132,6 +135,7 @@ def simulate_rk4(solver, q, v, sched, opts, project_on, progress=None,
         """The state after a (projected) step of h from (q0, v0) at t0, and the work."""
         q1, v1, dw = rk4_step(accelerations, q0, v0, h, t0, set_time, ctx.power)
         ctx.check(q1, v1)
+        solver._rank.t = t0 + h                # the projected state is at the step's end
         if project_on:
             q1, v1 = project(solver, q1, v1, stats, ev)
         return q1, v1, w0 + dw
@@ -148,7 +152,6 @@ def simulate_rk4(solver, q, v, sched, opts, project_on, progress=None,
         try:
             start = (q, v, work)
             q, v, work = step(q, v, work, t0, h)
-            solver._rank.t = t                 # the projected state is at the step's end
             stop = None
             if ev is not None:
                 q, v, work, stop = _events(ctx, step, accelerations, set_time, start,
@@ -253,8 +256,10 @@ def simulate_scipy(method: str):
     def run(solver, q, v, sched, opts, project_on, progress=None, ctx=None):
         from ..runtime import scipy_ivp           # pure Python; SciPy loaded on use
         ctx = ctx or RunContext()
+        references = getattr(solver, "references", None)
         return scipy_ivp.run(solver, method, sched, opts, q, v, progress,
-                             refresh=ctx.rebase, power=ctx.power)
+                             refresh=ctx.rebase, power=ctx.power,
+                             restart=references.start if references else None)
     return run
 
 

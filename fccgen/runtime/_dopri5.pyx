@@ -497,7 +497,10 @@ def simulate_dopri5(Engine engine, q0, v0, double t_end, double output_dt, doubl
     n_out = len(t_req)
     arrays = dict(t=t_req, q=np.zeros((n_out, n)), v=np.zeros((n_out, n)),
                   body=np.zeros((n_out, engine.asm.n_bodies, 6)), energy=np.zeros(n_out),
-                  constraint_error=np.zeros(n_out), work=np.zeros(n_out))
+                  constraint_error=np.zeros(n_out))
+    work_out = np.zeros(n_out)
+    if work is not None:                     # the work at the records (array "work")
+        arrays["work"] = work_out
     stage_work = np.zeros((15, 2 * n))
     cdef Run r
     cdef int i
@@ -516,7 +519,7 @@ def simulate_dopri5(Engine engine, q0, v0, double t_end, double output_dt, doubl
     r.q_out, r.v_out = _data(arrays["q"]), _data(arrays["v"])
     r.body_out, r.e_out = _data(arrays["body"]), _data(arrays["energy"])
     r.c_out = _data(arrays["constraint_error"])
-    r.w_out = _data(arrays["work"])
+    r.w_out = _data(work_out)
     r.pw, r.w = power_state(work), 0.0
     r.q_bound, r.v_bound = divergence_bounds(np.asarray(qv), np.asarray(vv), t_end,
                                              min(output_dt, t_end))

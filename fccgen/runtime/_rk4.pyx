@@ -315,7 +315,6 @@ cdef void _start(Engine e, Run *r, double[::1] q0, double[::1] v0, dict arrays):
     r.t_out, r.q_out, r.v_out = _data(arrays["t"]), _data(arrays["q"]), _data(arrays["v"])
     r.body_out, r.e_out = _data(arrays["body"]), _data(arrays["energy"])
     r.c_out = _data(arrays["constraint_error"])
-    r.w_out = _data(arrays["work"])
     e.factor_valid = False
     e.err = ERR_NONE
     e.asm.put_time(0.0)
@@ -330,9 +329,9 @@ def simulate_rk4(Engine engine, q0, v0, double t_end, double dt, long n_steps,
 
     progress(t) is called when the run pauses, at most every progress_interval seconds
     of wall time. work: a _power.WorkTracker (None: no work to track). Returns
-    (arrays, stats): fresh arrays t, q, v, body, energy, constraint_error, work (of the
-    forces without potential; 0 without a tracker); stats steps, rhs_evaluations, newton_iterations (total),
-    max_newton_iterations, projection_failures, max_constraint_error. Raises
+    (arrays, stats): fresh arrays t, q, v, body, energy, constraint_error (and with a
+    tracker work, of the forces without potential); stats steps, rhs_evaluations,
+    newton_iterations (total), max_newton_iterations, projection_failures, max_constraint_error. Raises
     SimulationError (with the time and what failed) on a singular mass matrix or a
     non-finite state.
     """
@@ -371,7 +370,10 @@ def _simulate(Engine engine, q0, v0, double t_end, double dt, long n_steps,
     n_out = 1 + n_steps // output_every + (1 if n_steps % output_every else 0)
     arrays = dict(t=np.zeros(n_out), q=np.zeros((n_out, n)), v=np.zeros((n_out, n)),
                   body=np.zeros((n_out, engine.asm.n_bodies, 6)), energy=np.zeros(n_out),
-                  constraint_error=np.zeros(n_out), work=np.zeros(n_out))
+                  constraint_error=np.zeros(n_out))
+    work_out = np.zeros(n_out)
+    if work is not None:                     # the work at the records (array "work")
+        arrays["work"] = work_out
     cdef Run r
     r.project, r.n_steps, r.every, r.dt, r.t_end = project, n_steps, output_every, dt, t_end
     r.baumgarte, r.alpha, r.beta = baumgarte, alpha, beta
@@ -382,6 +384,7 @@ def _simulate(Engine engine, q0, v0, double t_end, double dt, long n_steps,
     _start(engine, &r, qv, vv, arrays)
     r.ev, r.stopped, r.t_stop = NULL, False, t_end
     r.pw, r.w, r.wsave = power_state(work), 0.0, 0.0
+    r.w_out = _data(work_out)
     r.p[0] = r.p[1] = r.p[2] = r.p[3] = 0.0
     if events is not None:
         # a set without event functions only re-bases angle references (springs)

@@ -137,25 +137,37 @@ def integrate(accelerations, q0, v0, t_end: float, output_dt: float, method: str
 
 
 def run(solver, scipy_method: str, sched, opts: dict, q0, v0, progress=None,
-        refresh=None, power=None):
+        refresh=None, power=None, restart=None):
     """(arrays, stats) of a run of SciPy's ``scipy_method`` on ``solver.accelerations``
     (a compiled or numeric solver); sched: a fccgen.methods.Schedule; opts: rtol, atol;
-    refresh, power: see :func:`integrate` (arrays["work"]: W at the outputs)."""
+    refresh, power: see :func:`integrate` (arrays["work"]: W at the outputs);
+    restart(): the angle references back at the start's, before the outputs are
+    read along the run."""
     t, q, v, stats = integrate(solver.accelerations, q0, v0, sched.t_end, sched.output_dt,
                                scipy_method, opts["rtol"], opts["atol"], sched.dt, progress,
                                set_time=getattr(solver, "set_time", None), refresh=refresh,
                                power=power)
-    arrays = record(solver, t, q, v, stats)
-    arrays["work"] = stats.pop("work", np.zeros(len(t)))
+    if restart is not None:
+        restart()
+    arrays = record(solver, t, q, v, stats, refresh if restart is not None else None)
+    if power is not None:
+        arrays["work"] = stats.pop("work")
     return arrays, stats
 
 
-def record(solver, t, q, v, info: dict):
+def record(solver, t, q, v, info: dict, refresh=None):
     """Arrays of a run (body outputs, energy, max |g| at every output) from a solver's
-    own per-state functions; ``info`` gains max_constraint_error."""
+    own per-state functions; ``info`` gains max_constraint_error. refresh(q): the
+    angle references moved along the outputs (from the start's, which the caller
+    set), so that a spring's energy is its angle's over turns."""
     body = np.array([solver.body_outputs(qi, vi) for qi, vi in zip(q, v)])
     body = body.reshape(len(t), len(solver.plan.bodies), 6)
-    energy = np.array([solver.energy(qi, vi) for qi, vi in zip(q, v)])
+    energy = []
+    for qi, vi in zip(q, v):
+        if refresh is not None:
+            refresh(qi)
+        energy.append(solver.energy(qi, vi))
+    energy = np.array(energy)
     set_time = getattr(solver, "set_time", None)
     cerr = []
     for ti, qi in zip(t, q):

@@ -521,10 +521,14 @@ class CompiledSolver:
                                   report, length_scale=self.length_scale)
         if m.name.startswith("scipy-"):
             from . import scipy_ivp              # imports scipy.integrate: only when used
+            if events is not None:               # references from the start's angles
+                events.reset(q0)
             return scipy_ivp.run(self, m.name[len("scipy-"):], s, opts, q0, v0, report,
                                  refresh=None if events is None else events.refresh,
                                  power=None if work is None else (
-                                     lambda q, v, a: work.power(self._engine, q, v, a)))
+                                     lambda q, v, a: work.power(self._engine, q, v, a)),
+                                 restart=None if events is None else (
+                                     lambda: events.reset(q0)))
         raise AssertionError(f"no compiled dispatch for method {m.name!r}")
 
     # -- other numbers, pickling (fccgen.runtime.params) --------------------------------
