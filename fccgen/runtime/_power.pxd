@@ -1,17 +1,17 @@
-# The power of the non-conservative forces at a stage state, for the energy check
+# The power of the forces without potential at a stage state, for the energy check
 # with the work added back (see _power.pyx).
-from libc.string cimport memcpy
-
-from ._assemble cimport ASM_F
+from ._assemble cimport ASM_F, Assembler
 from ._engine cimport Engine
 from ._sparse_blocks cimport SparseBlocks
 
 
 cdef struct Power:
     int on                    # 0: nothing to track (a conservative model)
-    int n_params              # the element parameters: their count,
-    double *nc                # ... a copy with the conservative ones zeroed (work),
-    int n_zero                # ... and which are zeroed
+    void *nc                  # the Assembler of the elements with forces without
+                              # potential (owned by the WorkTracker)
+    int n_params              # its parameters: how many,
+    int *src                  # ... each one's index among the engine's parameters,
+    int n_zero                # ... and which are zeroed (spring stiffnesses)
     int *zero
     int constraints           # add the constraint forces' power (driven models),
     int sparse                # ... M from the sparse path's element blocks,
@@ -21,14 +21,13 @@ cdef struct Power:
 cdef inline double stage_power(Engine e, Power *w, const double *q, const double *v,
                                const double *a) noexcept nogil:
     """P = v . f_nc(q, v, t) [+ v . (M a + h - f) = -v . B^T lambda]: the power of the
-    applied forces that have no potential (f assembled with the conservative
-    parameters zeroed: gravity, constant forces, spring stiffnesses) and, for driven
-    models, of the constraint forces, at the stage (q, v) whose accelerations a the
-    engine has just solved (M, h, f still assembled there; on the sparse path M as its
-    element blocks)."""
+    applied forces that have no potential (the elements that have some, assembled
+    with their stiffnesses zeroed and the engine's present parameters: time,
+    references) and, for driven models, of the constraint forces, at the stage
+    (q, v) whose accelerations a the engine has just solved (M, h, f still assembled
+    there; on the sparse path M as its element blocks)."""
     cdef int i, j, n = e.n
     cdef double p = 0.0, acc
-    cdef double *saved
     if not w.on:
         return 0.0
     if w.constraints:
@@ -42,15 +41,13 @@ cdef inline double stage_power(Engine e, Power *w, const double *q, const double
                 w.ma[i] = acc
         for i in range(n):
             p += v[i] * (w.ma[i] + e.asm.h[i] - e.asm.f[i])
-    saved = e.asm.params
-    memcpy(w.nc, saved, w.n_params * sizeof(double))
+    for i in range(w.n_params):
+        (<Assembler>w.nc).params[i] = e.asm.params[w.src[i]]
     for i in range(w.n_zero):
-        w.nc[w.zero[i]] = 0.0
-    e.asm.params = w.nc
-    e.asm.assemble(q, v, ASM_F)
-    e.asm.params = saved
+        (<Assembler>w.nc).params[w.zero[i]] = 0.0
+    (<Assembler>w.nc).assemble(q, v, ASM_F)
     for i in range(n):
-        p += v[i] * e.asm.f[i]
+        p += v[i] * (<Assembler>w.nc).f[i]
     return p
 
 

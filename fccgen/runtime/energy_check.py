@@ -79,18 +79,43 @@ def driven(plan) -> bool:
     return any(el.cls.kind.startswith("driver") for el in plan.elements)
 
 
-def work_tracker(plan, method: str, sparse: bool):
+def work_elements(plan) -> tuple[list[int], list[tuple[int, int]]]:
+    """(the elements whose forces do work: loads without potential and damped springs;
+    (element, parameter index) of each such spring's stiffness, to be zeroed)."""
+    elements, zero = [], []
+    for e, el in enumerate(plan.elements):
+        kind, names = el.cls.kind, el.cls.param_names
+        if kind in NO_POTENTIAL:
+            elements.append(e)
+        elif kind in DAMPED_KINDS and el.params[names.index("c")] != 0.0:
+            elements.append(e)
+            zero.append((e, names.index("k")))
+    return elements, zero
+
+
+def work_tracker(plan, module, method: str, sparse: bool):
     """(the runtime/_power.WorkTracker of a compiled run of ``method``, or None; why
     the work is not tracked, or None)."""
     if energy_exchange(plan) is None:
         return None, None
-    zero, unknown = work_split(plan)
+    _, unknown = work_split(plan)
     if unknown:
         return None, unknown
     if method == "ali3p":
         return None, "ali3p's steps are not quadratures of stage states"
+    from types import SimpleNamespace
+
     from ._power import WorkTracker
-    return WorkTracker(zero, sum(len(el.params) for el in plan.elements), driven(plan),
+    from .solver import make_assembler
+    elements, zero = work_elements(plan)
+    starts = np.cumsum([0] + [len(el.params) for el in plan.elements])
+    subset = SimpleNamespace(elements=[plan.elements[e] for e in elements],
+                             classes=plan.classes, n_q=plan.n_q, bodies=[],
+                             class_of=[plan.class_of[e] for e in elements])
+    src = [int(starts[e]) + k for e in elements for k in range(len(plan.elements[e].params))]
+    local = np.cumsum([0] + [len(plan.elements[e].params) for e in elements])
+    zero_local = [int(local[elements.index(e)]) + k for e, k in zero]
+    return WorkTracker(make_assembler(subset, module), src, zero_local, driven(plan),
                        sparse, plan.n_q), None
 
 
