@@ -10,6 +10,7 @@
     fccgen statics MODEL.yaml         static equilibrium, reactions, stability
     fccgen modes MODEL.yaml           natural frequencies about the equilibrium
     fccgen inverse MODEL.yaml         driver forces and reactions along the drivers
+    fccgen examples [DIR]             copy the example models into DIR (./examples)
 """
 from __future__ import annotations
 
@@ -28,7 +29,7 @@ from .methods import names as method_names
 from .run_settings import LINEAR_SOLVERS
 
 COMMANDS = ("simulate", "bench", "check", "generate", "plot", "animate", "sweep",
-            "statics", "modes", "inverse")
+            "statics", "modes", "inverse", "examples")
 EXIT_INTERRUPTED = 130      # 128 + SIGINT, as shells report it
 
 
@@ -49,6 +50,13 @@ def _parser() -> argparse.ArgumentParser:
     def force(sp):
         sp.add_argument("--force", action="store_true",
                         help="rebuild the compiled module even if it is cached")
+
+    ex = sub.add_parser("examples", help="copy the example models shipped with fccgen "
+                        "into a folder, so that the README's lines run anywhere")
+    ex.add_argument("dir", nargs="?", default="examples",
+                    help="where to copy them (default: ./examples)")
+    ex.add_argument("--overwrite", action="store_true",
+                    help="replace files already there (default: keep them)")
 
     g = sub.add_parser("generate", help="generate and compile (the default command)")
     common(g)
@@ -293,7 +301,7 @@ def main(argv=None) -> int:
     if args.command is None:
         _parser().print_help()
         return 2
-    progress = _Progress(args.quiet)
+    progress = _Progress(getattr(args, "quiet", False))
     with warnings.catch_warnings():
         warnings.simplefilter("always", CacheRepairWarning)
         warnings.simplefilter("always", PartialResultWarning)
@@ -344,6 +352,15 @@ def _guarded(args, progress) -> int:
 
 def _run(args, progress) -> int:
     from . import api
+    if args.command == "examples":
+        from .example_models import copy_examples, example_names
+        written = copy_examples(args.dir, overwrite=args.overwrite)
+        print(f"examples: {len(written)} files written to {args.dir}"
+              + ("" if written else " (all were there; --overwrite replaces them)")
+              + f"\nmodels: {', '.join(example_names())}"
+              f"\ntry: fccgen simulate {args.dir}/double_pendulum.yaml --out "
+              "double_pendulum.csv")
+        return 0
     if args.command == "generate":
         t0 = time.perf_counter()
         plan, built = api.generate(args.model, args.build_dir, force=args.force,

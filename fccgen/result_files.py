@@ -10,10 +10,12 @@ metadata of :mod:`fccgen.provenance`:
   :class:`~fccgen.errors.ResultMetadataWarning`.
 - ``.npz``: one array per column name, and ``info`` as JSON in the entry
   ``__fccgen_info__``.
-- ``.h5`` / ``.hdf5`` (needs h5py: ``pip install 'fccgen[hdf5]'``): one dataset per
-  column name at the root, in order; root attributes ``fccgen_columns`` (the names,
-  JSON) and ``fccgen_info`` (``info``, JSON); when the run has events, a group
-  ``events`` with one dataset per field of the events table, for other tools.
+- ``.h5`` / ``.hdf5`` (h5py): one dataset per column name at the root, in order,
+  ``t`` a dimension scale that every other column is attached to (the netCDF-4
+  layout, so ``xarray.open_dataset(path, engine="h5netcdf")`` reads it as one
+  Dataset over ``t``); root attributes ``fccgen_columns`` (the names, JSON) and
+  ``fccgen_info`` (``info``, JSON); when the run has events, a group ``events`` with
+  one dataset per field of the events table, for other tools.
 
 Every file is written into a temporary file of the same folder and renamed over the
 target (:func:`atomic_write`), with the permissions the user's umask gives.
@@ -57,7 +59,7 @@ def require_h5py():
         import h5py
     except ImportError:
         raise HostError("HDF5 results (.h5) need h5py, which is not installed. To fix "
-                        "it, pip install 'fccgen[hdf5]' (or write .npz or .csv)") from None
+                        "it, pip install h5py (or write .npz or .csv)") from None
     return h5py
 
 
@@ -163,6 +165,9 @@ def _write_h5(result, tmp: Path) -> None:
         f.attrs["fccgen_info"] = info_json(result.info)
         for name in result.names:
             f.create_dataset(name, data=np.asarray(result[name]))
+        f["t"].make_scale("t")          # every column is a function of t (netCDF-4 form)
+        for name in result.names[1:]:
+            f[name].dims[0].attach_scale(f["t"])
         events = result.info.get("events")
         if isinstance(events, list) and events and all(isinstance(e, dict) for e in events):
             group = f.create_group("events", track_order=True)

@@ -85,6 +85,15 @@ class Result:
         from .summary import result_html
         return result_html(self)
 
+    def to_pandas(self):
+        """The columns as a pandas DataFrame indexed by ``t``; ``info`` (how the run
+        was made) in ``frame.attrs["fccgen"]``."""
+        import pandas as pd
+        frame = pd.DataFrame({n: np.asarray(v) for n, v in self.columns.items()},
+                             index=pd.Index(np.asarray(self.t), name="t"))
+        frame.attrs["fccgen"] = dict(self.info)
+        return frame
+
     def table(self) -> np.ndarray:
         """All columns side by side, ``t`` first: shape (n_out, 1 + n_columns)."""
         return np.column_stack([self.t, *self.columns.values()])
