@@ -90,6 +90,11 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--out", help="write results to FILE.csv, .npz or .h5 with how they "
                    "were made (CSV: in FILE.meta.json); checked before the run, "
                    "written atomically")
+    s.add_argument("--all-columns", action="store_true",
+                   help="also write the columns of the points and vectors fccgen made "
+                        "for joints and pose-form bodies (A_axis.x, rod_center.vy, ...; "
+                        "default: only what the model names; .npz and .h5 keep them "
+                        "apart for fccgen animate)")
     s.add_argument("--keep-partial", action="store_true",
                    help="if the run stops early (Ctrl-C, a failure), write the rows "
                         "recorded so far to FILE.partial.csv|.npz|.h5, marked as partial")
@@ -149,6 +154,9 @@ def _parser() -> argparse.ArgumentParser:
 
     st = sub.add_parser("statics", help="static equilibrium from the initial configuration")
     common(st)
+    st.add_argument("--out", help="write the equilibrium as one result row at t = 0 "
+                    "(.csv, .npz or .h5): section 4's columns, the reactions by joint "
+                    "and component, the drivers' forces, how it was made")
     mo = sub.add_parser("modes", help="natural frequencies (Hz) and damping ratios")
     common(mo)
     mo.add_argument("--about", choices=("equilibrium", "initial"), default="equilibrium",
@@ -273,6 +281,18 @@ def _run_summary(result) -> str:
                f"{info['event_energy_loss']:.6g})") + _dof_summary(info))
 
 
+def _internal_note(result, args) -> str:
+    """What became of the internal columns (result.internal) in the file written."""
+    hidden = len(result.internal)
+    if not hidden:
+        return ""
+    if args.all_columns:
+        return f" and {hidden} internal columns"
+    if args.out.lower().endswith(".csv"):
+        return f"; {hidden} internal columns left out, --all-columns writes them"
+    return f"; {hidden} internal columns kept apart"
+
+
 def _dof_summary(info) -> str:
     """The run's degrees of freedom by rank and what the rank decisions saw."""
     if "dof" not in info:
@@ -390,7 +410,7 @@ def _run(args, progress) -> int:
             args.model, t_end=args.t_end, dt=args.dt, method=args.method,
             output_dt=args.output_dt, project=not args.no_project, numeric=args.numeric,
             out=args.out, build_dir=args.build_dir, force=args.force,
-            keep_partial=args.keep_partial, progress=progress,
+            keep_partial=args.keep_partial, progress=progress, all_columns=args.all_columns,
             rtol=args.rtol, atol=args.atol, solver_options=_solver_options(args), **options)
         print(init.report())
         print(_run_summary(result))
@@ -402,7 +422,8 @@ def _run(args, progress) -> int:
             from .events.table import summary
             print(summary(result.events))
         if args.out:
-            print(f"results: {args.out} ({len(result.t)} rows, {len(result.names)} columns)")
+            print(f"results: {args.out} ({len(result.t)} rows, {len(result.names)} "
+                  f"columns{_internal_note(result, args)})")
         else:
             print("no --out given: results not written")
         return 0
@@ -444,7 +465,13 @@ def _run(args, progress) -> int:
 def _analysis(args, progress, api) -> int:
     """``fccgen statics`` and ``fccgen modes``: one call of the API each."""
     if args.command == "statics":
-        print(api.statics(args.model, build_dir=args.build_dir, progress=progress).text())
+        from .analysis.statics_result import reaction_lines
+        eq, result = api.equilibrium(args.model, out=args.out, build_dir=args.build_dir,
+                                     progress=progress)
+        print("\n".join([eq.text(multipliers=False), *reaction_lines(result)]))
+        if args.out:
+            print(f"equilibrium: {args.out} (one row at t = 0, {len(result.names)} "
+                  "columns; how it was made in its metadata)")
         return 0
     if args.command == "inverse":
         from .analysis.inverse import inverse_dynamics, summary

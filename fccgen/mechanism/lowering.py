@@ -56,6 +56,13 @@ class Lowering:
     frames: dict[str, tuple[str, str, str]]           # body -> (i, j, u)
     labels: dict[str, list[str]] = field(default_factory=dict)   # joint -> labels
     drivers: list = field(default_factory=list)       # fccgen.model.types.Driver
+    made: list = field(default_factory=list)          # points and vectors it named
+
+    def internal(self) -> list[str]:
+        """The points and vectors the lowering made that a user did not name: all it
+        made but a joint's own point ``J`` (the joint's place, named by the user)."""
+        joints = {jl.joint.name for jl in self.joints}
+        return [n for n in self.made if n not in joints]
 
     def columns(self) -> list[str]:
         """The joint result columns (J.angle, J.rate, J.position, J.speed), the
@@ -159,8 +166,10 @@ class _Lowerer:
                       constraints=[*_converted(m.constraints, pose), *self.constraints],
                       loads=_converted(loads, pose),
                       initial=_initial(m.initial, m.pose_bodies), pose_bodies={}, joints=[])
+        made = [n for n in [*self.points, *self.vectors]
+                if n not in m.points and n not in m.vectors]
         out.mechanism = Lowering(self.lowered, self.frames, self.labels,
-                                 list(m.drivers))
+                                 list(m.drivers), made)
         return out
 
     def driver_vectors(self, d) -> tuple[str, str, str]:

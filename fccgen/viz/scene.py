@@ -87,7 +87,7 @@ def body_frames(model, tracks) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     return out
 
 
-def inertia_box(mass: float, inertia) -> tuple[tuple[float, float, float], np.ndarray] | None:
+def inertia_box(mass: float, inertia) -> tuple[tuple, np.ndarray] | None:
     """Edges (a, b, c) and axes (rows, body frame) of the uniform box with the body's
     mass and principal moments; None for a body without inertia."""
     moments, axes = np.linalg.eigh(np.asarray(inertia, float))
