@@ -197,7 +197,8 @@ def _viz_sweep_parsers(sub, common) -> None:
                     "result's name with .png)")
     pl.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
     an = sub.add_parser("animate", help="write an offline web page playing the motion "
-                        "in 3-D (bodies, mass centres, points; play button, time slider)")
+                        "in 3-D (bodies as their shapes or inertia boxes, joints, ground; "
+                        "play button, time slider)")
     an.add_argument("model", help="model file (YAML)")
     an.add_argument("--out", required=True, help="the page to write (.html)")
     an.add_argument("--result", help="a result of this model (.csv, .npz or .h5; default: "
