@@ -100,3 +100,20 @@ def test_every_command_line_parses_and_names_a_shipped_example():
         _parser().parse_args(args)              # SystemExit on an unknown option
         for name in re.findall(r"examples/(\w+)\.yaml", line):
             assert name in shipped, line
+
+
+def test_examples_are_found_by_name_and_copied_without_overwriting(tmp_path):
+    import fccgen
+    from fccgen.example_models import copy_examples
+    assert fccgen.example_path("rsup") == fccgen.example_path("rsup.yaml")
+    assert fccgen.example_path("rsup").read_text() == (ROOT / "examples" / "rsup.yaml"
+                                                       ).read_text()
+    with pytest.raises(ValueError, match="no example named 'nope'; the examples are "
+                                         "a01_pendulum, "):
+        fccgen.example_path("nope")
+    written = copy_examples(tmp_path / "ex")
+    assert {p.name for p in written} >= {"README.md", "make_n_four_bar.py", "rsup.yaml"}
+    (tmp_path / "ex" / "rsup.yaml").write_text("mine")
+    assert copy_examples(tmp_path / "ex") == []                  # nothing replaced
+    assert (tmp_path / "ex" / "rsup.yaml").read_text() == "mine"
+    assert len(copy_examples(tmp_path / "ex", overwrite=True)) == len(written)
