@@ -1,4 +1,4 @@
-"""Command line (DESIGN section 5): a thin layer over :mod:`fccgen.api`.
+"""Command line (docs/design.md §5): a thin layer over :mod:`fccgen.api`.
 
     fccgen MODEL.yaml                 generate and compile (cached)
     fccgen simulate MODEL.yaml ...    simulate and write results

@@ -1,4 +1,4 @@
-"""The file formats of a result (DESIGN section 4), each keeping ``result.info``, the
+"""The file formats of a result (docs/design.md §4), each keeping ``result.info``, the
 metadata of :mod:`fccgen.provenance`:
 
 The internal columns of a model with joints (the points and vectors fccgen made,

@@ -1,4 +1,4 @@
-"""Simulation results (DESIGN section 4): time ``t`` and named columns, with
+"""Simulation results (docs/design.md §4): time ``t`` and named columns, with
 ``info``, how the run was made (:mod:`fccgen.provenance`), written as CSV (with a JSON
 sidecar ``<stem>.meta.json``), NPZ or HDF5 (:mod:`fccgen.result_files`).
 
@@ -79,7 +79,7 @@ class Result:
     @property
     def names(self) -> list[str]:
         """``t`` and the columns of what the user named: points, vectors, bodies,
-        joints, drivers, energy, constraint_error (DESIGN section 4)."""
+        joints, drivers, energy, constraint_error (docs/design.md §4)."""
         return ["t", *(n for n in self.columns if n not in self.hidden)]
 
     @property
@@ -201,7 +201,7 @@ class InitialState:
 
 
 def result_from_arrays(plan, t, q, v, body_out, energy, constraint_error, info=None) -> Result:
-    """Name the columns of a run (DESIGN section 4).
+    """Name the columns of a run (docs/design.md §4).
 
     q, v: (n_out, n_q); body_out: (n_out, n_bodies, 6); energy, constraint_error: (n_out,).
     """

@@ -1,4 +1,4 @@
-"""The command line (DESIGN section 5): each command works end to end, errors are one
+"""The command line (docs/design.md §5): each command works end to end, errors are one
 clear line with a non-zero exit, and the runtime path never imports SymPy."""
 from __future__ import annotations
 

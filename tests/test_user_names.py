@@ -2,7 +2,7 @@
 loads; the points and vectors the lowering made (``O_drive_b.x``, ``A_axis.x``) are
 kept in ``result.internal`` and written only on request, and the files that keep them
 apart bring them back, so that a saved result still animates. A model given by points
-keeps every column of DESIGN section 4."""
+keeps every column of docs/design.md §4."""
 from __future__ import annotations
 
 import re

@@ -1,4 +1,4 @@
-"""The 3-D animation page (DESIGN section 5, ``fccgen animate``): one self-contained
+"""The 3-D animation page (docs/design.md §5, ``fccgen animate``): one self-contained
 file (plotly.js inlined, nothing fetched), one frame per recorded row up to a limit,
 and, where a Chromium is installed, a page that draws different pictures at two
 positions of its time slider."""

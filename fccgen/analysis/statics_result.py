@@ -1,4 +1,4 @@
-"""A static equilibrium as a result (DESIGN section 5, ``fccgen statics --out``): one
+"""A static equilibrium as a result (docs/design.md §5, ``fccgen statics --out``): one
 row at t = 0 of the result columns of section 4 (q at equilibrium, speeds zero), the
 joint columns, each driver's force and each joint's reaction by name and component
 (``A.fx`` ... ``A.tz``: the force and torque of joint A on its second body, global

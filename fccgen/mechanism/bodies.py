@@ -1,4 +1,4 @@
-"""A pose-form body as a typical body (DESIGN sections 1 and 2b): the choice of its
+"""A pose-form body as a typical body (docs/design.md sections 1 and 2b): the choice of its
 points i, j and vector u among the triples its joints give it, and its mass terms in
 the FCC body frame that choice defines.
 

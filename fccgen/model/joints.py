@@ -1,4 +1,4 @@
-"""Reading the mechanism level of a model file (DESIGN section 2b): bodies in pose
+"""Reading the mechanism level of a model file (docs/design.md §2b): bodies in pose
 form and the ``joints:`` list. Both are lowered onto points, vectors and constraints
 by :mod:`fccgen.mechanism`; here they are only validated.
 """

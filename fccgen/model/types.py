@@ -219,7 +219,7 @@ class Initial:
     joint_positions: dict[str, tuple[str, float, Where]] = field(default_factory=dict)
 
 
-# -- mechanism level (DESIGN section 2b; lowered by fccgen.mechanism) ---------------
+# -- mechanism level (docs/design.md §2b; lowered by fccgen.mechanism) ---------------
 
 GROUND = "ground"             # the fixed body that joints may name without declaring it
 

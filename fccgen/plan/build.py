@@ -59,7 +59,7 @@ class Plan:
                          [e.cls.n_g for e in self.elements])
 
     def columns(self, all_columns: bool = False) -> list[str]:
-        """Result column names (DESIGN section 4), without ``t``: those of
+        """Result column names (docs/design.md §4), without ``t``: those of
         ``result.names``, or with ``all_columns`` the internal ones of the points and
         vectors the lowering made too (``result.internal``)."""
         mechanism = self.model.mechanism

@@ -1,4 +1,4 @@
-"""A self-contained web page that plays a model's motion in 3-D (DESIGN section 5,
+"""A self-contained web page that plays a model's motion in 3-D (docs/design.md §5,
 ``fccgen animate``), drawn with plotly and with plotly.js inlined, so the page works
 offline and can be mailed as one file.
 

@@ -3,7 +3,7 @@ model (joints and pose-form bodies already turned into points, vectors and typic
 bodies, :mod:`fccgen.mechanism`):
 
 - each body's frame at every row, R = [e1 e2 e3] from its r_i, r_j, u (the FCC body
-  frame, docs/design.md section 1), so any body-fixed point is r_i + R rho;
+  frame, docs/design.md §1), so any body-fixed point is r_i + R rho;
 - each body's solid: its ``shape:`` when it has one, else its *inertia box* -- the
   uniform box of the same mass and principal moments, edges
   a_k = sqrt(6 (I_1 + I_2 + I_3 - 2 I_k) / m) along the principal axes (a body
