@@ -424,6 +424,10 @@ def _run(args, progress) -> int:
                               build_dir=args.build_dir, progress=progress)
         except SweepInterrupted as exc:              # rows saved: say how many, where
             return _error(progress, str(exc), EXIT_INTERRUPTED)
+        except ModelError:
+            raise
+        except (FccgenError, ValueError) as exc:     # the message says what was saved
+            return _error(progress, f"error: {exc}", 1)
         late = f", {table.timed_out} of them timed out" if table.timed_out else ""
         print(f"sweep: {len(table.rows)} runs ({table.failed} failed{late}) on {table.where} "
               f"in {table.wall_time:.3g} s\ntable: {args.out}")
