@@ -71,8 +71,10 @@ def simulate(path, *, t_end=None, dt=None, method=None, output_dt=None, project=
     recorded so far, if the integrator hands them back, go to ``<stem>.partial<suffix>``
     and the exception's ``partial_path`` says where. Returns ``(result, initial_state)``.
     """
+    from .method_limits import refuse
     from .results import check_output, partial_path
     out = None if out is None else check_output(out)
+    refuse(lower(load_model(path)), method)          # before anything is built
     solver_options = solver_options or {}
     solver = (load_numeric(path, **solver_options) if numeric else
               load(path, build_dir, force=force, progress=progress, **solver_options))

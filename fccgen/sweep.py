@@ -229,6 +229,8 @@ def sweep(solver, sets: dict[str, list[float]], *, scheduler=None, method=None,
     if run_timeout is not None and not run_timeout > 0:
         raise ValueError(f"--run-timeout must be a positive number of seconds "
                          f"(got {run_timeout!r})")
+    from .method_limits import refuse
+    refuse(solver.plan.model, method)
     for params in runs:                       # bad keys and values stop it here
         solver.with_parameters(params)
     if outputs:
