@@ -416,8 +416,9 @@ def _run(args, progress) -> int:
         print(f"animation: {page} ({n_frames} frames of {len(result.t)} rows)")
         return 0
     if args.command == "sweep":
-        from .sweep import SweepInterrupted
+        from .sweep import SweepInterrupted, quiet_dask
         try:
+            quiet_dask()                       # its logged tracebacks: one paragraph
             table = api.sweep(args.model, args.set, args.out, scheduler=args.scheduler,
                               method=args.method, workers=args.workers,
                               outputs=args.outputs, run_timeout=args.run_timeout,

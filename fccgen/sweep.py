@@ -26,6 +26,7 @@ they finish; Ctrl-C ends in :class:`SweepInterrupted` and a lost scheduler or cl
 from __future__ import annotations
 
 import itertools
+import logging
 import os
 import time
 import warnings
@@ -70,6 +71,23 @@ class RunTimedOut(FccgenError):
 
 class _Cancelled(FccgenError):
     """A run of a sweep that has been stopped."""
+
+
+class _Lost(FccgenError):
+    """The cluster cancelled a run the sweep did not cancel: its scheduler is gone."""
+
+
+def quiet_dask() -> None:
+    """Leave Dask's own log records below CRITICAL out from now on (the command line:
+    a lost scheduler makes the client log tracebacks while it tries to reconnect, also
+    after the sweep has ended, and the sweep's error paragraph already says what
+    happened). Dask's configuration sets levels on its loggers one by one as it is
+    imported, so it is imported first (a HostError when it is not installed)."""
+    require_dask()
+    names = [n for n in logging.Logger.manager.loggerDict
+             if n == "distributed" or n.startswith("distributed.")]
+    for name in {"distributed", "distributed.client", *names}:
+        logging.getLogger(name).setLevel(logging.CRITICAL)
 
 
 def require_dask():
@@ -260,7 +278,8 @@ def sweep(solver, sets: dict[str, list[float]], *, scheduler=None, method=None,
                                [r for r in rows if r]) from None
     except Exception as exc:       # whatever ends the dispatch: scheduler, cluster, comm
         _CANCELLED.add(sweep_id)
-        why = f"the Dask cluster at {where} failed ({type(exc).__name__}: {exc})"
+        why = (f"the Dask scheduler at {where} was lost ({exc})" if isinstance(exc, _Lost)
+               else f"the Dask cluster at {where} failed ({type(exc).__name__}: {exc})")
         raise SweepStopped(_stopped_text(why, rows, writer, out), _done(rows),
                            writer and writer.path, [r for r in rows if r]) from None
     finally:
@@ -295,7 +314,7 @@ def _dispatch(client, solver, runs, method, outputs, run_timeout, sweep_id, rows
             row = dict(runs[k], status="failed", error=f"the task ended in "
                        f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}")
         else:
-            raise HostError(f"the cluster lost run {k + 1} ({future.status})")
+            raise _Lost(f"run {k + 1} was {future.status}")
         row["run"] = k + 1
         rows[k] = row
         if writer is not None:
@@ -315,8 +334,8 @@ def _stopped_text(why: str, rows, writer, out) -> str:
         return text + ("No table file was given, so the finished rows are not saved; "
                        "give out= (--out) to keep rows as they finish.")
     if done == 0:
-        return text + (f"No run had finished; {writer.path} holds only the header. Delete "
-                       f"it before running the sweep again.")
+        writer.remove()                      # only its header: nothing to keep
+        return text + "No run had finished, so nothing was written."
     return text + (f"The {done} finished row{'s are' if done != 1 else ' is'} saved in "
                    f"{writer.path} (CSV, in the order the runs ended; column run gives "
                    f"each row's place in the sweep); {Path(out).name} was not written. "

@@ -20,7 +20,8 @@ max_k |g_k| / ||B_k|| are both at most newton_tol * L (L the largest body length
 a small penalty the corrections can become small while g still shrinks only by a
 constant factor per multiplier update. Steps that end max_newton iterations with g
 within the tolerance and shrinking corrections are accepted under conditions given at
-SLOW_FACTOR below (singular positions).
+SLOW_FACTOR below (singular positions). The default penalty may be raised at the
+start (ali3p_setup.conditioned_penalty) and after a stalled step (PENALTY_RAISE).
 Then the speeds and accelerations are projected mass-orthogonally with the same T:
     T q'  = W q'~  - (h^2/4) B^T alpha (0),
     T q'' = W q''~ - (h^2/4) B^T alpha ((dB/dt) q'),   W = T - (h^2/4) B^T alpha B,
