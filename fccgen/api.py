@@ -137,21 +137,23 @@ def animate(path, out, *, result=None, mode=None, t_end=None, max_frames=None,
 
 
 def sweep(path, sets, out=None, *, scheduler=None, method=None, workers=None,
-          outputs=None, run_timeout=None, build_dir=DEFAULT_BUILD_DIR,
+          outputs=None, run_timeout=None, resume=False, build_dir=DEFAULT_BUILD_DIR,
           progress: Progress = None):
     """Run the model once per combination of ``sets`` ({key: [values]}, or
     ``["KEY=V1,V2", ...]``) on Dask, compiled once; write the table to ``out`` (.csv
     or .parquet) if given, each row to ``<stem>.partial.csv`` beside it as its run
     finishes. ``outputs``: what the table carries besides its figures, e.g.
     ``"motor.torque:max,latch:time"``; ``run_timeout``: seconds of wall time a run may
-    take. Dask, ``out``, ``sets`` and ``outputs`` are checked before anything is built.
+    take; ``resume``: keep the rows of the partial file a stopped sweep left and run
+    only the others. Dask, ``out``, ``sets`` and ``outputs`` are checked before
+    anything is built.
     Keys: :mod:`fccgen.runtime.params`; figures: :mod:`fccgen.sweep`; docs/sweeps.md.
     Returns a :class:`fccgen.sweep.SweepTable`."""
     from .sweep import check_table_path, parse_sets, require_dask
     from .sweep import sweep as run_sweep
     from .sweep_outputs import parse_outputs
     require_dask()
-    out = None if out is None else check_table_path(out)
+    out = None if out is None else check_table_path(out, resume=resume)
     if not isinstance(sets, dict):
         sets = parse_sets(sets)
     outputs = parse_outputs(outputs)
@@ -160,7 +162,8 @@ def sweep(path, sets, out=None, *, scheduler=None, method=None, workers=None,
                          f"(got {run_timeout!r})")
     solver = load(path, build_dir, progress=progress)
     return run_sweep(solver, sets, scheduler=scheduler, method=method, workers=workers,
-                     progress=progress, outputs=outputs, run_timeout=run_timeout, out=out)
+                     progress=progress, outputs=outputs, run_timeout=run_timeout, out=out,
+                     resume=resume)
 
 
 def statics(path, *, numeric=False, build_dir=DEFAULT_BUILD_DIR, progress: Progress = None):

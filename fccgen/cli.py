@@ -219,6 +219,9 @@ def _viz_sweep_parsers(sub, common) -> None:
     sw.add_argument("--run-timeout", type=float, metavar="SECONDS", help="stop a run "
                     "after this much wall time; its row gets status timeout (default: "
                     "no limit)")
+    sw.add_argument("--resume", action="store_true", help="keep the rows of the partial "
+                    "file a stopped sweep left beside --out and run only the others (runs "
+                    "stopped by --run-timeout run again)")
 
 
 def _method_options(items: list[str]) -> dict[str, float]:
@@ -422,7 +425,8 @@ def _run(args, progress) -> int:
             table = api.sweep(args.model, args.set, args.out, scheduler=args.scheduler,
                               method=args.method, workers=args.workers,
                               outputs=args.outputs, run_timeout=args.run_timeout,
-                              build_dir=args.build_dir, progress=progress)
+                              resume=args.resume, build_dir=args.build_dir,
+                              progress=progress)
         except SweepInterrupted as exc:              # rows saved: say how many, where
             return _error(progress, str(exc), EXIT_INTERRUPTED)
         except ModelError:

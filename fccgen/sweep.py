@@ -35,7 +35,8 @@ from pathlib import Path
 from .errors import FccgenError, HostError
 from .progress import Reporter
 from .sweep_outputs import Output, check_outputs, evaluate, parse_outputs
-from .sweep_table import PartialWriter, SweepTable, check_table_path, partial_path
+from .sweep_table import (PartialWriter, SweepTable, check_table_path, partial_path,
+                          read_partial)
 
 __all__ = ["SweepInterrupted", "SweepStopped", "SweepTable", "check_table_path",
            "combinations", "parse_sets", "require_dask", "run_one", "sweep"]
@@ -223,21 +224,23 @@ def _settings(solver, method) -> dict:
 
 def sweep(solver, sets: dict[str, list[float]], *, scheduler=None, method=None,
           workers=None, progress=None, connect_timeout=10.0, outputs=None,
-          run_timeout: float | None = None, out=None) -> SweepTable:
+          run_timeout: float | None = None, out=None, resume: bool = False) -> SweepTable:
     """Run every combination of ``sets`` with a compiled ``solver``; see the module
     docstring. ``workers``: threads of the local cluster (default: the cores, at most
     4); ``connect_timeout``: seconds to wait for the scheduler; ``outputs``: what the
     table carries besides its figures (``"motor.torque:max,latch:time"``, see
     :mod:`fccgen.sweep_outputs`); ``run_timeout``: seconds of wall time a run may take
     (None: no limit); ``out``: the table file (.csv or .parquet), its rows written to
-    the partial file beside it as they finish. ``progress``: called with a
+    the partial file beside it as they finish; ``resume``: keep the rows of that file,
+    left by a sweep that stopped, and run only the others (see :func:`_resumed`).
+    ``progress``: called with a
     :class:`~fccgen.progress.ProgressEvent` (stage "sweep", done of total runs) as the
     runs end."""
     from .provenance import provenance
     runs = combinations(sets)
     outputs = parse_outputs(outputs) if not isinstance(outputs, list) else outputs
     if out is not None:
-        out = check_table_path(out)
+        out = check_table_path(out, resume=resume)
     if method is not None:
         from .methods import get as method_named
         from .runtime.solver import METHODS
@@ -261,14 +264,21 @@ def sweep(solver, sets: dict[str, list[float]], *, scheduler=None, method=None,
                 run_timeout=run_timeout)
     workers = workers or min(os.cpu_count() or 1, 4)
     start = time.perf_counter()
-    writer = PartialWriter(partial_path(out), columns) if out is not None else None
+    rows: list[dict | None] = [None] * len(runs)
+    kept = partial_path(out) if resume and out is not None else None
+    if kept is not None and kept.exists():          # before the cluster starts
+        rows = _resumed(solver, runs, kept, columns)
+        info["resumed_rows"] = _done(rows)
+    resuming = kept is not None and kept.exists()
+    writer = (PartialWriter(partial_path(out), columns, append=resuming)
+              if out is not None else None)
     say = Reporter(progress, "sweep", total=len(runs))
     client, cluster = _client(scheduler, workers, connect_timeout)
     where = scheduler or f"a local cluster of {workers} thread(s)"
     sweep_id = f"{os.getpid()}-{id(client)}-{time.monotonic_ns()}"
-    rows: list[dict | None] = [None] * len(runs)
     try:
-        say(f"sweep: {len(runs)} runs on {where}", done=0)
+        say(f"sweep: {len(runs)} runs on {where}"
+            + (f", {_done(rows)} kept from {kept}" if _done(rows) else ""), done=_done(rows))
         _dispatch(client, solver, runs, method, outputs, run_timeout, sweep_id, rows,
                   writer, say, where)
     except KeyboardInterrupt:
@@ -301,11 +311,14 @@ def _dispatch(client, solver, runs, method, outputs, run_timeout, sweep_id, rows
     partial file). A task that raised gives a failed row; a task the cluster lost
     (cancelled) stops the sweep."""
     from dask.distributed import as_completed
+    todo = [k for k, row in enumerate(rows) if row is None]
+    if not todo:
+        return
     shared = client.scatter(solver, broadcast=True)
-    futures = [client.submit(run_one, shared, params, method, outputs, run_timeout,
-                             sweep_id, pure=False) for params in runs]
-    index = {f.key: k for k, f in enumerate(futures)}
-    for done, future in enumerate(as_completed(futures), 1):
+    futures = [client.submit(run_one, shared, runs[k], method, outputs, run_timeout,
+                             sweep_id, pure=False) for k in todo]
+    index = {f.key: k for f, k in zip(futures, todo)}
+    for done, future in enumerate(as_completed(futures), len(runs) - len(todo) + 1):
         k = index[future.key]
         if future.status == "finished":
             row = future.result()
@@ -320,6 +333,29 @@ def _dispatch(client, solver, runs, method, outputs, run_timeout, sweep_id, rows
         if writer is not None:
             writer.add(row)
         say(f"sweep: {done} of {len(runs)} runs done", done=done)
+
+
+def _resumed(solver, runs, path, columns) -> list[dict | None]:
+    """The rows of the partial file ``path`` in the places of their runs (None where
+    a run is still to do). A row is kept when its run number, its swept values and
+    its ``model_hash`` are those of this sweep's run (ValueError otherwise: another
+    sweep's or another model's rows); rows of runs stopped by the time limit run
+    again."""
+    from .provenance import model_hash
+    rows: list[dict | None] = [None] * len(runs)
+    for k, row in read_partial(path, columns).items():
+        params = runs[k - 1] if 1 <= k <= len(runs) else None
+        if params is None or any(row.get(key) != value for key, value in params.items()):
+            raise ValueError(f"{path}: its row of run {k} is not a run of this sweep "
+                             f"(another --set?): move the file elsewhere or delete it")
+        if "model_hash" in row and row["model_hash"] != model_hash(
+                solver.with_parameters(params).plan):
+            raise ValueError(f"{path}: its row of run {k} was computed with other numbers "
+                             f"(the model file changed?): move the file elsewhere or "
+                             f"delete it")
+        if row.get("status") != "timeout":
+            rows[k - 1] = row
+    return rows
 
 
 def _done(rows) -> int:
@@ -339,7 +375,7 @@ def _stopped_text(why: str, rows, writer, out) -> str:
     return text + (f"The {done} finished row{'s are' if done != 1 else ' is'} saved in "
                    f"{writer.path} (CSV, in the order the runs ended; column run gives "
                    f"each row's place in the sweep); {Path(out).name} was not written. "
-                   f"Move or delete {writer.path.name} before running the sweep again.")
+                   f"Run the same sweep with --resume to keep them and run the rest.")
 
 
 def _close(client, cluster) -> None:

@@ -7,7 +7,8 @@ with the column ``run`` giving each row its place in the sweep. When every run h
 ended, the table is written in the sweep's order into a temporary file of the same
 folder and renamed over ``--out`` (with its metadata), and then the partial file is
 removed. A sweep that stops early (Ctrl-C, a lost scheduler, a killed process) leaves
-the partial file: a complete CSV of the rows that finished, readable as it is.
+the partial file: a complete CSV of the rows that finished, readable as it is, which
+``--resume`` (:func:`read_partial`) takes up again.
 
 Provenance: a CSV table has a JSON sidecar ``<stem>.meta.json`` (as result files do,
 :mod:`fccgen.result_files`) holding :attr:`SweepTable.info`: the fccgen version, when
@@ -21,6 +22,7 @@ from __future__ import annotations
 
 import csv
 import errno
+import io
 import json
 import os
 from dataclasses import dataclass, field
@@ -38,12 +40,12 @@ def partial_path(path) -> Path:
     return path.with_name(f"{path.stem}.partial.csv")
 
 
-def check_table_path(path, option: str = "--out") -> Path:
+def check_table_path(path, option: str = "--out", resume: bool = False) -> Path:
     """Check, before anything is built or run, that the table can be written at
     ``path``: a .csv or .parquet name (pyarrow installed for .parquet), not a folder,
-    in a folder that exists (created if missing) and takes new files, and no partial
-    file of an earlier sweep that stopped (its rows would be lost). ValueError for a
-    bad name, HostError for a place that cannot be written."""
+    in a folder that exists (created if missing) and takes new files, and, unless
+    ``resume``, no partial file of an earlier sweep that stopped (its rows would be
+    lost). ValueError for a bad name, HostError for a place that cannot be written."""
     path = Path(path)
     if path.suffix.lower() not in SUFFIXES:
         raise ValueError(f"{path}: a sweep table is written as .csv or .parquet (got "
@@ -53,10 +55,11 @@ def check_table_path(path, option: str = "--out") -> Path:
     if path.is_dir():
         raise ValueError(f"{path} is a folder; give a file name, e.g. {path / 'sweep.csv'}")
     partial = partial_path(path)
-    if partial.exists():
+    if partial.exists() and not resume:
         raise HostError(f"{partial} holds the rows of an earlier sweep that stopped before "
-                        f"its end. To fix it, keep them by moving the file elsewhere, or "
-                        f"delete it, then run the sweep again", errno=errno.EEXIST)
+                        f"its end. To fix it, run the same sweep with --resume (its rows "
+                        f"are kept and only the other runs run), or move the file "
+                        f"elsewhere or delete it", errno=errno.EEXIST)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         probe = temp_name(path)
@@ -120,17 +123,58 @@ class SweepTable:
         return path
 
 
+TEXT_COLUMNS = ("status", "error", "model_hash")
+
+
+def read_partial(path: Path, columns: list[str]) -> dict[int, dict]:
+    """The rows of a partial file written by a sweep with these ``columns``, by their
+    run number (the last row of a run counts); ValueError when its columns differ. A
+    last line cut by a killed process (no line end) is removed from the file: its run
+    runs again."""
+    data = Path(path).read_bytes()
+    whole = data[:data.rfind(b"\n") + 1]
+    if len(whole) != len(data):
+        with open(path, "r+b") as fh:
+            fh.truncate(len(whole))
+    reader = csv.reader(io.StringIO(whole.decode("utf-8"), newline=""))
+    header = next(reader, [])
+    if header != columns:
+        raise ValueError(f"{path} was written by a sweep with other columns "
+                         f"({', '.join(header)}), not this one's ({', '.join(columns)}): "
+                         f"move it elsewhere or delete it")
+    rows = {}
+    for cells in reader:
+        row = {c: _parse(c, x) for c, x in zip(columns, cells) if x != ""}
+        rows[int(row["run"])] = row
+    return rows
+
+
+def _parse(column: str, text: str):
+    if column in TEXT_COLUMNS:
+        return text
+    try:
+        return int(text)
+    except ValueError:
+        pass
+    try:
+        return float(text)
+    except ValueError:
+        return text
+
+
 class PartialWriter:
     """Appends each finished row to the partial file (module docstring), flushed and
-    synced, so that a sweep that stops keeps every row that finished."""
+    synced, so that a sweep that stops keeps every row that finished; ``append``:
+    go on with the file of a stopped sweep (its header is there)."""
 
-    def __init__(self, path: Path, columns: list[str]):
+    def __init__(self, path: Path, columns: list[str], append: bool = False):
         self.path = Path(path)
         self.columns = columns
         self.count = 0
-        self._fh = open(self.path, "x", newline="", encoding="utf-8")
+        self._fh = open(self.path, "a" if append else "x", newline="", encoding="utf-8")
         self._csv = csv.writer(self._fh)
-        self._write(columns)
+        if not append:
+            self._write(columns)
 
     def _write(self, cells) -> None:
         self._csv.writerow(cells)

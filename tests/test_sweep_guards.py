@@ -192,14 +192,52 @@ def test_cli_ctrl_c_ends_in_one_paragraph_with_status_130(build_dir, tmp_path, c
     assert err == (f"fccgen: sweep stopped after 2 of 3 runs: interrupted (Ctrl-C). The 2 "
                    f"finished rows are saved in {partial} (CSV, in the order the runs "
                    f"ended; column run gives each row's place in the sweep); sweep.csv was "
-                   f"not written. Move or delete sweep.partial.csv before running the "
-                   f"sweep again.\n")
+                   f"not written. Run the same sweep with --resume to keep them and run "
+                   f"the rest.\n")
     assert len(read_table(partial)) == 2 and not out.exists()
     # the next sweep to the same table refuses to overwrite them, before building
     code, text, err = cli(["sweep", DOUBLE, "--build-dir", tmp_path / "build", "-q",
                            "--set", "bodies.rod2.mass=1", "--out", out], capsys)
     assert code == 1 and f"{partial} holds the rows of an earlier sweep" in err
+    assert "run the same sweep with --resume" in err
     assert not (tmp_path / "build").exists() and len(read_table(partial)) == 2
+
+
+def test_resume_keeps_the_rows_and_runs_the_rest(solver, tmp_path):
+    """A sweep stopped after 2 of 4 runs, the second row's last line cut as by a
+    killed process: --resume keeps run 1 as written, runs 2 to 4, and the table is
+    the one a sweep without a stop gives."""
+    out = tmp_path / "sweep.csv"
+    partial = tmp_path / "sweep.partial.csv"
+    with pytest.raises(SweepInterrupted):
+        run_sweep(solver, SETS, workers=1, out=out,
+                  progress=raise_at(2, KeyboardInterrupt()))
+    kept = read_table(partial)[0]
+    partial.write_bytes(partial.read_bytes()[:-20])          # run 2's line cut short
+    ran = []
+    table = run_sweep(solver, SETS, workers=1, out=out, resume=True,
+                      progress=lambda e: ran.append(e.done))
+    assert ran == [1, 2, 3, 4]            # 1 kept, then the three that ran
+    assert not partial.exists()
+    rows = read_table(out)
+    assert rows[0] == kept                               # as written before the stop
+    whole = run_sweep(solver, SETS, workers=1)
+    for row, again in zip(rows, whole.rows):
+        assert float(row["final.P2.x"]) == again["final.P2.x"]
+    assert table.info["resumed_rows"] == 1
+
+
+def test_resume_refuses_the_rows_of_another_sweep(solver, tmp_path):
+    out = tmp_path / "sweep.csv"
+    with pytest.raises(SweepInterrupted):
+        run_sweep(solver, SETS, workers=1, out=out,
+                  progress=raise_at(1, KeyboardInterrupt()))
+    other = {"bodies.rod2.mass": [0.5, *MASSES[1:]], "simulate.t_end": [0.05]}
+    with pytest.raises(ValueError, match="its row of run 1 is not a run of this sweep"):
+        run_sweep(solver, other, workers=1, out=out, resume=True)
+    with pytest.raises(ValueError, match="was written by a sweep with other columns"):
+        run_sweep(solver, SETS, workers=1, out=out, resume=True, outputs="P2.x:max")
+    assert len(read_table(tmp_path / "sweep.partial.csv")) == 1     # left as it was
 
 
 def test_cli_an_unwritable_table_stops_before_the_build(tmp_path, capsys):
