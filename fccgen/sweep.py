@@ -233,9 +233,8 @@ def sweep(solver, sets: dict[str, list[float]], *, scheduler=None, method=None,
     (None: no limit); ``out``: the table file (.csv or .parquet), its rows written to
     the partial file beside it as they finish; ``resume``: keep the rows of that file,
     left by a sweep that stopped, and run only the others (see :func:`_resumed`).
-    ``progress``: called with a
-    :class:`~fccgen.progress.ProgressEvent` (stage "sweep", done of total runs) as the
-    runs end."""
+    ``progress``: called with a :class:`~fccgen.progress.ProgressEvent` (stage
+    "sweep", done of total runs) as the runs end."""
     from .provenance import provenance
     runs = combinations(sets)
     outputs = parse_outputs(outputs) if not isinstance(outputs, list) else outputs
@@ -270,10 +269,14 @@ def sweep(solver, sets: dict[str, list[float]], *, scheduler=None, method=None,
         rows = _resumed(solver, runs, kept, columns)
         info["resumed_rows"] = _done(rows)
     resuming = kept is not None and kept.exists()
-    writer = (PartialWriter(partial_path(out), columns, append=resuming)
-              if out is not None else None)
     say = Reporter(progress, "sweep", total=len(runs))
-    client, cluster = _client(scheduler, workers, connect_timeout)
+    client, cluster = _client(scheduler, workers, connect_timeout)   # then the file
+    try:
+        writer = (PartialWriter(partial_path(out), columns, append=resuming)
+                  if out is not None else None)
+    except BaseException:
+        _close(client, cluster)
+        raise
     where = scheduler or f"a local cluster of {workers} thread(s)"
     sweep_id = f"{os.getpid()}-{id(client)}-{time.monotonic_ns()}"
     try:
