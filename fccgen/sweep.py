@@ -78,6 +78,11 @@ class _Lost(FccgenError):
     """The cluster cancelled a run the sweep did not cancel: its scheduler is gone."""
 
 
+class _NoSolver(FccgenError):
+    """The workers could not receive the compiled solver (its module folder, read by
+    path on each worker, is not there)."""
+
+
 def quiet_dask() -> None:
     """Leave Dask's own log records below CRITICAL out from now on (the command line:
     a lost scheduler makes the client log tracebacks while it tries to reconnect, also
@@ -291,8 +296,7 @@ def sweep(solver, sets: dict[str, list[float]], *, scheduler=None, method=None,
                                [r for r in rows if r]) from None
     except Exception as exc:       # whatever ends the dispatch: scheduler, cluster, comm
         _CANCELLED.add(sweep_id)
-        why = (f"the Dask scheduler at {where} was lost ({exc})" if isinstance(exc, _Lost)
-               else f"the Dask cluster at {where} failed ({type(exc).__name__}: {exc})")
+        why = _why(exc, where)
         raise SweepStopped(_stopped_text(why, rows, writer, out), _done(rows),
                            writer and writer.path, [r for r in rows if r]) from None
     finally:
@@ -317,7 +321,10 @@ def _dispatch(client, solver, runs, method, outputs, run_timeout, sweep_id, rows
     todo = [k for k, row in enumerate(rows) if row is None]
     if not todo:
         return
-    shared = client.scatter(solver, broadcast=True)
+    try:
+        shared = client.scatter(solver, broadcast=True)
+    except Exception as exc:       # noqa: BLE001 - whatever the worker's load raised
+        raise _NoSolver(_cause(exc)) from None
     futures = [client.submit(run_one, shared, runs[k], method, outputs, run_timeout,
                              sweep_id, pure=False) for k in todo]
     index = {f.key: k for f, k in zip(futures, todo)}
@@ -359,6 +366,24 @@ def _resumed(solver, runs, path, columns) -> list[dict | None]:
         if row.get("status") != "timeout":
             rows[k - 1] = row
     return rows
+
+
+def _why(exc, where: str) -> str:
+    """What stopped the dispatch, in words."""
+    if isinstance(exc, _Lost):
+        return f"the Dask scheduler at {where} was lost ({exc})"
+    if isinstance(exc, _NoSolver):
+        return (f"the workers of {where} could not load the compiled solver ({exc}); "
+                f"every worker must see the build folder at the same path (a shared file "
+                f"system) and run the same fccgen and Python (docs/sweeps.md)")
+    return f"the Dask cluster at {where} failed ({type(exc).__name__}: {exc})"
+
+
+def _cause(exc) -> str:
+    """The innermost error's text: Dask wraps what a worker raised."""
+    args = getattr(exc, "args", ())
+    inner = args[0] if len(args) == 1 and isinstance(args[0], BaseException) else None
+    return _cause(inner) if inner is not None else f"{type(exc).__name__}: {exc}"
 
 
 def _done(rows) -> int:

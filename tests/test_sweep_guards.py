@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import csv
 import json
+import shutil
 import sys
 
 import pytest
@@ -94,6 +95,29 @@ def test_a_failed_cluster_keeps_the_rows_and_says_so(solver, tmp_path):
                                "local cluster of 1 thread(s) failed (CommClosedError: ")
     assert "The 1 finished row is saved in" in str(exc)
     assert len(read_table(tmp_path / "sweep.partial.csv")) == 1
+
+
+def test_workers_that_cannot_see_the_build_folder_stop_the_sweep(solver, build_dir,
+                                                                 tmp_path):
+    """Workers in another process load the compiled module by its folder's path: a
+    folder they cannot see (here moved away after the load) stops the sweep before any
+    run, with the folder and what the workers need."""
+    from dask.distributed import LocalCluster
+    shutil.copytree(build_dir / "double_pendulum", tmp_path / "build" / "double_pendulum")
+    moved = fccgen.load(DOUBLE, tmp_path / "build")      # the cached module: no compile
+    (tmp_path / "build").rename(tmp_path / "elsewhere")
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                      dashboard_address=None) as cluster:
+        with pytest.raises(SweepStopped) as caught:
+            run_sweep(moved, SETS, scheduler=cluster.scheduler_address,
+                      out=tmp_path / "t.csv")
+    text = str(caught.value)
+    assert text.startswith(f"sweep stopped after 0 of 4 runs: the workers of "
+                           f"{cluster.scheduler_address} could not load the compiled solver")
+    assert str(tmp_path / "build" / "double_pendulum") in text
+    assert "every worker must see the build folder at the same path" in text
+    assert text.endswith("No run had finished, so nothing was written.")
+    assert not (tmp_path / "t.partial.csv").exists()
 
 
 def test_a_task_that_raises_gives_a_failed_row(solver, monkeypatch):
