@@ -26,7 +26,6 @@ they finish; Ctrl-C ends in :class:`SweepInterrupted` and a lost scheduler or cl
 from __future__ import annotations
 
 import itertools
-import logging
 import os
 import time
 import warnings
@@ -34,20 +33,19 @@ from pathlib import Path
 
 from .errors import FccgenError, HostError
 from .progress import Reporter
-from .sweep_outputs import Output, check_outputs, evaluate, parse_outputs
+from .sweep_cluster import (client_for, close, dispatch, quiet_dask, require_dask,
+                            why_stopped)
+from .sweep_outputs import check_outputs, parse_outputs
+from .sweep_run import CANCELLED, RunTimedOut, run_one
 from .sweep_table import (PartialWriter, SweepTable, check_table_path, partial_path,
                           read_partial)
 
-__all__ = ["SweepInterrupted", "SweepStopped", "SweepTable", "check_table_path",
-           "combinations", "parse_sets", "require_dask", "run_one", "sweep"]
+__all__ = ["RunTimedOut", "SweepInterrupted", "SweepStopped", "SweepTable",
+           "check_table_path", "combinations", "parse_sets", "quiet_dask", "require_dask",
+           "run_one", "sweep"]
 
 FIGURES = ("status", "error", "wall_time", "steps", "t_final", "energy_drift",
            "max_constraint_error", "model_hash")
-# Sweeps of this process whose runs are to stop (Ctrl-C, a lost scheduler): the runs
-# in threads of a local cluster read it whenever their integrator pauses.
-_CANCELLED: set[str] = set()
-
-
 class SweepStopped(HostError):
     """The sweep could not go on (the scheduler or cluster was lost); ``saved`` rows
     are in ``partial_path`` (``rows``: the finished rows)."""
@@ -64,47 +62,6 @@ class SweepInterrupted(KeyboardInterrupt):
     def __init__(self, message: str, saved: int = 0, partial_path=None, rows=()):
         super().__init__(message)
         self.saved, self.partial_path, self.rows = saved, partial_path, list(rows)
-
-
-class RunTimedOut(FccgenError):
-    """A run of the sweep reached its time limit."""
-
-
-class _Cancelled(FccgenError):
-    """A run of a sweep that has been stopped."""
-
-
-class _Lost(FccgenError):
-    """The cluster cancelled a run the sweep did not cancel: its scheduler is gone."""
-
-
-class _NoSolver(FccgenError):
-    """The workers could not receive the compiled solver (its module folder, read by
-    path on each worker, is not there)."""
-
-
-def quiet_dask() -> None:
-    """Leave Dask's own log records below CRITICAL out from now on (the command line:
-    a lost scheduler makes the client log tracebacks while it tries to reconnect, also
-    after the sweep has ended, and the sweep's error paragraph already says what
-    happened). Dask's configuration sets levels on its loggers one by one as it is
-    imported, so it is imported first (a HostError when it is not installed)."""
-    require_dask()
-    names = [n for n in logging.Logger.manager.loggerDict
-             if n == "distributed" or n.startswith("distributed.")]
-    for name in {"distributed", "distributed.client", *names}:
-        logging.getLogger(name).setLevel(logging.CRITICAL)
-
-
-def require_dask():
-    """dask.distributed, or a HostError saying how to install it (sweeps check this
-    before anything is built)."""
-    try:
-        import dask.distributed
-    except ImportError:
-        raise HostError("fccgen sweep needs Dask, which is not installed. To fix it, "
-                        "pip install 'fccgen[sweep]' (dask[distributed])") from None
-    return dask.distributed
 
 
 def parse_sets(items) -> dict[str, list[float]]:
@@ -132,65 +89,6 @@ def combinations(sets: dict[str, list[float]]) -> list[dict[str, float]]:
     """Every combination of the values, the first key varying slowest."""
     keys = list(sets)
     return [dict(zip(keys, values)) for values in itertools.product(*sets.values())]
-
-
-def _watch(limit: float | None, sweep_id: str | None):
-    """The progress callback of a run: stops it past its time limit or when its sweep
-    has been stopped (raised from the integrator's pause, so the run ends there)."""
-    end = None if limit is None else time.monotonic() + limit
-
-    def check(event):
-        if sweep_id is not None and sweep_id in _CANCELLED:
-            raise _Cancelled("the sweep was stopped")
-        if end is not None and time.monotonic() > end:
-            raise RunTimedOut(f"stopped by the run time limit of {limit:g} s (wall time) "
-                              f"at t = {event.t:.6g} of {event.total:.6g}")
-    return check
-
-
-def run_one(solver, params: dict, method=None, outputs: list[Output] = (),
-            run_timeout: float | None = None, sweep_id: str | None = None) -> dict:
-    """One run of the sweep (executed by a Dask worker): a row of summary figures."""
-    from .provenance import model_hash
-    start = time.perf_counter()
-    row = dict(params)
-    try:
-        run = solver.with_parameters(params)
-        row["model_hash"] = model_hash(run.plan)
-        result = run.simulate(method=method, progress=_watch(run_timeout, sweep_id))
-    except RunTimedOut as exc:
-        row.update(status="timeout", error=str(exc), wall_time=time.perf_counter() - start)
-        return row
-    except (FccgenError, ArithmeticError, ValueError) as exc:
-        row.update(status="failed", error=str(exc).splitlines()[0],
-                   wall_time=time.perf_counter() - start)
-        return row
-    info = result.info
-    row.update(status="ok", error="", wall_time=time.perf_counter() - start,
-               steps=info.get("steps"), t_final=float(result.t[-1]),
-               energy_drift=info.get("energy_drift"),
-               max_constraint_error=info.get("max_constraint_error"))
-    row.update(evaluate(list(outputs), result))
-    for p in solver.plan.model.moving_points:
-        for c in "xyz":
-            row[f"final.{p.name}.{c}"] = float(result[f"{p.name}.{c}"][-1])
-    return row
-
-
-def _client(scheduler: str | None, workers: int, timeout: float):
-    """A Dask client: of the running scheduler at ``scheduler``, else of a new local
-    cluster of threads in this process (the compiled loops release the GIL)."""
-    distributed = require_dask()
-    if scheduler:
-        try:
-            return distributed.Client(scheduler, timeout=timeout), None
-        except OSError as exc:
-            raise HostError(f"no Dask scheduler answers at {scheduler} ({exc}). To fix "
-                            "it, start one (dask scheduler) or leave --scheduler out for "
-                            "a local cluster") from None
-    cluster = distributed.LocalCluster(n_workers=1, threads_per_worker=workers,
-                                       processes=False, dashboard_address=None)
-    return distributed.Client(cluster), cluster
 
 
 def _check_outputs(solver, runs, outputs, method) -> None:
@@ -275,74 +173,41 @@ def sweep(solver, sets: dict[str, list[float]], *, scheduler=None, method=None,
         info["resumed_rows"] = _done(rows)
     resuming = kept is not None and kept.exists()
     say = Reporter(progress, "sweep", total=len(runs))
-    client, cluster = _client(scheduler, workers, connect_timeout)   # then the file
+    client, cluster = client_for(scheduler, workers, connect_timeout)   # then the file
     try:
         writer = (PartialWriter(partial_path(out), columns, append=resuming)
                   if out is not None else None)
     except BaseException:
-        _close(client, cluster)
+        close(client, cluster)
         raise
     where = scheduler or f"a local cluster of {workers} thread(s)"
     sweep_id = f"{os.getpid()}-{id(client)}-{time.monotonic_ns()}"
     try:
         say(f"sweep: {len(runs)} runs on {where}"
             + (f", {_done(rows)} kept from {kept}" if _done(rows) else ""), done=_done(rows))
-        _dispatch(client, solver, runs, method, outputs, run_timeout, sweep_id, rows,
+        dispatch(client, solver, runs, method, outputs, run_timeout, sweep_id, rows,
                   writer, say, where)
     except KeyboardInterrupt:
-        _CANCELLED.add(sweep_id)
+        CANCELLED.add(sweep_id)
         raise SweepInterrupted(_stopped_text("interrupted (Ctrl-C)", rows, writer, out),
                                _done(rows), writer and writer.path,
                                [r for r in rows if r]) from None
     except Exception as exc:       # whatever ends the dispatch: scheduler, cluster, comm
-        _CANCELLED.add(sweep_id)
-        why = _why(exc, where)
+        CANCELLED.add(sweep_id)
+        why = why_stopped(exc, where)
         raise SweepStopped(_stopped_text(why, rows, writer, out), _done(rows),
                            writer and writer.path, [r for r in rows if r]) from None
     finally:
         if writer is not None:
             writer.close()
-        _close(client, cluster)
-        _CANCELLED.discard(sweep_id)
+        close(client, cluster)
+        CANCELLED.discard(sweep_id)
     info["where"] = where
     table = SweepTable(keys, rows, time.perf_counter() - start, where, columns, info)
     if out is not None:
         table.save(out)
         writer.remove()
     return table
-
-
-def _dispatch(client, solver, runs, method, outputs, run_timeout, sweep_id, rows,
-              writer, say, where) -> None:
-    """Submit every run and take the rows as they finish (into ``rows`` and the
-    partial file). A task that raised gives a failed row; a task the cluster lost
-    (cancelled) stops the sweep."""
-    from dask.distributed import as_completed
-    todo = [k for k, row in enumerate(rows) if row is None]
-    if not todo:
-        return
-    try:
-        shared = client.scatter(solver, broadcast=True)
-    except Exception as exc:       # noqa: BLE001 - whatever the worker's load raised
-        raise _NoSolver(_cause(exc)) from None
-    futures = [client.submit(run_one, shared, runs[k], method, outputs, run_timeout,
-                             sweep_id, pure=False) for k in todo]
-    index = {f.key: k for f, k in zip(futures, todo)}
-    for done, future in enumerate(as_completed(futures), len(runs) - len(todo) + 1):
-        k = index[future.key]
-        if future.status == "finished":
-            row = future.result()
-        elif future.status == "error":
-            exc = future.exception()
-            row = dict(runs[k], status="failed", error=f"the task ended in "
-                       f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}")
-        else:
-            raise _Lost(f"run {k + 1} was {future.status}")
-        row["run"] = k + 1
-        rows[k] = row
-        if writer is not None:
-            writer.add(row)
-        say(f"sweep: {done} of {len(runs)} runs done", done=done)
 
 
 def _resumed(solver, runs, path, columns) -> list[dict | None]:
@@ -368,24 +233,6 @@ def _resumed(solver, runs, path, columns) -> list[dict | None]:
     return rows
 
 
-def _why(exc, where: str) -> str:
-    """What stopped the dispatch, in words."""
-    if isinstance(exc, _Lost):
-        return f"the Dask scheduler at {where} was lost ({exc})"
-    if isinstance(exc, _NoSolver):
-        return (f"the workers of {where} could not load the compiled solver ({exc}); "
-                f"every worker must see the build folder at the same path (a shared file "
-                f"system) and run the same fccgen and Python (docs/sweeps.md)")
-    return f"the Dask cluster at {where} failed ({type(exc).__name__}: {exc})"
-
-
-def _cause(exc) -> str:
-    """The innermost error's text: Dask wraps what a worker raised."""
-    args = getattr(exc, "args", ())
-    inner = args[0] if len(args) == 1 and isinstance(args[0], BaseException) else None
-    return _cause(inner) if inner is not None else f"{type(exc).__name__}: {exc}"
-
-
 def _done(rows) -> int:
     return sum(r is not None for r in rows)
 
@@ -404,16 +251,3 @@ def _stopped_text(why: str, rows, writer, out) -> str:
                    f"{writer.path} (CSV, in the order the runs ended; column run gives "
                    f"each row's place in the sweep); {Path(out).name} was not written. "
                    f"Run the same sweep with --resume to keep them and run the rest.")
-
-
-def _close(client, cluster) -> None:
-    """Close the client and the local cluster; a lost scheduler makes closing fail
-    or wait, which must not hide why the sweep stopped."""
-    for thing in (client, cluster):
-        if thing is None:
-            continue
-        try:
-            thing.close(timeout=10) if thing is client else thing.close()
-        except Exception:           # noqa: BLE001 - already going down
-            pass
-
