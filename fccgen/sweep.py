@@ -18,7 +18,8 @@ One row per run: ``run`` (its place in the sweep, from 1), the parameters, ``sta
 ``error``, ``wall_time`` (seconds, the task's own), ``steps``, ``t_final``,
 ``energy_drift`` (max |E - E0|, losses of events added back), ``max_constraint_error``,
 ``model_hash`` (the numbers of the run), then the ``--outputs`` and
-``final.P.x final.P.y final.P.z`` of each moving point.
+``final.P.x final.P.y final.P.z`` of each moving point the user named (and, with
+joints, ``final.B.cx final.B.cy final.B.cz`` of each body: fccgen.sweep_run.final_columns).
 
 Finished work is never lost (:mod:`fccgen.sweep_table`): rows go to a partial file as
 they finish; Ctrl-C ends in :class:`SweepInterrupted` and a lost scheduler or cluster in
@@ -37,7 +38,7 @@ from .progress import Reporter
 from .sweep_cluster import (client_for, close, dispatch, quiet_dask, require_dask,
                             why_stopped)
 from .sweep_outputs import check_outputs, parse_outputs
-from .sweep_run import CANCELLED, RunTimedOut, run_one
+from .sweep_run import CANCELLED, RunTimedOut, final_columns, run_one
 from .sweep_table import (PartialWriter, SweepTable, check_table_path, partial_path,
                           read_partial)
 
@@ -160,7 +161,7 @@ def sweep(solver, sets: dict[str, list[float]], *, scheduler=None, method=None,
     if outputs:
         _check_outputs(solver, runs, outputs, method)
     keys = list(sets)
-    finals = [f"final.{p.name}.{c}" for p in solver.plan.model.moving_points for c in "xyz"]
+    finals = [label for label, _ in final_columns(solver.plan)]
     columns = ["run", *keys, *FIGURES, *(o.label for o in outputs), *finals]
     info = provenance(solver.plan, solver.settings())
     info.update(_settings(solver, method), sets=sets, outputs=[o.label for o in outputs],

@@ -58,7 +58,21 @@ def run_one(solver, params: dict, method=None, outputs: list[Output] = (),
                energy_drift=info.get("energy_drift"),
                max_constraint_error=info.get("max_constraint_error"))
     row.update(evaluate(list(outputs), result))
-    for p in solver.plan.model.moving_points:
-        for c in "xyz":
-            row[f"final.{p.name}.{c}"] = float(result[f"{p.name}.{c}"][-1])
+    for label, column in final_columns(solver.plan):
+        row[label] = float(result[column][-1])
     return row
+
+
+def final_columns(plan) -> list[tuple[str, str]]:
+    """(table label, result column) of the final positions a sweep row carries: each
+    moving point the user named (``final.P.x``), and for a model with joints each
+    body's mass centre (``final.arm.cx``); the points and vectors the lowering made
+    stay out, as they do of ``result.names``."""
+    mechanism = plan.model.mechanism
+    made = set(mechanism.internal()) if mechanism is not None else set()
+    out = [(f"final.{p.name}.{c}", f"{p.name}.{c}") for p in plan.model.moving_points
+           if p.name not in made for c in "xyz"]
+    if mechanism is not None:
+        out += [(f"final.{b}.{c}", f"{b}.{c}") for b, _ in plan.bodies
+                for c in ("cx", "cy", "cz")]
+    return out

@@ -144,3 +144,16 @@ def test_a_sweep_table_written_as_parquet_keeps_every_row(build_dir, tmp_path):
     rows = read_table(table.save(tmp_path / "t.csv"))
     assert [float(r["final.x"] or "nan") for r in rows][0] == back["final.x"][0]
     assert not list(tmp_path.glob(".*.tmp"))          # written atomically
+
+
+def test_rows_of_a_model_with_joints_name_its_bodies_not_the_lowering(build_dir):
+    """Sweep rows carry the user's names only (result.names): a joint-form model's
+    finals are its bodies' mass centres, never the points its joints were lowered to."""
+    solver = fccgen.load(EXAMPLES / "four_bar_driven.yaml", build_dir)
+    table = run_sweep(solver, {"simulate.t_end": [0.05]}, workers=1)
+    r = solver.simulate(t_end=0.05)
+    row = table.rows[0]
+    finals = [k for k in table.columns if k.startswith("final.")]
+    assert finals and all(k[len("final."):] in r.names for k in finals)
+    for k in finals:
+        assert row[k] == r[k[len("final."):]][-1]
