@@ -275,7 +275,9 @@ class NumericSolver:
             from ..target_error import simulate_to_error
             return simulate_to_error(self, error, error_on, t_end=t_end, output_dt=output_dt,
                                      method=method, q0=q0, v0=v0, progress=progress,
-                                     reactions=reactions, dt=dt, rtol=rtol, atol=atol,
+                                     reactions=reactions,
+                                     **({} if project else {"project": project}),
+                                     dt=dt, rtol=rtol, atol=atol,
                                      **method_options)
         d = self.plan.model.simulate
         m = registry.get(d.method if method is None else method, tuple(INTEGRATORS))

@@ -317,8 +317,10 @@ class CompiledSolver:
             from ..target_error import simulate_to_error
             return simulate_to_error(self, error, error_on, t_end=t_end, output_dt=output_dt,
                                      method=method, q0=q0, v0=v0, progress=progress,
-                                     reactions=reactions, event_tol=event_tol,
-                                     rest_speed=rest_speed, dt=dt, rtol=rtol, atol=atol,
+                                     reactions=reactions,
+                                     **({} if project else {"project": project}),
+                                     event_tol=event_tol, rest_speed=rest_speed, dt=dt,
+                                     rtol=rtol, atol=atol,
                                      **method_options)
         args = dict(t_end=t_end, dt=dt, method=method, output_dt=output_dt,
                     project=project, q0=q0, v0=v0, progress=progress, rtol=rtol,

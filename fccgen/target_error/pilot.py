@@ -32,7 +32,7 @@ NOMINAL_ORDER = {"rk4": 4.0, "ali3p": 2.0, "dopri5": 1.0}
 # errors add up; a phase error grows linearly); beyond t^4 the growth is fitted as is
 # and the final estimate checks it.
 GROWTH_MIN, GROWTH_MAX = 1.0, 4.0
-PILOT_FRACTION = 1 / 20      # the pilot piece, as a share of the run
+PILOT_FRACTION = 1 / 10      # the pilot piece, as a share of the run
 # Round-off: every step leaves a rounding error that no smaller step removes, and
 # more steps add more of it. Measured on A01 (pendulum, 2000 s, closed-form
 # reference): rk4 at dt = 1e-4 and 5.5e-5 ends 1.6e-9 and 2.6e-9 m off, where its
@@ -208,7 +208,7 @@ def _fit(fit: Fit, pilot: Pilot, diffs, kappa: float) -> None:
     fit.growth = growth(t, d1, pilot.noise)
     c0, c2 = fit.rungs[0][1], fit.rungs[2][1]
     fit.cost0, fit.steps0 = fit.rungs[1][1], fit.rungs[1][2]
-    fit.roundoff = ROUNDOFF_PER_STEP * np.finfo(float).eps * pilot.length_scale
+    fit.roundoff = ROUNDOFF_PER_STEP * float(np.finfo(float).eps) * pilot.length_scale
     if fit.method == "dopri5":
         b = math.log(c2 / c0) / math.log(kappa ** 2) if c0 > 0 else 0.2
         fit.cost_exponent = min(0.5, max(0.05, b))
