@@ -190,6 +190,7 @@ def _fit(fit: Fit, pilot: Pilot, diffs, kappa: float) -> None:
     if not (math.isfinite(e1) and math.isfinite(e2)):
         fit.status, fit.note = "failed", "a pilot run left the motion (non-finite state)"
         return
+    rung, e = 1, e2                  # the middle rung, judged by the fine one
     if e2 > pilot.noise and e1 > e2:
         fit.measured_order = math.log(e1 / e2) / math.log(kappa)
         # Never more optimistic than the method's order; at least half of it (a lower
@@ -197,17 +198,19 @@ def _fit(fit: Fit, pilot: Pilot, diffs, kappa: float) -> None:
         fit.order = min(nominal, max(0.5 * nominal, fit.measured_order))
     else:
         fit.order = nominal
+        if e1 > pilot.noise:         # the coarse rung, judged by the middle one
+            rung, e = 0, e1
         fit.note = ("the pilot's finest rungs agree to the projections' noise: the order "
                     "was not measured, the method's nominal order is used")
     ratio = kappa ** fit.order
-    fit.s0 = fit.rungs[1][0]
-    # error of the middle rung = its difference from the fine rung * R / (R - 1)
-    fit.err0 = max(e2, pilot.noise) * ratio / (ratio - 1)
+    fit.s0 = fit.rungs[rung][0]
+    # error of a rung = its difference from the next finer rung * R / (R - 1)
+    fit.err0 = max(e, pilot.noise) * ratio / (ratio - 1)
     # growth belongs to the problem, not the setting: measured on the coarse pair,
     # whose difference stands furthest above the noise
     fit.growth = growth(t, d1, pilot.noise)
     c0, c2 = fit.rungs[0][1], fit.rungs[2][1]
-    fit.cost0, fit.steps0 = fit.rungs[1][1], fit.rungs[1][2]
+    fit.cost0, fit.steps0 = fit.rungs[rung][1], fit.rungs[rung][2]
     fit.roundoff = ROUNDOFF_PER_STEP * float(np.finfo(float).eps) * pilot.length_scale
     if fit.method == "dopri5":
         b = math.log(c2 / c0) / math.log(kappa ** 2) if c0 > 0 else 0.2
