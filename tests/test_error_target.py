@@ -8,9 +8,9 @@ What each case must show (docs/accuracy.md):
 - the estimate info["error_estimate"] is within 10x of the true error;
 - the run costs (in evaluations, deterministic counts) at most 2x the cheapest
   hand-tuned method and setting that meets E (tests/data/error_target_grid.json).
-E = 1e-9 runs here for the top only: A01 over 2000 s at 1e-9 takes ~40 s (its figures
-are in docs/accuracy.md, from benchmarks/error_target.py), and A02's published
-table has six digits, so it judges the 1e-3 level only.
+E = 1e-9 runs here for the top and the solar array: A01 over 2000 s at 1e-9 takes
+~20 s of CPU (its figures are in docs/accuracy.md, from benchmarks/error_target.py),
+and A02's published table has six digits, so it judges the 1e-3 level only.
 """
 from __future__ import annotations
 
@@ -103,8 +103,10 @@ def test_the_error_reached_meets_the_target_and_the_estimate_tracks_it(runs, nam
 @pytest.mark.parametrize("name, level", CASES)
 def test_the_choice_costs_at_most_twice_the_cheapest_hand_tuned_run(runs, name, level):
     result, _, _ = runs(name, level)
-    best = GRID[name]["cheapest"][f"{level:g}"]
-    assert best is not None, "the grid search found no run that meets this level"
+    meets = [r for r in GRID[name]["runs"] if r["error"] is not None
+             and r["error"] <= level]
+    assert meets, "the grid search found no run that meets this level"
+    best = min(meets, key=lambda r: r["evaluations"])
     cost = result.info["accuracy"]["cost"]
     # the chosen method and setting (the run itself) against the grid's cheapest; the
     # pilot and the twin of the estimate are reported apart (docs/accuracy.md)
