@@ -97,10 +97,13 @@ def test_method_restricts_the_choice_to_that_method(double):
 
 def test_the_numeric_version_takes_the_same_target(numeric, double_run):
     r = quiet(numeric("double_pendulum"), error=1e-5, **SHORT)
-    # the same pilot on the same trajectory: the same choice, and an estimate that
-    # agrees to the two versions' ~1e-12 difference per step
+    # the same pilot on the same trajectory: the same method, and a setting and an
+    # estimate that agree closely. The setting is a continuous function of the pilot's
+    # rung differences (~1e-7 here), which the versions' ~1e-12 per step moves by
+    # about 1e-5 relative at most (measured 2e-7).
     ours, theirs = r.info["accuracy"], double_run.info["accuracy"]
-    assert (ours["method"], ours["value"]) == (theirs["method"], theirs["value"])
+    assert ours["method"] == theirs["method"]
+    assert ours["value"] == pytest.approx(theirs["value"], rel=1e-5)
     assert r.info["error_estimate"] == pytest.approx(double_run.info["error_estimate"],
                                                      rel=1e-3)
 
