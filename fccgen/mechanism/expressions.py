@@ -90,6 +90,9 @@ REFUSED = {
 OPERATOR_RULE = "operators are only + - * / ** and unary minus"
 
 # -- characters and tokens ---------------------------------------------------------------
+# Whitespace taken off both ends of a text before it is checked (only ASCII: any
+# other character, U+2028 included, is refused wherever it stands).
+ASCII_SPACE = " \t\n\r\f\v"
 # Operator tokens the grammar reads (== and != are refused later, with their reason).
 TOKEN_OPERATORS = frozenset({"+", "-", "*", "/", "**", "(", ")", ",", ".",
                              ">=", ">", "<=", "<", "==", "!="})
@@ -315,18 +318,19 @@ def _parse(text, symbols, source, line, item, mode_rule: str):
     if len(text) > MAX_CHARS:
         raise ModelError(source, line, item, f"is longer than {MAX_CHARS} characters",
                          f"{text[:40]}... ({len(text)} characters)")
-    if not text.strip():
+    text = text.strip(ASCII_SPACE)        # a YAML block scalar ends in a line break
+    if not text:
         raise fail(f"must be {mode_rule}, not empty text")
-    check_tokens(text.strip(), fail)
+    check_tokens(text, fail)
     try:
-        tree = ast.parse(text.strip(), mode="eval")
+        tree = ast.parse(text, mode="eval")
     except (SyntaxError, ValueError, RecursionError, MemoryError) as exc:
         reason = getattr(exc, "msg", None) or type(exc).__name__
         raise fail(f"is not {mode_rule} ({reason})") from None
     n_nodes = sum(1 for _ in ast.walk(tree))
     if n_nodes > MAX_NODES:
         raise fail(f"has more than {MAX_NODES} syntax nodes ({n_nodes})")
-    return tree.body, _Walker(text.strip(), symbols, fail)
+    return tree.body, _Walker(text, symbols, fail)
 
 
 def parse_expression(text: str, symbols: Mapping[str, sympy.Symbol], *, source: str,
