@@ -1,7 +1,11 @@
-"""Integer literals beyond what a double holds exactly (|n| > 2**53) are printed as the
-double nearest to them, never as C integer constants (which a compiler truncates to
-64 bits, with only a warning): the compiled run of a model holding them agrees with
-the NumPy version, which reads the same literals as Python numbers."""
+"""Integers beyond what a double holds exactly (|n| > 2**53) are printed as the double
+nearest to them, never as C integer constants (which a compiler truncates to 64 bits,
+with only a warning): the compiled run of a model holding one agrees with the NumPy
+version, which reads the same numbers as Python numbers.
+
+A model writes numbers of at most 1e12 (expressions.MAX_LITERAL), but the constants
+it computes from them may reach 1e24 (MAX_CONSTANT): 4294967296**2 + 1 = 2**64 + 1
+is such an integer, and a 64-bit C constant would make it 1."""
 from __future__ import annotations
 
 import re
@@ -15,6 +19,7 @@ import fccgen
 from fccgen.printing.c99 import KernelPrinter
 
 N = 2 ** 64 + 1          # truncated to 1 as a 64-bit C integer constant
+WRITTEN = "(4294967296**2 + 1)"
 MODEL = f"""\
 name: large_literals
 gravity: [0, 0, -9.81]
@@ -24,7 +29,7 @@ joints:
   - {{name: A, type: revolute, bodies: [ground, arm], at: [0, 0, 0], axis: [0, 1, 0]}}
 loads:
   - {{type: torque, body: arm,
-     value: [0, "2*min(1, {N}*t) - 2 + 1e-19*(t + {N}) + sin({N}*t)/{N}", 0]}}
+     value: [0, "2*min(1, {WRITTEN}*t) - 1.5 + sin({WRITTEN}*t)/{WRITTEN}", 0]}}
 simulate: {{t_end: 0.2, dt: 1.0e-3, method: rk4}}
 """
 
@@ -44,10 +49,10 @@ def test_a_number_too_large_for_a_double_is_an_error():
 
 
 def test_compiled_run_agrees_with_numeric(tmp_path, build_dir):
-    """The torque is 2 min(1, N t) - 2 + 1e-19 (t + N) + sin(N t)/N, about 1.84 N m
-    for t > 0 (with N truncated to 1 it would ramp from -2 over a second). Both
-    versions integrate the same equations with RK4 at the same step: they differ by
-    rounding only, 1e-9 rad over 200 steps (the angle reaches ~0.1 rad)."""
+    """The torque is 2 min(1, N t) - 1.5 + sin(N t)/N, 0.5 N m for t > 0 (with N
+    truncated to 1 it would ramp up from -1.5 N m over a second). Both versions
+    integrate the same equations with RK4 at the same step: they differ by rounding
+    only, 1e-9 rad over 200 steps (the angle reaches ~0.05 rad)."""
     path = tmp_path / "large_literals.yaml"
     path.write_text(MODEL)
     c = fccgen.load(path, build_dir)

@@ -12,14 +12,16 @@ that names the file, line, item, rule and the text seen. The grammar::
 
     expr     := expr (+ | - | * | / | **) expr | (- | +) expr | ( expr )
               | NUMBER | pi | NAME | NAME.QUANTITY | FUNC(expr, ...)
-    NUMBER   := digits [. digits] [e|E [+|-] digits]   (finite as a double)
+    NUMBER   := digits [. digits] [e|E [+|-] digits]   (at most 1e12 in magnitude)
     FUNC     := sin cos tan exp log sqrt abs  (1 argument) | atan2 (2) | min max (>= 2)
     condition:= expr (>= | > | <= | <) expr               (events; exactly one comparison)
 
 ``NAME`` and ``NAME.QUANTITY`` must be keys of the symbol table the caller passes
 (``t``, ``A.angle``, ``S.speed``, ``P.x``, ...): a dotted name is one entry of the
 table, never an attribute lookup. Limits: :data:`MAX_CHARS` characters,
-:data:`MAX_NODES` syntax-tree nodes, :data:`MAX_DEPTH` levels of nesting.
+:data:`MAX_NODES` syntax-tree nodes, :data:`MAX_DEPTH` levels of nesting, numbers
+written at most :data:`MAX_LITERAL` and constants computed at most
+:data:`MAX_CONSTANT` in magnitude.
 
 The result is a SymPy expression over the caller's symbols (pass real symbols, so that
 derivatives of ``abs``, ``min``, ``max`` stay real), printable by fccgen's C printer:
@@ -43,6 +45,14 @@ from ..errors import ModelError
 MAX_CHARS = 1000
 MAX_NODES = 400
 MAX_DEPTH = 32
+# Every number written in an expression is at most MAX_LITERAL in magnitude, as every
+# number of a model (fccgen.model.fields.MAX_MAGNITUDE); every constant the expression
+# computes from them (a product or power of numbers, folded by SymPy) at most
+# MAX_CONSTANT, the size of a product of two model numbers: beyond that, the kernels'
+# products of loads, lengths and speeds overflow doubles (a 1e308 in a load stopped
+# the run at its first step).
+MAX_LITERAL = 1e12
+MAX_CONSTANT = MAX_LITERAL ** 2
 # Integer powers of exact numbers with exponents up to this stay exact (2**-3 = 1/8);
 # other powers of numbers are computed in floating point, so that 10**10**10 is
 # refused as an overflow instead of being computed digit by digit.
@@ -236,6 +246,9 @@ class _Walker:
             finite = math.isfinite(value)
         if not finite:
             raise self.fail(f"the number {literal} is not finite as a double")
+        if abs(value) > MAX_LITERAL:
+            raise self.fail(f"the number {literal} is larger than {MAX_LITERAL:g} in "
+                            "magnitude (fccgen's limit on every number of a model)")
         return sympy.Integer(value) if isinstance(value, int) else sympy.Float(value)
 
     def dotted(self, node: ast.Attribute) -> str:
@@ -299,6 +312,15 @@ class _Walker:
                                 "(overflow?)")
         return expr
 
+    def bounded(self, expr: sympy.Expr) -> sympy.Expr:
+        """``expr`` if each of its constants is at most MAX_CONSTANT in magnitude."""
+        for number in expr.atoms(sympy.Number):
+            if abs(float(number)) > MAX_CONSTANT:
+                raise self.fail(f"computes the constant {float(number):.6g}, larger than "
+                                f"{MAX_CONSTANT:g} in magnitude (the kernels multiply it "
+                                "by lengths, masses and speeds: doubles would overflow)")
+        return expr
+
 
 def _parse(text, symbols, source, line, item, mode_rule: str):
     """(syntax tree body, walker) of ``text`` after the length, syntax and size checks."""
@@ -342,7 +364,7 @@ def parse_expression(text: str, symbols: Mapping[str, sympy.Symbol], *, source: 
     Raises ModelError(source, line, item, rule, text) for anything outside the grammar
     of the module docstring."""
     body, walker = _parse(text, symbols, source, line, item, "an expression")
-    return walker.convert(body)
+    return walker.bounded(walker.convert(body))
 
 
 def parse_condition(text: str, symbols: Mapping[str, sympy.Symbol], *, source: str,
@@ -363,7 +385,7 @@ def parse_condition(text: str, symbols: Mapping[str, sympy.Symbol], *, source: s
                           "cross zero reliably)")
     lhs = walker.convert(body.left, 1)
     rhs = walker.convert(body.comparators[0], 1)
-    return walker.finite(lhs - rhs), DIRECTIONS[op]
+    return walker.bounded(walker.finite(lhs - rhs)), DIRECTIONS[op]
 
 
 def parse_event_function(text: str, symbols: Mapping[str, sympy.Symbol], *, source: str,
@@ -374,4 +396,4 @@ def parse_event_function(text: str, symbols: Mapping[str, sympy.Symbol], *, sour
     body, walker = _parse(text, symbols, source, line, item, "an event function")
     if isinstance(body, ast.Compare):
         return parse_condition(text, symbols, source=source, line=line, item=item)
-    return walker.finite(walker.convert(body)), None
+    return walker.bounded(walker.finite(walker.convert(body))), None
