@@ -6,6 +6,14 @@ Loading the model runs every rule of the model file, including the run settings 
 so a model that check passes is one that simulate accepts with its own settings. A
 number of the report that is not finite is an error, never a line of the report.
 
+Generation too: unless told not to (``generate=False``, ``--no-generate``; the report
+then says so), check derives every element class's kernels, prints them to C and
+renders the sources, and does the same for the event kernels, as a build does before
+it compiles: a model whose kernels cannot be generated fails check as it would fail
+simulate (:class:`BuildError`, naming the file and the class). Only the compiler is
+not run. Printed classes are kept per class key for the process, so that checking
+models of the same structure again costs no derivation.
+
 A model of more than fccgen.rank_sparse.DENSE_COMPONENT coordinates is checked a
 connected component of its constraint Jacobian at a time (the rows of one component
 depend only on each other), from B assembled sparse: a small component as a small
@@ -27,7 +35,7 @@ import scipy.sparse as sp
 from .mechanism.report import DEPENDENT_TOL, dependency_text, dependent_rows, rows_text
 from . import rank as rank_rule
 from . import rank_sparse
-from .errors import SimulationError
+from .errors import BuildError, SimulationError
 from .progress import Reporter
 from .threads import single_threaded_blas
 
@@ -38,6 +46,11 @@ from .threads import single_threaded_blas
 # 1.5 s at 1000 rows, 90 s at 5000), up to DEPENDENCY_ROWS_MAX rows.
 DEPENDENCY_REDUNDANT_MAX = 3000
 DEPENDENCY_ROWS_MAX = 1500
+# Printed element classes by class key (see the module docstring), at most this many.
+_PRINTED: dict = {}
+PRINTED_KEPT = 1000
+NOT_GENERATED = ("kernels not generated (check was told not to): simulate may still "
+                 "refuse the model when it derives and prints its kernels")
 
 
 
@@ -60,6 +73,7 @@ class CheckReport:
     dependent: str = ""          # joints (and other rows) that take part in dependencies
     rank_gap: tuple[float, float] = (1.0, 0.0)    # sigma_r / sigma_1, sigma_{r+1} / sigma_1
     uncertain: list[float] = field(default_factory=list)   # sigma / sigma_1 in the band
+    generation: str = ""         # what check generated (kernels, events), or that it did not
 
     @property
     def dof_counted(self) -> int:
@@ -93,6 +107,8 @@ class CheckReport:
             lines += [f"    {j}" for j in self.joints]
         lines.append(f"  element classes: {len(self.classes)}")
         lines += [f"    {c}" for c in self.classes]
+        if self.generation:
+            lines.append(f"  {self.generation}")
         lines.append("  initial state:")
         lines += ["    " + s for s in self.init_report.splitlines()]
         lines += [f"  note: {n}" for n in self.notes]
@@ -119,20 +135,72 @@ def redundant_indices(B: np.ndarray, rank: int, groups=None) -> list[int]:
     return sorted(int(k) for k in piv[rank:])
 
 
-def check_model(path, progress=None) -> CheckReport:
+def check_model(path, progress=None, *, generate: bool = True) -> CheckReport:
     """Validate a model and report its structure (needs no compiler). Errors name the
     model file. progress: a callback of fccgen.progress events ("check" stage), told
-    of each step of a large model."""
+    of each step of a large model. generate: derive, print and render the kernels as a
+    build does, without compiling them (module docstring); False: the report says
+    they were not."""
     from .api import load_numeric
     solver = load_numeric(path)
     source = str(solver.plan.model.source)
+    say = Reporter(progress, "check")
     try:
         with single_threaded_blas():     # a spinning OpenBLAS doubled the CPU time of
-            return _report(solver, Reporter(progress, "check"))   # the 1000-bar check
+            report = _report(solver, say)    # the 1000-bar check
     except SimulationError as exc:
         if str(exc).startswith(f"{source}:"):
             raise
         raise SimulationError(f"{source}: {exc}") from None
+    except (ArithmeticError, ValueError) as exc:      # an expression at the start, ...
+        raise SimulationError(f"{source}: the initial state cannot be evaluated "
+                              f"({type(exc).__name__}: {exc})") from None
+    report.generation = generate_kernels(solver.plan, say) if generate else NOT_GENERATED
+    return report
+
+
+def generate_kernels(plan, say=None) -> str:
+    """Derive, print and render the kernels of ``plan`` (and its event kernels) as a
+    build does before compiling; a line for the report. BuildError naming the model
+    file and the class when a class cannot be generated."""
+    from .build.cache import structure_hash
+    from .derive import derive_class
+    from .printing import print_class
+    from .render import render_sources
+    say = say or (lambda *args, **kwargs: None)
+    source = plan.model.source
+    classes = list(plan.classes)
+    printed = []
+    for k, cls in enumerate(classes, 1):
+        if cls.key not in _PRINTED:
+            say(f"check: deriving and printing class {k}/{len(classes)}", done=k - 1,
+                total=len(classes))
+            try:
+                done = print_class(derive_class(cls))
+            except Exception as exc:          # noqa: BLE001 -- any failure is the answer
+                raise BuildError(f"{source}: the kernels of element class {cls.name} "
+                                 f"({cls.describe()}) cannot be generated: "
+                                 f"{type(exc).__name__}: {exc}") from None
+            if len(_PRINTED) >= PRINTED_KEPT:
+                _PRINTED.clear()
+            _PRINTED[cls.key] = done
+        printed.append(_PRINTED[cls.key])
+    render_sources(plan.model.name, structure_hash(classes), printed, ["-O2"], [])
+    line = (f"kernels: {len(classes)} element class{'es' if len(classes) != 1 else ''} "
+            "derived, printed to C and rendered (not compiled)")
+    if plan.model.events:
+        from .events.build import event_hash, print_kernels, render
+        from .events.symbolic import event_system
+        try:
+            system = event_system(plan)
+            render(plan.model.name, f"{plan.model.name}_events", system,
+                   [e.name for e in plan.model.events], print_kernels(system),
+                   event_hash(system), ["-O2"])
+        except Exception as exc:              # noqa: BLE001
+            raise BuildError(f"{source}: the event kernels cannot be generated: "
+                             f"{type(exc).__name__}: {exc}") from None
+        line += f"; event kernels of {len(plan.model.events)} events too"
+    return line
 
 
 def _report(solver, report) -> CheckReport:

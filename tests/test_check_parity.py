@@ -138,3 +138,35 @@ def test_table_paths_and_fields_are_refused_not_raised(tmp_path, table, rule):
     (tmp_path / "huge.csv").write_text("t, a\n0, 0\n1, " + "7" * 200_000 + "\n")
     refused(tmp_path, f"drivers:\n  - {{name: m, joint: A, angle: {{table: {table}}}}}\n",
             "drivers[0].angle.table", rule, table)
+
+
+def test_check_generates_the_kernels_or_says_it_did_not(tmp_path, monkeypatch):
+    """check derives, prints and renders every class (and the event kernels); a class
+    that cannot be generated fails check as it would fail a build, naming the file
+    and the class; with generate=False the report says the kernels were not made."""
+    import fccgen.check as check
+    import fccgen.derive as derive
+    from fccgen.errors import BuildError
+    path = tmp_path / "case.yaml"
+    path.write_text(ARM + 'events:\n  - {name: e, when: "A.angle >= 0.5", do: log}\n')
+    report = check_model(path)
+    assert "kernels: 1 element class derived, printed to C and rendered (not compiled); "\
+           "event kernels of 1 events too" in report.text()
+    assert "kernels not generated" in check_model(path, generate=False).text()
+
+    def fails(cls):
+        raise NotImplementedError("a kernel SymPy cannot print")
+    monkeypatch.setattr(derive, "derive_class", fails)
+    monkeypatch.setattr(check, "_PRINTED", {})
+    with pytest.raises(BuildError, match=rf"{path}: the kernels of element class "
+                                         r"body_\w+ \(body; .*\) cannot be generated: "
+                                         "NotImplementedError: a kernel SymPy cannot"):
+        check_model(path)
+
+
+def test_the_command_line_check_has_no_generate(tmp_path, capsys):
+    from fccgen.cli import main
+    path = tmp_path / "case.yaml"
+    path.write_text(ARM)
+    assert main(["check", str(path), "--no-generate", "-q"]) == 0
+    assert "kernels not generated" in capsys.readouterr().out
