@@ -218,6 +218,11 @@ def _report(solver, report) -> CheckReport:
         "the constraint Jacobian B": B.data if large else B,
         "the residuals": [init.position_residual_given, init.position_residual,
                           init.velocity_change, init.velocity_residual]})
+    with np.errstate(all="ignore"):               # a nan is the answer, not a warning
+        forces = solver.applied_forces(init.q, init.v)
+    _require_finite(model.source, {"the applied forces (loads and springs)": forces},
+                    "; a load or spring is singular at the start (a torsion spring whose "
+                    "body has no direction perpendicular to its axis?)")
     say("check: rank decision")
     decision = rank_rule.decide(B, B.shape[1], plan.row_groups)
     rank = max(decision.rank, 0)
@@ -325,12 +330,12 @@ def _large_component(Bc, r: int, groups, say, dependencies: bool = True):
     return found, np.flatnonzero(weights > DEPENDENT_TOL)
 
 
-def _require_finite(source: str, arrays: dict):
+def _require_finite(source: str, arrays: dict, why: str = "; the model's numbers are "
+                    "too far apart in size for double precision"):
     """SimulationError naming the first of ``arrays`` holding a nan or an infinity."""
     for what, values in arrays.items():
         values = np.asarray(values, dtype=float)
         if not np.all(np.isfinite(values)):
             bad = next(float(x) for x in values.ravel() if not math.isfinite(x))
             raise SimulationError(f"{source}: {what} of the initial state are not finite "
-                                  f"(found {bad!r}); the model's numbers are too far "
-                                  "apart in size for double precision")
+                                  f"(found {bad!r}){why}")

@@ -170,3 +170,27 @@ def test_the_command_line_check_has_no_generate(tmp_path, capsys):
     path.write_text(ARM)
     assert main(["check", str(path), "--no-generate", "-q"]) == 0
     assert "kernels not generated" in capsys.readouterr().out
+
+
+def test_forces_not_finite_at_the_start_fail_check_as_they_fail_simulate(tmp_path):
+    """A torsion spring on a hinge whose bodies' frame points lie on its axis has no
+    reference direction: its torque is nan at the start, which simulate stops on;
+    check says so, naming the file, instead of passing."""
+    from fccgen.errors import SimulationError
+    path = tmp_path / "spring.yaml"
+    path.write_text("""\
+name: spring
+gravity: [0, 0, 0]
+bodies:
+  a: {mass: 1.0, center: [0.5, 0, 0], inertia: [1.0e-3, 0.08, 0.08]}
+  b: {mass: 0.5, center: [1.5, 0, 0], inertia: [1.0e-2, 0.04, 0.04]}
+joints:
+  - {name: A, type: revolute, bodies: [ground, a], at: [0, 0, 0], axis: [0, 1, 0]}
+  - {name: B, type: revolute, bodies: [a, b], at: [1, 0, 0], axis: [1, 0, 0]}
+loads:
+  - {type: torsion_spring, joint: B, stiffness: 2.0, angle: 0.2}
+""")
+    with pytest.raises(SimulationError, match=rf"{path}: the applied forces \(loads and "
+                                              r"springs\) of the initial state are not "
+                                              "finite"):
+        check_model(path, generate=False)
