@@ -35,7 +35,7 @@ import scipy.sparse as sp
 from .mechanism.report import DEPENDENT_TOL, dependency_text, dependent_rows, rows_text
 from . import rank as rank_rule
 from . import rank_sparse
-from .errors import BuildError, SimulationError
+from .errors import BuildError, FccgenError, SimulationError
 from .progress import Reporter
 from .threads import single_threaded_blas
 
@@ -152,6 +152,8 @@ def check_model(path, progress=None, *, generate: bool = True) -> CheckReport:
         if str(exc).startswith(f"{source}:"):
             raise
         raise SimulationError(f"{source}: {exc}") from None
+    except FccgenError:                  # ModelError (a ValueError too) names its item
+        raise
     except (ArithmeticError, ValueError) as exc:      # an expression at the start, ...
         raise SimulationError(f"{source}: the initial state cannot be evaluated "
                               f"({type(exc).__name__}: {exc})") from None

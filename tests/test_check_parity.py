@@ -194,3 +194,15 @@ loads:
                                               r"springs\) of the initial state are not "
                                               "finite"):
         check_model(path, generate=False)
+
+
+def test_an_initial_joint_angle_out_of_reach_keeps_its_item(tmp_path):
+    """A ModelError raised while the initial state is assembled (the four-bar's
+    rocker cannot reach 2.5 rad) reaches the user as it is (file, line, item), not
+    reworded as a failure of the initial state."""
+    from test_reactions import FOUR_BAR
+    path = tmp_path / "case.yaml"
+    path.write_text(FOUR_BAR.replace("joints: {O: {rate: 2.0}}", "joints: {C: {angle: 2.5}}"))
+    with pytest.raises(ModelError) as info:
+        check_model(path, generate=False)
+    assert info.value.item == "initial.joints" and info.value.line is not None
