@@ -95,6 +95,7 @@ def test_a_rate_driver_s_integration_is_bounded_in_time(tmp_path, monkeypatch):
     import fccgen.model.drivers as drivers
     monkeypatch.setattr(drivers, "integral_text", lambda rate, t: time.sleep(3600))
     monkeypatch.setattr(drivers, "INTEGRAL_SECONDS", 0.5)
+    monkeypatch.setattr(drivers, "_INTEGRALS", {})
     refused(tmp_path, 'drivers:\n  - {name: m, joint: A, rate: "exp(-t**2)*log(1 + t)"}\n',
             "drivers[0].rate", "SymPy found none within 0.5 s")
 

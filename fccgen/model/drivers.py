@@ -203,7 +203,18 @@ def bounded_integral_text(rate, t, seconds: float | None = None) -> str | None:
     import multiprocessing
     import warnings
 
+    import sympy
+    # SymPy imports parts of its integrator on first use: done here, so that the
+    # child imports nothing (another thread may hold the import lock when it forks).
+    import sympy.integrals.heurisch  # noqa: F401
+    import sympy.integrals.manualintegrate  # noqa: F401
+    import sympy.integrals.meijerint  # noqa: F401
+    import sympy.integrals.risch  # noqa: F401
+
     seconds = INTEGRAL_SECONDS if seconds is None else seconds
+    key = sympy.srepr((rate, t))
+    if key in _INTEGRALS:
+        return _INTEGRALS[key]
     try:
         context = multiprocessing.get_context("fork")
     except ValueError:
@@ -230,7 +241,12 @@ def bounded_integral_text(rate, t, seconds: float | None = None) -> str | None:
         if process.is_alive():
             process.kill()
         process.join()
+    if out is not None:                      # only answers are kept, never a time-out
+        _INTEGRALS[key] = out
     return out
+
+
+_INTEGRALS: dict[str, str] = {}          # srepr of (rate, t) -> integral text
 
 
 def integral_text(rate, t) -> str | None:
