@@ -322,6 +322,19 @@ class _Walker:
         return expr
 
 
+def finite_value(expr: sympy.Expr) -> bool:
+    """True when the constant ``expr`` (an expression with its symbols substituted) is
+    a finite real number: no infinity, NaN or imaginary part, as SymPy and as a
+    double."""
+    if expr.has(sympy.zoo, sympy.oo, -sympy.oo, sympy.nan):
+        return False
+    try:
+        number = complex(expr.evalf(20))
+    except (TypeError, ValueError, OverflowError, ZeroDivisionError):
+        return False
+    return number.imag == 0 and math.isfinite(number.real)
+
+
 def _parse(text, symbols, source, line, item, mode_rule: str):
     """(syntax tree body, walker) of ``text`` after the length, syntax and size checks."""
     def fail(rule: str) -> ModelError:

@@ -12,8 +12,6 @@ derived.
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from ..errors import ModelError
@@ -161,6 +159,8 @@ class DriverReader(Reader):
         kernel can print), or a value, rate or acceleration that is not a finite
         number at t = 0 (sqrt(t), log(t), sin(t)/t)."""
         import sympy
+
+        from ..mechanism.expressions import finite_value
         if f.has(sympy.Abs, sympy.Min, sympy.Max, sympy.sign, sympy.Heaviside):
             raise self.fail(line, item, "must be smooth in t: abs, min and max make the "
                             "driver's rate jump where they switch, and its acceleration "
@@ -168,12 +168,7 @@ class DriverReader(Reader):
                             "which is smooth)", text)
         for order, what in enumerate(("value", "rate", "acceleration")):
             value = sympy.diff(f, t, order).subs(t, 0)
-            try:
-                number = complex(value.evalf(20))
-            except (TypeError, ValueError, OverflowError, ZeroDivisionError):
-                number = complex(math.nan)
-            if value.has(sympy.zoo, sympy.oo, -sympy.oo, sympy.nan) or number.imag \
-                    or not math.isfinite(number.real):
+            if not finite_value(value):
                 raise self.fail(line, item, f"the driver's {what} at t = 0 is not a "
                                 f"finite number ({sympy.sstr(value)}): value, rate and "
                                 "acceleration must be finite at the start (sqrt(t), "

@@ -201,9 +201,9 @@ class ItemReader(Reader):
         compiled force Jacobian df/dq' is a kernel of q alone, docs/elements.md), and
         finite at the start: t = 0 and the written configuration (every joint
         quantity 0)."""
-        import math
-
         import sympy
+
+        from ..mechanism.expressions import finite_value
         speeds = [s for n, s in symbols.items() if n.endswith((".rate", ".speed"))]
         for s in speeds:
             if expr.has(s) and sympy.diff(expr, s).has(*speeds):
@@ -214,12 +214,7 @@ class ItemReader(Reader):
                                 "supported, since the force's Jacobian in the speeds is "
                                 "computed without them)", text)
         value = expr.subs({s: 0 for s in symbols.values()})
-        try:
-            number = complex(value.evalf(20))
-        except (TypeError, ValueError, OverflowError, ZeroDivisionError):
-            number = complex(math.nan)
-        if value.has(sympy.zoo, sympy.oo, -sympy.oo, sympy.nan) or number.imag \
-                or not math.isfinite(number.real):
+        if not finite_value(value):
             raise self.fail(line, item, "is not a finite number at the start (t = 0, "
                             f"every joint quantity 0: {sympy.sstr(value)}); 1/A.angle, "
                             "log(t), sin(t)/t are not", text)
