@@ -210,7 +210,7 @@ def _report(solver, report) -> CheckReport:
     large = plan.n_q > rank_rule.dense_columns_max()
     say = report if large else (lambda *args, **kwargs: None)
     say(f"check: initial state ({plan.n_q} coordinates, {plan.n_g} equations)")
-    init = solver.initial_state()
+    init = _initial_state(solver)
     labels = constraint_row_labels(plan)
     B = solver.constraint_jacobian_sparse(init.q) if large else \
         solver.constraint_jacobian(init.q)
@@ -246,6 +246,23 @@ def _report(solver, report) -> CheckReport:
         joints=model.mechanism.describe() if model.mechanism is not None else [],
         dependent=dependent,
         rank_gap=tuple(decision.gap), uncertain=list(decision.uncertain))
+
+
+def _initial_state(solver):
+    """The solver's initial state; a division by zero or an invalid value met on the
+    way (a warning of NumPy, which would only be printed) is a SimulationError naming
+    the file, as simulate stops on the nan it makes."""
+    import warnings
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", RuntimeWarning)
+            return solver.initial_state()
+    except (RuntimeWarning, ArithmeticError) as exc:
+        raise SimulationError(
+            f"{solver.plan.model.source}: the initial state cannot be evaluated ({exc}): "
+            "a load or spring is singular at the start (one that reads the angle of a "
+            "hinge whose bodies' frame points lie on its axis has no reference "
+            "direction?)") from None
 
 
 def _large_rows(B, labels, rank, groups, notes, say,

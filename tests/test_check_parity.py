@@ -207,3 +207,27 @@ def test_an_initial_joint_angle_out_of_reach_keeps_its_item(tmp_path):
     with pytest.raises(ModelError) as info:
         check_model(path, generate=False)
     assert info.value.item == "initial.joints" and info.value.line is not None
+
+
+def test_a_load_of_an_angle_without_reference_direction_fails_check(tmp_path):
+    """Found by the sections fuzz: a torque reading the angle of a hinge whose bodies'
+    frame points lie on its axis divides 0 by 0 while the initial state is assembled;
+    check says so, naming the file, instead of a NumPy warning (an error under
+    pytest's warnings-as-errors)."""
+    from fccgen.errors import SimulationError
+    path = tmp_path / "angle.yaml"
+    path.write_text("""\
+name: angle
+gravity: [0, 0, 0]
+bodies:
+  a: {mass: 1.0, center: [0.5, 0, 0], inertia: [1.0e-3, 0.08, 0.08]}
+  b: {mass: 0.5, center: [1.5, 0, 0], inertia: [1.0e-2, 0.04, 0.04]}
+joints:
+  - {name: A, type: revolute, bodies: [ground, a], at: [0, 0, 0], axis: [0, 1, 0]}
+  - {name: B, type: cylindrical, bodies: [a, b], at: [1, 0, 0], axis: [1, 0, 0]}
+loads:
+  - {type: torque, body: a, value: [0, "B.angle", 0]}
+""")
+    with pytest.raises(SimulationError, match=rf"{path}: the initial state cannot be "
+                                              "evaluated .*no reference direction"):
+        check_model(path, generate=False)
