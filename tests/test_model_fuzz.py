@@ -18,7 +18,7 @@ Oracles:
   exception of fccgen.errors shorter than 10 kB, or all its results are finite.
 
 * the mechanism sections, load + check with generation (FCCGEN_FUZZ_SECTIONS cases,
-  300 by default): models with joints, drivers (expressions, rates, a table), loads of
+  100 by default): models with joints, drivers (expressions, rates, a table), loads of
   expressions and joint quantities, torsion and linear springs, events and limits,
   under the mutations above and text mutations of their expressions, names and paths
   (an odd token put in, a random expression, another name, a path out of the
@@ -59,7 +59,7 @@ CHECK_EXAMPLES = ("a01_pendulum", "double_pendulum", "four_bar", "free_body",
 RUN_EXAMPLES = ("double_pendulum", "four_bar")      # compiled by other tests as well
 N_CHECK = int(os.environ.get("FCCGEN_FUZZ_EXAMPLES", "2000"))
 N_RUN = int(os.environ.get("FCCGEN_FUZZ_RUNS", "60"))
-N_SECTIONS = int(os.environ.get("FCCGEN_FUZZ_SECTIONS", "150"))
+N_SECTIONS = int(os.environ.get("FCCGEN_FUZZ_SECTIONS", "100"))
 # A file that each fuzz test appends its counts to (for the long runs' records).
 REPORT = os.environ.get("FCCGEN_FUZZ_REPORT")
 
