@@ -1,4 +1,4 @@
-"""The restricted expression grammar of drivers, loads and events (DESIGN section 2b).
+"""The restricted expression grammar of drivers, loads and events (docs/design.md §2b).
 
 An expression is text such as ``"0.5*sin(3*t) + A.angle"``. Its characters and then
 its tokens (:mod:`tokenize`) are checked first: only numbers, names, the operators
