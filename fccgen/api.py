@@ -61,7 +61,8 @@ def load_numeric(path, **solver_options):
 def simulate(path, *, t_end=None, dt=None, method=None, output_dt=None, project=True,
              numeric=False, out=None, build_dir=DEFAULT_BUILD_DIR, force=False,
              keep_partial=False, progress: Progress = None, rtol=None, atol=None,
-             solver_options: dict | None = None, **method_options):
+             solver_options: dict | None = None, all_columns=False, error=None,
+             error_on=None, **method_options):
     """Simulate a model from its consistent initial state; write ``out`` if given.
 
     rtol, atol: tolerances of adaptive methods; solver_options: rank_tol,
@@ -70,10 +71,17 @@ def simulate(path, *, t_end=None, dt=None, method=None, output_dt=None, project=
     before anything runs (suffix, writable folder). When the run stops early (Ctrl-C,
     SimulationError) nothing is written, unless ``keep_partial``: then the rows
     recorded so far, if the integrator hands them back, go to ``<stem>.partial<suffix>``
-    and the exception's ``partial_path`` says where. Returns ``(result, initial_state)``.
+    and the exception's ``partial_path`` says where. ``all_columns``: write the internal
+    columns too (:meth:`fccgen.results.Result.save`). error, error_on: an error target
+    (the method and its setting chosen by a pilot; docs/accuracy.md). Returns
+    ``(result, initial_state)``.
     """
+    from .method_limits import refuse
+    if error is not None:
+        method_options.update(error=error, error_on=error_on)
     from .results import check_output, partial_path
     out = None if out is None else check_output(out)
+    refuse(lower(load_model(path)), method)          # before anything is built
     solver_options = solver_options or {}
     solver = (load_numeric(path, **solver_options) if numeric else
               load(path, build_dir, force=force, progress=progress, **solver_options))
@@ -85,10 +93,11 @@ def simulate(path, *, t_end=None, dt=None, method=None, output_dt=None, project=
     except BaseException as exc:
         partial = getattr(exc, "partial_result", None)
         if keep_partial and out is not None and partial is not None:
-            exc.partial_path = partial.save(partial_path(out), partial=True)
+            exc.partial_path = partial.save(partial_path(out), partial=True,
+                                            all_columns=all_columns)
         raise
     if out is not None:
-        result.save(out)
+        result.save(out, all_columns=all_columns)
     return result, init
 
 
@@ -136,28 +145,58 @@ def animate(path, out, *, result=None, mode=None, t_end=None, max_frames=None,
 
 
 def sweep(path, sets, out=None, *, scheduler=None, method=None, workers=None,
-          build_dir=DEFAULT_BUILD_DIR, progress: Progress = None):
+          outputs=None, run_timeout=None, resume=False, build_dir=DEFAULT_BUILD_DIR,
+          progress: Progress = None):
     """Run the model once per combination of ``sets`` ({key: [values]}, or
-    ``["KEY=V1,V2", ...]``) on Dask, compiled once; write the table to ``out`` (.csv)
-    if given. Keys: :mod:`fccgen.runtime.params`; figures: :mod:`fccgen.sweep`.
+    ``["KEY=V1,V2", ...]``) on Dask, compiled once; write the table to ``out`` (.csv
+    or .parquet) if given, each row to ``<stem>.partial.csv`` beside it as its run
+    finishes. ``outputs``: what the table carries besides its figures, e.g.
+    ``"motor.torque:max,latch:time"``; ``run_timeout``: seconds of wall time a run may
+    take; ``resume``: keep the rows of the partial file a stopped sweep left and run
+    only the others. Dask, ``out``, ``sets`` and ``outputs`` are checked before
+    anything is built.
+    Keys: :mod:`fccgen.runtime.params`; figures: :mod:`fccgen.sweep`; docs/sweeps.md.
     Returns a :class:`fccgen.sweep.SweepTable`."""
-    from .sweep import check_table_path, parse_sets
+    from .sweep import check_table_path, parse_sets, require_dask
     from .sweep import sweep as run_sweep
-    out = None if out is None else check_table_path(out)
+    from .sweep_outputs import parse_outputs
+    require_dask()
+    out = None if out is None else check_table_path(out, resume=resume)
     if not isinstance(sets, dict):
         sets = parse_sets(sets)
+    outputs = parse_outputs(outputs)
+    if run_timeout is not None and not run_timeout > 0:
+        raise ValueError(f"--run-timeout must be a positive number of seconds "
+                         f"(got {run_timeout!r})")
     solver = load(path, build_dir, progress=progress)
-    table = run_sweep(solver, sets, scheduler=scheduler, method=method, workers=workers,
-                      progress=progress)
-    if out is not None:
-        table.save(out)
-    return table
+    return run_sweep(solver, sets, scheduler=scheduler, method=method, workers=workers,
+                     progress=progress, outputs=outputs, run_timeout=run_timeout, out=out,
+                     resume=resume)
+
+
 def statics(path, *, numeric=False, build_dir=DEFAULT_BUILD_DIR, progress: Progress = None):
     """The static equilibrium of a model from its initial configuration
     (:func:`fccgen.analysis.statics`); returns an :class:`~fccgen.analysis.Equilibrium`."""
+    return equilibrium(path, numeric=numeric, build_dir=build_dir, progress=progress)[0]
+
+
+def equilibrium(path, *, out=None, numeric=False, build_dir=DEFAULT_BUILD_DIR,
+                progress: Progress = None):
+    """The static equilibrium and its one-row result (section 4's columns at t = 0,
+    the reactions named by joint and component, the drivers' forces, provenance and
+    the equilibrium's figures in ``info``: :mod:`fccgen.analysis.statics_result`),
+    written to ``out`` (.csv, .npz, .h5; checked before anything runs) if given.
+    Returns ``(equilibrium, result)``."""
     from .analysis import statics as solve_statics
+    from .analysis.statics_result import equilibrium_result
+    from .results import check_output
+    out = None if out is None else check_output(out)
     solver = load_numeric(path) if numeric else load(path, build_dir, progress=progress)
-    return solve_statics(solver)
+    eq = solve_statics(solver)
+    result = equilibrium_result(solver, eq)
+    if out is not None:
+        result.save(out)
+    return eq, result
 
 
 def inverse_dynamics(path, *, t_end=None, dt=None, out=None, numeric=False,
@@ -199,7 +238,13 @@ def modes(path, *, about="equilibrium", out=None, shapes=None, amplitude=None,
         lin = linearize(solver, init.q, init.v)
     result = solve_modes(lin)
     if out is not None:
-        result.write_csv(out)
+        from .provenance import provenance
+        info = provenance(solver.plan, getattr(solver, "settings", dict)())
+        info.update(kind="modes", about=about, dof=int(lin.null_basis.shape[1]))
+        if equilibrium is not None:
+            info.update(equilibrium_force_residual=equilibrium.force_residual,
+                        equilibrium_stability=equilibrium.stability)
+        result.write_csv(out, info)
     if shapes is not None:
         from .analysis.mode_shapes import mode_shapes, write_mode_shapes
         write_mode_shapes(mode_shapes(solver, lin, result, amplitude=amplitude,

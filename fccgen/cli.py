@@ -1,4 +1,4 @@
-"""Command line (DESIGN section 5): a thin layer over :mod:`fccgen.api`.
+"""Command line (docs/design.md §5): a thin layer over :mod:`fccgen.api`.
 
     fccgen MODEL.yaml                 generate and compile (cached)
     fccgen simulate MODEL.yaml ...    simulate and write results
@@ -10,6 +10,7 @@
     fccgen statics MODEL.yaml         static equilibrium, reactions, stability
     fccgen modes MODEL.yaml           natural frequencies about the equilibrium
     fccgen inverse MODEL.yaml         driver forces and reactions along the drivers
+    fccgen examples [DIR]             copy the example models into DIR (./examples)
 """
 from __future__ import annotations
 
@@ -28,7 +29,7 @@ from .methods import names as method_names
 from .run_settings import LINEAR_SOLVERS
 
 COMMANDS = ("simulate", "bench", "check", "generate", "plot", "animate", "sweep",
-            "statics", "modes", "inverse")
+            "statics", "modes", "inverse", "examples")
 EXIT_INTERRUPTED = 130      # 128 + SIGINT, as shells report it
 
 
@@ -49,6 +50,13 @@ def _parser() -> argparse.ArgumentParser:
     def force(sp):
         sp.add_argument("--force", action="store_true",
                         help="rebuild the compiled module even if it is cached")
+
+    ex = sub.add_parser("examples", help="copy the example models shipped with fccgen "
+                        "into a folder, so that the README's lines run anywhere")
+    ex.add_argument("dir", nargs="?", default="examples",
+                    help="where to copy them (default: ./examples)")
+    ex.add_argument("--overwrite", action="store_true",
+                    help="replace files already there (default: keep them)")
 
     g = sub.add_parser("generate", help="generate and compile (the default command)")
     common(g)
@@ -74,6 +82,14 @@ def _parser() -> argparse.ArgumentParser:
                    help="Baumgarte stiffness, 1/time (default 5)")
     s.add_argument("--method-option", action="append", default=[], metavar="NAME=VALUE",
                    help="any option of the method (repeatable), e.g. penalty=1e8")
+    s.add_argument("--error", type=float, metavar="E",
+                   help="the largest position error accepted over the run, in the "
+                        "model's length unit: fccgen chooses the method (--method "
+                        "restricts it) and its step or tolerance from a short pilot and "
+                        "reports the run's estimated error (docs/accuracy.md)")
+    s.add_argument("--error-on", metavar="COLUMNS",
+                   help="with --error: the points, vectors or columns the error is "
+                        "measured on, comma-separated (default: every moving point)")
     s.add_argument("--output-dt", type=float,
                    help="output interval, a multiple of dt (default: every step)")
     s.add_argument("--no-reactions", action="store_true",
@@ -82,6 +98,11 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--out", help="write results to FILE.csv, .npz or .h5 with how they "
                    "were made (CSV: in FILE.meta.json); checked before the run, "
                    "written atomically")
+    s.add_argument("--all-columns", action="store_true",
+                   help="also write the columns of the points and vectors fccgen made "
+                        "for joints and pose-form bodies (A_axis.x, rod_center.vy, ...; "
+                        "default: only what the model names; .npz and .h5 keep them "
+                        "apart for fccgen animate)")
     s.add_argument("--keep-partial", action="store_true",
                    help="if the run stops early (Ctrl-C, a failure), write the rows "
                         "recorded so far to FILE.partial.csv|.npz|.h5, marked as partial")
@@ -137,10 +158,16 @@ def _parser() -> argparse.ArgumentParser:
 
     c = sub.add_parser("check", help="validate and report coordinates, constraints, DOF")
     common(c)
+    c.add_argument("--no-generate", action="store_true",
+                   help="do not derive, print and render the kernels (faster; the "
+                        "report then says that simulate may still refuse the model)")
     _viz_sweep_parsers(sub, common)
 
     st = sub.add_parser("statics", help="static equilibrium from the initial configuration")
     common(st)
+    st.add_argument("--out", help="write the equilibrium as one result row at t = 0 "
+                    "(.csv, .npz or .h5): section 4's columns, the reactions by joint "
+                    "and component, the drivers' forces, how it was made")
     mo = sub.add_parser("modes", help="natural frequencies (Hz) and damping ratios")
     common(mo)
     mo.add_argument("--about", choices=("equilibrium", "initial"), default="equilibrium",
@@ -181,7 +208,8 @@ def _viz_sweep_parsers(sub, common) -> None:
                     "result's name with .png)")
     pl.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
     an = sub.add_parser("animate", help="write an offline web page playing the motion "
-                        "in 3-D (bodies, mass centres, points; play button, time slider)")
+                        "in 3-D (bodies as their shapes or inertia boxes, joints, ground; "
+                        "play button, time slider)")
     an.add_argument("model", help="model file (YAML)")
     an.add_argument("--out", required=True, help="the page to write (.html)")
     an.add_argument("--result", help="a result of this model (.csv, .npz or .h5; default: "
@@ -212,6 +240,16 @@ def _viz_sweep_parsers(sub, common) -> None:
                     "e.g. tcp://host:8786 (default: a local cluster)")
     sw.add_argument("--method", help="integration method (default: the model's)")
     sw.add_argument("--workers", type=int, help="threads of the local cluster")
+    sw.add_argument("--outputs", metavar="NAME:STAT,...", help="more table columns: a "
+                    "result column's final, initial, max, min, absmax, tmax or tmin, an "
+                    "event's time, last or count, a run statistic run:NAME, e.g. "
+                    "motor.torque:max,latch:time,run:steps (docs/sweeps.md)")
+    sw.add_argument("--run-timeout", type=float, metavar="SECONDS", help="stop a run "
+                    "after this much wall time; its row gets status timeout (default: "
+                    "no limit)")
+    sw.add_argument("--resume", action="store_true", help="keep the rows of the partial "
+                    "file a stopped sweep left beside --out and run only the others (runs "
+                    "stopped by --run-timeout run again)")
 
 
 def _method_options(items: list[str]) -> dict[str, float]:
@@ -248,6 +286,31 @@ def _solver_options(args) -> dict:
     return out
 
 
+def _error_options(args) -> dict:
+    """error=, error_on= of --error and --error-on, checked."""
+    if args.error is None:
+        if args.error_on:
+            raise ValueError("--error-on measures the error of --error: give --error E")
+        return {}
+    chosen = [f"--{k}" for k in ("dt", "rtol", "atol") if getattr(args, k) is not None]
+    if chosen or args.no_project:
+        raise ValueError(f"--error chooses the step or tolerance itself: leave out "
+                         f"{', '.join(chosen + (['--no-project'] if args.no_project else []))}")
+    on = [c.strip() for c in (args.error_on or "").split(",") if c.strip()]
+    return dict(error=args.error, error_on=on or None)
+
+
+def _error_summary(info) -> str:
+    """The choice of an error target and the error the run reached."""
+    acc = info["accuracy"]
+    cost = acc["cost"]
+    return (f"error target {info['error_target']:g}: chose {acc['choice']}\n"
+            f"estimated error {info['error_estimate']:.3g} (largest at t = "
+            f"{info['error_estimate_time']:.6g}; {acc['estimate']}); cost in evaluations: "
+            f"pilot {cost['pilot']:.3g}, run {cost['run']:.3g}, estimate "
+            f"{cost['estimate']:.3g}")
+
+
 def _run_summary(result) -> str:
     """One paragraph of a run's statistics (result.info)."""
     info = result.info
@@ -275,6 +338,18 @@ def _work_summary(info) -> str:
     return (f"; energy balance {check.get('balance_drift', float('nan')):.3g} "
             f"(max |E - W + event losses - E0|, W = {check['work']:.6g}: the work of "
             f"dampers, drivers and loads without potential)")
+
+
+def _internal_note(result, args) -> str:
+    """What became of the internal columns (result.internal) in the file written."""
+    hidden = len(result.internal)
+    if not hidden:
+        return ""
+    if args.all_columns:
+        return f" and {hidden} internal columns"
+    if args.out.lower().endswith(".csv"):
+        return f"; {hidden} internal columns left out, --all-columns writes them"
+    return f"; {hidden} internal columns kept apart"
 
 
 def _dof_summary(info) -> str:
@@ -305,7 +380,7 @@ def main(argv=None) -> int:
     if args.command is None:
         _parser().print_help()
         return 2
-    progress = _Progress(args.quiet)
+    progress = _Progress(getattr(args, "quiet", False))
     with warnings.catch_warnings():
         warnings.simplefilter("always", CacheRepairWarning)
         warnings.simplefilter("always", PartialResultWarning)
@@ -356,6 +431,15 @@ def _guarded(args, progress) -> int:
 
 def _run(args, progress) -> int:
     from . import api
+    if args.command == "examples":
+        from .example_models import copy_examples, example_names
+        written = copy_examples(args.dir, overwrite=args.overwrite)
+        print(f"examples: {len(written)} files written to {args.dir}"
+              + ("" if written else " (all were there; --overwrite replaces them)")
+              + f"\nmodels: {', '.join(example_names())}"
+              f"\ntry: fccgen simulate {args.dir}/double_pendulum.yaml --out "
+              "double_pendulum.csv")
+        return 0
     if args.command == "generate":
         t0 = time.perf_counter()
         plan, built = api.generate(args.model, args.build_dir, force=args.force,
@@ -381,14 +465,17 @@ def _run(args, progress) -> int:
                                           ("beta", args.baumgarte_beta)) if v is not None})
         if args.no_reactions:
             options["reactions"] = False
+        options.update(_error_options(args))
         result, init = api.simulate(
             args.model, t_end=args.t_end, dt=args.dt, method=args.method,
             output_dt=args.output_dt, project=not args.no_project, numeric=args.numeric,
             out=args.out, build_dir=args.build_dir, force=args.force,
-            keep_partial=args.keep_partial, progress=progress,
+            keep_partial=args.keep_partial, progress=progress, all_columns=args.all_columns,
             rtol=args.rtol, atol=args.atol, solver_options=_solver_options(args), **options)
         print(init.report())
         print(_run_summary(result))
+        if "error_target" in result.info:
+            print(_error_summary(result.info))
         reaction = result.info.get("reactions", {})
         if reaction.get("note") or reaction.get("reason"):
             print(f"fccgen: warning: {reaction.get('note') or reaction['reason']}",
@@ -397,7 +484,8 @@ def _run(args, progress) -> int:
             from .events.table import summary
             print(summary(result.events))
         if args.out:
-            print(f"results: {args.out} ({len(result.t)} rows, {len(result.names)} columns)")
+            print(f"results: {args.out} ({len(result.t)} rows, {len(result.names)} "
+                  f"columns{_internal_note(result, args)})")
         else:
             print("no --out given: results not written")
         return 0
@@ -421,15 +509,28 @@ def _run(args, progress) -> int:
         print(f"animation: {page} ({n_frames} frames of {len(result.t)} rows)")
         return 0
     if args.command == "sweep":
-        table = api.sweep(args.model, args.set, args.out, scheduler=args.scheduler,
-                          method=args.method, workers=args.workers,
-                          build_dir=args.build_dir, progress=progress)
-        print(f"sweep: {len(table.rows)} runs ({table.failed} failed) on {table.where} "
+        from .sweep import SweepInterrupted, quiet_dask
+        try:
+            quiet_dask()                       # its logged tracebacks: one paragraph
+            table = api.sweep(args.model, args.set, args.out, scheduler=args.scheduler,
+                              method=args.method, workers=args.workers,
+                              outputs=args.outputs, run_timeout=args.run_timeout,
+                              resume=args.resume, build_dir=args.build_dir,
+                              progress=progress)
+        except SweepInterrupted as exc:              # rows saved: say how many, where
+            return _error(progress, str(exc), EXIT_INTERRUPTED)
+        except ModelError:
+            raise
+        except (FccgenError, ValueError) as exc:     # the message says what was saved
+            return _error(progress, f"error: {exc}", 1)
+        late = f", {table.timed_out} of them timed out" if table.timed_out else ""
+        print(f"sweep: {len(table.rows)} runs ({table.failed} failed{late}) on {table.where} "
               f"in {table.wall_time:.3g} s\ntable: {args.out}")
         return 0
     if args.command == "check":
         from .check import check_model
-        print(check_model(args.model, progress=progress).text())
+        print(check_model(args.model, progress=progress,
+                          generate=not args.no_generate).text())
         return 0
     if args.command in ("statics", "modes", "inverse"):
         return _analysis(args, progress, api)
@@ -439,7 +540,13 @@ def _run(args, progress) -> int:
 def _analysis(args, progress, api) -> int:
     """``fccgen statics`` and ``fccgen modes``: one call of the API each."""
     if args.command == "statics":
-        print(api.statics(args.model, build_dir=args.build_dir, progress=progress).text())
+        from .analysis.statics_result import reaction_lines
+        eq, result = api.equilibrium(args.model, out=args.out, build_dir=args.build_dir,
+                                     progress=progress)
+        print("\n".join([eq.text(multipliers=False), *reaction_lines(result)]))
+        if args.out:
+            print(f"equilibrium: {args.out} (one row at t = 0, {len(result.names)} "
+                  "columns; how it was made in its metadata)")
         return 0
     if args.command == "inverse":
         from .analysis.inverse import inverse_dynamics, summary

@@ -87,18 +87,21 @@ def test_parsed_expressions_compile_with_the_kernel_printer(tmp_path):
 
 # (text, a fragment of the rule the error must state)
 FORBIDDEN = [
-    ("__import__('os')", "calls only sin, cos, tan, exp, log, sqrt, abs, atan2, min, max"),
+    ("__import__('os')", "strings are not allowed"),
+    ("__import__(os)", "calls only sin, cos, tan, exp, log, sqrt, abs, atan2, min, max"),
     ("().__class__", "attribute access is only Joint.quantity"),
     ("t.real", "unknown name 't.real'"),
     ("A.angle.x", "attribute access is only Joint.quantity"),
-    ("open('f')", "calls only sin"),
-    ("eval('1')", "calls only sin"),
+    ("open(f)", "calls only sin"),
+    ("eval(1)", "calls only sin"),
     ("sin(t, 2)", "sin() takes 1 argument, not 2"),
     ("atan2(t)", "atan2() takes 2 arguments, not 1"),
     ("min(t)", "min() takes at least 2 arguments, not 1"),
-    ("sin(x=t)", "takes no keyword arguments"),
+    ("sin(x=t)", "no assignments or keyword arguments"),
     ("x[0]", "subscripts"),
-    ("lambda: 0", "lambdas are not allowed"),
+    ("lambda: 0", "no lambdas"),
+    ("lambda t, /: 0", "no lambdas"),
+    ("t if t>0 else -t", "conditional expressions"),
     ('"str"', "strings are not allowed"),
     ("f'{t}'", "strings are not allowed"),
     ("1 if t else 2", "conditional expressions"),
@@ -109,9 +112,9 @@ FORBIDDEN = [
     ("t % 2", "operators are only"),
     ("t // 2", "operators are only"),
     ("t @ t", "operators are only"),
-    ("[t]", "lists are not allowed"),
+    ("[t]", "no subscripts, lists or comprehensions"),
     ("(t, 1)", "tuples are not allowed"),
-    ("{t}", "sets are not allowed"),
+    ("{t}", "no sets or dictionaries"),
     ("[i for i in t]", "comprehensions"),
     ("(y := 1)", "assignments"),
     ("sin(*t)", "starred"),
@@ -120,7 +123,10 @@ FORBIDDEN = [
     ("9" * 400, "not finite"),
     ("exp(1000)", "not a finite real double"),
     ("1/0", "divides by zero"),
-    ("(0-0.5)/((pi+-3)**(1+1e308))", "divides by zero"),     # a power underflowing to 0.0
+    ("(0-0.5)/((pi+-3)**(1+1e12))", "divides by zero"),      # a power underflowing to 0.0
+    ("1e308*t", "the number 1e308 is larger than 1e+12 in magnitude"),
+    ("10.0**300*t", "computes the constant 1e+300, larger than 1e+24"),
+    ("t*(10**12)**3", "computes the constant 1e+36"),
     ("max(1, log(-4*10**t))", "max() cannot take these arguments"),
     ("0**-1", "divides by zero"),
     ("log(0)", "not a finite real number"),
@@ -128,13 +134,14 @@ FORBIDDEN = [
     ("(-8)**0.5", "not a finite real number"),
     ("0x10", "numbers are written as"),
     ("1_000", "numbers are written as"),
-    ("1j", "only real numbers"),
+    ("1j", "numbers are written as"),
     ("True", "only real numbers"),
     ("None", "only real numbers"),
     ("B.angel", "unknown name 'B.angel'; did you mean 'A.angle'?"),
     ("sin", "'sin' is a function"),
     ("sin(t", "is not an expression"),
-    ("t;1", "is not an expression"),
+    ("t;1", "one expression only"),
+    ("t*/1", "is not an expression"),
     ("", "not empty text"),
     ("-" * (MAX_DEPTH + 1) + "t", f"nests deeper than {MAX_DEPTH} levels"),
     ("sin(" * 40 + "t" + ")" * 40, "nests deeper"),
@@ -194,7 +201,8 @@ def test_conditions_give_g_and_direction(text, direction, value):
     ("0 < t < 1", "exactly one comparison"),
     ("t >= 1 and t <= 2", "a condition is one comparison"),
     ("(t >= 1) >= 0", "comparisons are allowed only"),
-    ("t >= open('x')", "calls only sin"),
+    ("t >= open(x)", "calls only sin"),
+    ("t >= 1 # */", "comment"),
     ("t >= 1/0", "divides by zero"),
 ])
 def test_bad_conditions_are_refused(text, rule):
@@ -205,8 +213,8 @@ def test_bad_conditions_are_refused(text, rule):
 
 
 def _random_expression(rng, depth):
-    """A random expression of the grammar, with numbers at the edges of doubles."""
-    leaves = ["t", "A.angle", "0", "1", "2", "0.5", "1e308", "1e-308", "pi", "-1", "10"]
+    """A random expression of the grammar, with numbers at the edges of its limits."""
+    leaves = ["t", "A.angle", "0", "1", "2", "0.5", "1e12", "1e-308", "pi", "-1", "10"]
     if depth == 0 or rng.random() < 0.25:
         return rng.choice(leaves)
     r = rng.random()
@@ -225,7 +233,7 @@ def test_random_text_gives_an_expression_or_a_model_error():
     negative numbers included) and random token soup either parse or raise ModelError;
     no other exception escapes, and what parses is finite where it is constant."""
     rng = random.Random(5)
-    tokens = ["t", "A.angle", "1", "0", "2.5", "1e308", "(", ")", "+", "-", "*", "/",
+    tokens = ["t", "A.angle", "1", "0", "2.5", "1e12", "(", ")", "+", "-", "*", "/",
               "**", "sin(", "atan2(", "min(", ",", "pi", ".", ">=", "<", "A", "angle",
               "[", "]", "'", ":", "lambda", "if", "else", "and", "__class__"]
     texts = [_random_expression(rng, 4) for _ in range(400)]

@@ -1,4 +1,4 @@
-"""What each joint type becomes (DESIGN section 2b, docs/joints.md).
+"""What each joint type becomes (docs/design.md §2b, docs/joints.md).
 
 A joint between bodies A and B (``bodies: [A, B]``) is lowered onto *carried triples*
 -- points and unit vectors, each rigidly carried by one or both bodies -- and onto
@@ -27,7 +27,7 @@ angle             J_axis1 (A), J_axis2 (B); J_axis1 . J_axis2 = cos(angle)    (5
 
 Freedoms are those of B relative to A. Every equation is linear or quadratic in q:
 the plane and dot rows are products of two triples, and attachments (see
-:mod:`fccgen.mechanism.lowering`) are those of DESIGN section 1.
+:mod:`fccgen.mechanism.lowering`) are those of docs/design.md §1.
 """
 from __future__ import annotations
 
@@ -45,7 +45,7 @@ SLIDE_TYPES = ("prismatic", "cylindrical")
 
 
 def output_columns(joint: Joint) -> list[str]:
-    """The result columns of a joint (DESIGN section 2b), in the order they are added."""
+    """The result columns of a joint (docs/design.md §2b), in the order they are added."""
     cols = []
     if joint.type in ANGLE_TYPES:
         cols += [f"{joint.name}.angle", f"{joint.name}.rate"]
@@ -114,7 +114,10 @@ def lower_joint(j: Joint, frames: dict[str, np.ndarray]) -> JointLowering:
         cos = (float(j.axes[0] @ j.axes[1]) if j.value is None else math.cos(j.value))
         out.relations.append(("dot", a1, a2, cos))
     if t == "weld":
-        frame = frames[A] if A in frames else frames[B]
+        # Any two directions fixed in both bodies weld them; a pose body's frame axes
+        # are taken where there is one, else (two bodies of points and a vector,
+        # which have no frame matrix) the global axes.
+        frame = frames.get(A, frames.get(B, np.eye(3)))
         out.add("_x", "vector", frame[:, 0], both)
         out.add("_y", "vector", frame[:, 1], both)
     if t in ("planar", "point_on_plane"):

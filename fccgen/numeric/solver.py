@@ -1,4 +1,4 @@
-"""NumericSolver: the NumPy version of the solver (DESIGN section 3), with the same
+"""NumericSolver: the NumPy version of the solver (docs/design.md §3), with the same
 interface as the compiled one. It is the cross-check in tests and the baseline in
 benchmarks, so it favours plain, readable NumPy over speed.
 
@@ -276,14 +276,23 @@ class NumericSolver:
 
     def simulate(self, t_end=None, dt=None, method=None, output_dt=None, project=True,
                  q0=None, v0=None, progress=None, rtol=None, atol=None,
-                 reactions=True, event_tol=1e-12, rest_speed=1e-6,
-                 **method_options) -> Result:
+                 reactions=True, event_tol=1e-12, rest_speed=1e-6, error=None,
+                 error_on=None, **method_options) -> Result:
         """Integrate from (q0, v0), used as given; when q0 is None the consistent
         initial state is used, and when only v0 is None plan.v_target is projected at
         q0. The arguments mean what they mean for
         :meth:`fccgen.runtime.CompiledSolver.simulate`; defaults of t_end, dt, method
-        and output_dt come from the model file. Events (numeric/events.py) are
-        located by rk4 and dopri5 with projection, as in the compiled runtime."""
+        and output_dt come from the model file; error, error_on: an error target
+        (fccgen.target_error). Events (numeric/events.py) are located by rk4 and dopri5
+        with projection, as in the compiled runtime."""
+        if error is not None:
+            from ..target_error import simulate_to_error
+            return simulate_to_error(self, error, error_on, t_end=t_end, output_dt=output_dt,
+                                     method=method, q0=q0, v0=v0, progress=progress,
+                                     reactions=reactions,
+                                     **({} if project else {"project": project}),
+                                     dt=dt, rtol=rtol, atol=atol,
+                                     **method_options)
         d = self.plan.model.simulate
         m = registry.get(d.method if method is None else method, tuple(INTEGRATORS))
         opts = registry.options_for(m, rtol, atol, method_options)
@@ -345,8 +354,7 @@ class NumericSolver:
             events = NumericEvents(self, event_tol, rest_speed)
         power, untracked = work_power(self)
         q_bound, v_bound = divergence_bounds(q0, v0, sched.t_end,
-                                             sched.dt if m.kind == "fixed" else
-                                             min(sched.output_dt, sched.t_end))
+                                             sched.dt if m.kind == "fixed" else None)
         return RunContext(events, power, q_bound, v_bound, self.rebase_angles), untracked
 
     def kinetic_energy(self, q, v) -> float:

@@ -20,7 +20,8 @@ max_k |g_k| / ||B_k|| are both at most newton_tol * L (L the largest body length
 a small penalty the corrections can become small while g still shrinks only by a
 constant factor per multiplier update. Steps that end max_newton iterations with g
 within the tolerance and shrinking corrections are accepted under conditions given at
-SLOW_FACTOR below (singular positions).
+SLOW_FACTOR below (singular positions). The default penalty may be raised at the
+start (ali3p_setup.conditioned_penalty) and after a stalled step (PENALTY_RAISE).
 Then the speeds and accelerations are projected mass-orthogonally with the same T:
     T q'  = W q'~  - (h^2/4) B^T alpha (0),
     T q'' = W q''~ - (h^2/4) B^T alpha ((dB/dt) q'),   W = T - (h^2/4) B^T alpha B,
@@ -57,6 +58,16 @@ regular runs at this tolerance: on the A01 pendulum (2000 s, h = 1e-3) the posit
 error is 6.9e-3 m at 1e9 and 2.7e-2 m at 1e12 (and 0.33 m at 1e13); with
 newton_tol = 1e-13 both 1e9 and 1e12 give 6.8-7.0e-3 m, so the difference comes from
 the iterates accepted at the 1e-10 L tolerance, not from the penalty itself.
+
+Long scissor chains have a small last kept singular value s_r of the row-scaled B at
+every position, not only near singular ones (12-unit boom 3.0e-3, 50-bay mast
+3.1e-4): with 1e9 their steps stalled from t = 0.013 and 0.031 s on. So the default
+penalty is raised at the start of a run to PENALTY_RATIO 4 / (h^2 s_r^2) where that is
+larger (ali3p_setup.conditioned_penalty: 1.1e12 for the boom, 1e14 for the mast; the
+pendulum, the four-bars and Bricard keep 1e9), and a step that still stalls is taken
+again with a tenfold penalty (PENALTY_RAISE below). The boom then runs its 4 s in at
+most 4 iterations per step, 1.1e-5 m from dopri5 at rtol 1e-10 (2.8e-6 m at
+h = 5e-4: second order), and the mast its 2 s in 2.
 """
 from cpython.exc cimport PyErr_CheckSignals
 from libc.math cimport fabs, isfinite
@@ -93,6 +104,15 @@ cdef int STEP_FLAGS = ASM_M | ASM_H | ASM_F | ASM_G | ASM_B | ASM_KQ | ASM_KV
 # with max_newton = 400 instead all but one converge, and B0 moves by at most
 # 1.9e-6 m (the run's error against the benchmark reference is 4.4e-4 m).
 cdef double SLOW_FACTOR = 1e3
+# A step whose Newton iteration does not converge is taken again from its start with
+# every row's penalty PENALTY_RAISE times larger, at most max_raises times in a run
+# (the raised penalty is kept for the rest of the run; counted in penalty_raises). The
+# multiplier update shrinks g along a singular direction s of the row-scaled B by
+# about 1 / (1 + (h^2/4) penalty s^2): as a scissor structure deploys its smallest s
+# falls, and what the start's penalty (ali3p_setup.initial_state) made fast stalls.
+# Models whose stiffest spring outweighs the penalty (ali3p_setup.stiffness_hint) get
+# no raise: their stall comes from the spring, and they stop with the hint.
+cdef double PENALTY_RAISE = 10.0
 
 
 cdef struct Run:
@@ -112,7 +132,10 @@ cdef struct Run:
     double *v
     double *a
     double *lam
+    double *lam0              # the multipliers at the start of the step
     double *alpha             # penalty per constraint row
+    int raises                # times the penalty was raised (PENALTY_RAISE)
+    int max_raises
     double *q0                # q, q' at the start of the step
     double *v0
     double *a0
@@ -320,6 +343,21 @@ cdef void _record(Engine e, Run *r, double t) noexcept nogil:
     r.n_out += 1
 
 
+cdef void _raise_penalty(Run *r) noexcept nogil:
+    """Back to the start of the step (q, q', q'', multipliers) with every row's
+    penalty PENALTY_RAISE times larger; the failed step's iterations are counted."""
+    cdef int i, n = r.n
+    memcpy(r.q, r.q0, n * sizeof(double))
+    memcpy(r.v, r.v0, n * sizeof(double))
+    memcpy(r.a, r.a0, n * sizeof(double))
+    memcpy(r.lam, r.lam0, r.m * sizeof(double))
+    for i in range(r.m):
+        r.alpha[i] *= PENALTY_RAISE
+    r.newton_total += r.max_newton
+    r.raises += 1
+    r.fail = r.fail_info = r.fail_detail = 0
+
+
 cdef int _run(Engine e, Run *r, double deadline) noexcept nogil:
     """Steps until the end (RUN_DONE), an error (RUN_ERROR) or the wall-clock deadline
     (RUN_PAUSE)."""
@@ -332,9 +370,13 @@ cdef int _run(Engine e, Run *r, double deadline) noexcept nogil:
         memcpy(r.q0, r.q, n * sizeof(double))
         memcpy(r.v0, r.v, n * sizeof(double))
         memcpy(r.a0, r.a, n * sizeof(double))
+        memcpy(r.lam0, r.lam, r.m * sizeof(double))
         e.asm.put_time(t + h)
         if _newton(e, r, h, &it) < 0 or _project(e, r, h) < 0:
-            return RUN_ERROR
+            if r.fail != FAIL_NEWTON or r.raises >= r.max_raises:
+                return RUN_ERROR
+            _raise_penalty(r)          # and take the step again from its start
+            continue
         r.newton_total += it
         if it > r.newton_max:
             r.newton_max = it
@@ -393,14 +435,17 @@ def simulate_ali3p(Engine engine, q0, v0, double t_end, double dt, long n_steps,
         raise ValueError("q0 and v0 must be finite")
     if not length_scale > 0:
         raise ValueError("length_scale must be positive")
+    given = getattr(options, "given", None)
+    auto = "penalty" not in (given if given is not None else (options or {}))
     opts = run_options(options, length_scale)
     engine.set_time(0.0)
-    a0, lam, alpha, hint = initial_state(engine, q0, v0, opts["penalty"])
+    a0, lam, alpha, hint, penalty = initial_state(engine, q0, v0, opts["penalty"],
+                                                  dt if auto else None)
     n_out = 1 + n_steps // output_every + (1 if n_steps % output_every else 0)
     arrays = dict(t=np.zeros(n_out), q=np.zeros((n_out, n)), v=np.zeros((n_out, n)),
                   body=np.zeros((n_out, engine.asm.n_bodies, 6)), energy=np.zeros(n_out),
                   constraint_error=np.zeros(n_out))
-    state = np.zeros(6 * n + 2 * m + 2 * n * n + n + m + 1)    # kept alive for the run
+    state = np.zeros(6 * n + 3 * m + 2 * n * n + n + m + 1)    # kept alive for the run
     pivots = np.zeros(n, dtype=np.intc)
     cdef int[::1] piv = pivots
     cdef Run r
@@ -420,6 +465,11 @@ def simulate_ali3p(Engine engine, q0, v0, double t_end, double dt, long n_steps,
     r.lu_steps = 0
     r.r = r.T2 + n * n
     r.w = r.r + n
+    r.lam0 = r.w + m
+    # no raise where a stiff spring, not the constraints, stalls Newton (hint given):
+    # measured on the rod of tests/test_ali3p.py with k/m = 1e10, raising to 1e11 ran
+    # on with its energy down to 9% of the start, and at 1e12 diverged
+    r.raises, r.max_raises = 0, 0 if hint else opts["max_penalty_raises"]
     state[:n], state[n:2 * n], state[2 * n:3 * n] = q0, v0, a0
     state[6 * n:6 * n + m], state[6 * n + m:6 * n + 2 * m] = lam, alpha
     r.t_out, r.q_out, r.v_out = _data(arrays["t"]), _data(arrays["q"]), _data(arrays["v"])
@@ -452,7 +502,8 @@ def simulate_ali3p(Engine engine, q0, v0, double t_end, double dt, long n_steps,
                  max_newton_iterations=r.newton_max, projection_failures=r.failures,
                  slow_newton_steps=r.slow_steps,
                  max_constraint_error=r.max_cerr, lu_factorizations=r.lu_steps,
-                 penalty=opts["penalty"],
-                 newton_tol=opts["newton_tol"])
+                 penalty=float(penalty) * PENALTY_RAISE ** r.raises,
+                 penalty_start=float(penalty),
+                 penalty_raises=r.raises, newton_tol=opts["newton_tol"])
     return arrays, stats
 
