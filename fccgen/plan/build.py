@@ -8,9 +8,10 @@ import numpy as np
 
 from ..errors import ModelError
 from ..model.types import (Angle, Attached, BodyPoint, Distance, DriverRow, Force,
-                           LinearSpring, Model,
+                           LinearSpring, Model, PointForce, SlopeNormal,
                            PointOnLine, PointOnPlane, PointRef, Spring, Torque,
                            TorsionSpring, Where)
+from .cables import cable_elements, point_force_element, slope_normal_element
 from .classes import END_FOLDABLE, FOLDABLE, ElementClass
 from .geometry import body_frame_numbers, body_rotation, point_coefficients
 from .joint_loads import joint_load_element
@@ -33,7 +34,8 @@ class Element:
 @dataclass
 class Plan:
     model: Model
-    triples: list[tuple[str, str]]          # moving triples: (name, "point"|"vector")
+    triples: list[tuple[str, str]]          # moving triples: (name, "point"|"vector"|
+                                            # "slope", a cable node's, not unit)
     index: dict[str, int]                   # triple name -> triple index
     elements: list[Element]
     classes: list[ElementClass]             # distinct classes, first-appearance order
@@ -84,6 +86,10 @@ class _Builder:
             if not v.fixed:
                 self.index[v.name] = len(self.triples)
                 self.triples.append((v.name, "vector"))
+        for d in model.slopes.values():              # cable nodes' slopes (not unit)
+            if not d.fixed:
+                self.index[d.name] = len(self.triples)
+                self.triples.append((d.name, "slope"))
         self.frames = {b.name: body_frame_numbers(model.points[b.i].at, model.points[b.j].at,
                                                   model.vectors[b.u].along)
                        for b in model.bodies.values()}
@@ -91,6 +97,8 @@ class _Builder:
     # -- triples -----------------------------------------------------------------
     def value(self, name: str) -> np.ndarray:
         m = self.model
+        if name in m.slopes:
+            return m.slopes[name].along
         return m.points[name].at if name in m.points else m.vectors[name].along
 
     def triple(self, name: str):
@@ -222,6 +230,8 @@ def make_plan(model: Model) -> Plan:
             continue
         bodies.append((body.name, len(elements)))
         elements.append(el)
+    for cable in model.cables.values():            # flexible members (plan/cables.py)
+        elements += cable_elements(b, cable)
     # an attached vector is a unit vector through its body's frame: no u.u - 1 row
     attached = {c.target for c in model.constraints
                 if isinstance(c, Attached) and c.kind == "vector"}
@@ -240,6 +250,8 @@ def make_plan(model: Model) -> Plan:
         elif isinstance(c, Distance):
             el = b.with_ends("distance", label, c.where, {"L": float(c.length)},
                              c.points, ("A", "B"))
+        elif isinstance(c, SlopeNormal):
+            el = slope_normal_element(b, c, label)
         else:  # pragma: no cover - the loader admits no other type
             raise TypeError(type(c))
         _require_moving(el, model, f"this {c.type} constraint")
@@ -278,6 +290,8 @@ def make_plan(model: Model) -> Plan:
                               "c": float(ld.damping)}, ld.ends, ("A", "B"))
         elif isinstance(ld, TorsionSpring):
             el = _torsion_spring(b, ld, label)
+        elif isinstance(ld, PointForce):
+            el = point_force_element(b, ld, label)
         elif isinstance(ld, LinearSpring):
             el = b.element("linear_spring", label, ld.where,
                            {"k": float(ld.stiffness), "L": float(ld.free),
