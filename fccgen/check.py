@@ -24,6 +24,7 @@ import numpy as np
 import scipy.linalg
 import scipy.sparse as sp
 
+from .analysis.cables import cable_lines
 from .mechanism.report import DEPENDENT_TOL, dependency_text, dependent_rows, rows_text
 from . import rank as rank_rule
 from . import rank_sparse
@@ -60,6 +61,7 @@ class CheckReport:
     dependent: str = ""          # joints (and other rows) that take part in dependencies
     rank_gap: tuple[float, float] = (1.0, 0.0)    # sigma_r / sigma_1, sigma_{r+1} / sigma_1
     uncertain: list[float] = field(default_factory=list)   # sigma / sigma_1 in the band
+    cables: list[str] = field(default_factory=list)    # flexible members (analysis.cables)
 
     @property
     def dof_counted(self) -> int:
@@ -91,6 +93,9 @@ class CheckReport:
         if self.joints:
             lines.append("  joints (lowering):")
             lines += [f"    {j}" for j in self.joints]
+        if self.cables:
+            lines.append("  flexible members:")
+            lines += [f"    {c}" for c in self.cables]
         lines.append(f"  element classes: {len(self.classes)}")
         lines += [f"    {c}" for c in self.classes]
         lines.append("  initial state:")
@@ -170,7 +175,8 @@ def _report(solver, report) -> CheckReport:
         init_report=init.report(), notes=notes,
         joints=model.mechanism.describe() if model.mechanism is not None else [],
         dependent=dependent,
-        rank_gap=tuple(decision.gap), uncertain=list(decision.uncertain))
+        rank_gap=tuple(decision.gap), uncertain=list(decision.uncertain),
+        cables=cable_lines(plan))
 
 
 def _large_rows(B, labels, rank, groups, notes, say,

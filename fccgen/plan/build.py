@@ -11,7 +11,8 @@ from ..model.types import (Angle, Attached, BodyPoint, Distance, DriverRow, Forc
                            LinearSpring, Model, PointForce, SlopeNormal,
                            PointOnLine, PointOnPlane, PointRef, Spring, Torque,
                            TorsionSpring, Where)
-from .cables import cable_elements, point_force_element, slope_normal_element
+from .cables import (cable_columns, cable_elements, point_force_element,
+                     slope_normal_element)
 from .classes import END_FOLDABLE, FOLDABLE, ElementClass
 from .geometry import body_frame_numbers, body_rotation, point_coefficients
 from .joint_loads import joint_load_element
@@ -68,9 +69,13 @@ class Plan:
         for name, _ in self.bodies:
             cols += [f"{name}.{c}" for c in ("cx", "cy", "cz", "wx", "wy", "wz")]
         cols += ["energy", "constraint_error"]
+        mechanism = []
         if self.model.mechanism is not None:          # joints (fccgen.mechanism)
-            cols += self.model.mechanism.columns()
-        return cols
+            mechanism = self.model.mechanism.columns()
+        # the members' strain and curvature come before the reactions, which a run
+        # adds last (fccgen.mechanism.reactions): 6 per joint, at the end
+        end = len(mechanism) - 6 * len(getattr(self.model.mechanism, "joints", ()))
+        return cols + mechanism[:end] + cable_columns(self.model) + mechanism[end:]
 
 
 class _Builder:

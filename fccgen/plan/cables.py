@@ -9,7 +9,16 @@ elements; their lengths and stiffnesses are runtime parameters.
 """
 from __future__ import annotations
 
-from ..model.cables import Cable
+from ..model.cables import Cable, node_names
+
+# result columns per node (fccgen.mechanism.cable_outputs)
+NODE_QUANTITIES = ("strain", "curvature")
+
+
+def cable_columns(model) -> list[str]:
+    """The names of the strain and curvature columns of a model's members."""
+    return [f"{node}.{q}" for c in model.cables.values()
+            for node in node_names(c.name, c.elements) for q in NODE_QUANTITIES]
 
 
 def cable_elements(b, cable: Cable) -> list:
