@@ -15,7 +15,13 @@ exactly here (SymPy integrates the polynomials in xi). The strain energy per len
 (axial strain |r'| - 1 and the curvature |r' x r''| / |r'|^3 of the cable form without
 torsion), and the dissipation per length of the damping c,
 
-    D = c/2 (EA eps'^2 + EI |k'|^2),   k = a x b / |a|^3  (the curvature vector),
+    D = c/2 (EA (a . a')^2 + EI |a' x b + a x b'|^2),
+
+the rates of the Green strain (a.a - 1)/2 and of the vector a x b (|a| times the
+curvature vector): at the stress-free state its damping matrix is exactly c times the
+stiffness matrix (stiffness-proportional), and it vanishes for a rigid motion of the
+member but for one of a bent member about an axis across its plane of bending
+(docs/flexible.md),
 
 are differentiated by SymPy in the six variables (a, b) (and their rates) once; the
 element sums them at the Gauss points of :data:`GAUSS_POINTS`, where a and b are
@@ -73,12 +79,10 @@ def _density(damped: bool):
             hess[i][j] = hess[j][i] = sympy.diff(grad[i], X[j])
     rate = None
     if damped:
-        k = ab / s2 ** sympy.Rational(3, 2)
-        eps_dot = sum((sympy.diff(eps, x) * xd for x, xd in zip(X[:3], XD[:3])),
-                      sympy.S.Zero)
-        k_dot = [sum((sympy.diff(kj, x) * xd for x, xd in zip(X, XD)), sympy.S.Zero)
-                 for kj in k]
-        D = c / 2 * (EA * eps_dot ** 2 + EI * sum((x ** 2 for x in k_dot), sympy.S.Zero))
+        # rates of the Green strain (a.a - 1)/2 and of the curvature vector a x b
+        ad, bd = sympy.Matrix(XD[:3]), sympy.Matrix(XD[3:])
+        c_dot = cross(ad, b) + cross(a, bd)
+        D = c / 2 * (EA * dot(a, ad) ** 2 + EI * dot(c_dot, c_dot))
         g_d = [sympy.diff(D, xd) for xd in XD]
         grad = [x + y for x, y in zip(grad, g_d)]
         hess = [[hess[i][j] + sympy.diff(g_d[i], X[j]) for j in range(6)]

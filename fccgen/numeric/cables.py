@@ -13,7 +13,8 @@ hand in vector form:
     d2 k_i/da_j db_l = phi eps_ijl + (dphi/da_j) (dc_i/db_l),   d2 k_i/db2 = 0
 
 (dc_i the gradient of c_i in a, i.e. row i of -~b). Energy per length
-EA eps^2 / 2 + EI k.k / 2, dissipation c (EA eps'^2 + EI k'.k') / 2 with k' = J x'.
+EA eps^2 / 2 + EI k.k / 2; dissipation c (EA (a.a')^2 + EI |c'|^2) / 2 with
+c' = a' x b + a x b' = Jc x', Jc = [-~b, ~a] = d(a x b)/d(a, b).
 """
 from __future__ import annotations
 
@@ -74,14 +75,18 @@ def density(a, b, ad, bd, EA, EI, c):
     H[:3, :3] += EA * (np.outer(n, n) + eps * P)
     C = np.zeros((6, 6))
     if c != 0.0:
-        xd = np.concatenate([ad, bd])
-        eps_dot, k_dot = n @ ad, J @ xd
-        g[:3] += c * EA * eps_dot * n
-        g += c * EI * J.T @ k_dot
-        H[:3, :3] += c * EA * (np.outer(n, P @ ad) + eps_dot * P)
-        H += c * EI * (np.einsum("i,imn->mn", k_dot, Hk) + J.T @ np.einsum("imn,n->im", Hk, xd))
-        C[:3, :3] = c * EA * np.outer(n, n)
-        C += c * EI * J.T @ J
+        # e' = a.a' (Green strain rate), c' = Jc x' with Jc = d(a x b)/d(a, b)
+        Jc = np.hstack([-skew(b), skew(a)])
+        e_dot, c_dot = a @ ad, Jc @ np.concatenate([ad, bd])
+        g[:3] += c * EA * e_dot * a
+        g += c * EI * Jc.T @ c_dot
+        H[:3, :3] += c * EA * (np.outer(a, ad) + e_dot * EYE)
+        # d(Jc^T c')/dx = sum_i c'_i d2c_i/dx2 + Jc^T dc'/dx; d2c_i/da_j db_k = eps_ijk
+        E = np.einsum("i,ijk->jk", c_dot, LEVI)
+        H += c * EI * (np.block([[np.zeros((3, 3)), E], [E.T, np.zeros((3, 3))]])
+                       + Jc.T @ np.hstack([-skew(bd), skew(ad)]))
+        C[:3, :3] = c * EA * np.outer(a, a)
+        C += c * EI * Jc.T @ Jc
     return u, g, H, C
 
 

@@ -47,11 +47,12 @@ def tip_track(member: dict, gravity, elements: int, step: float):
              for k in range(elements + 1)]
     for k in range(elements):
         cable = mbs.AddObject(ObjectANCFCable2D(
-            physicsLength=h, physicsMassPerLength=member["mass_per_length"],
-            physicsBendingStiffness=member["EI"], physicsAxialStiffness=member["EA"],
+            length=h, massPerLength=float(member["mass_per_length"]),
+            bendingStiffness=float(member["EI"]), axialStiffness=float(member["EA"]),
             nodeNumbers=[nodes[k], nodes[k + 1]]))
         mass = mbs.AddMarker(MarkerBodyMass(bodyNumber=cable))
-        mbs.AddLoad(LoadMassProportional(markerNumber=mass, loadVector=list(gravity)))
+        mbs.AddLoad(LoadMassProportional(markerNumber=mass,
+                                         loadVector=[float(g) for g in gravity]))
     m_ground = mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=ground, coordinate=0))
     for c in (0, 1):
         m = mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=nodes[0], coordinate=c))
