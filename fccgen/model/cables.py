@@ -189,11 +189,7 @@ class CableReader(Reader):
             end = (cable.ends[0] if k == 0 else
                    cable.ends[1] if k == cable.elements else None)
             if end is not None and end.kind == "point":
-                continue
-            if name in self.points:
-                raise self.fail(cable.where.line, f"cables.{cable.name}",
-                                f"its node name {name} is already a point; rename one "
-                                "of them", name)
+                continue                  # (other nodes' names hold a dot: never taken)
             fixed = end is not None and end.kind == "body" and end.body == GROUND \
                 and end.body not in self.bodies
             at = a + cable.chord * (k / cable.elements)
