@@ -32,13 +32,14 @@ def test_energy_is_conserved(pendulum):
 def test_tip_follows_the_exudyn_reference(pendulum):
     """The tip against Exudyn's ObjectANCFCable2D (128 elements, generalized-alpha
     without numerical damping, steps of 1e-5; its 64-element run differs by the figure
-    in the data's header) at every 0.01 s of the swing. Tolerance 1e-3 m (0.08 % of the
-    length): fccgen's 16 elements are within 1e-4 m of its 32 (measured), and the two
-    codes' cable models differ in their curvature measures by terms of the order of the
-    axial strain (below 1e-3 here), measured 2e-4 m at the finest meshes."""
+    in the data's header, 3.5e-5 m) at every 0.01 s of the swing. Measured: 2.2e-4 m
+    (at t = 0.83 s), the same with 32 elements (2.2e-4 m): what is left is not fccgen's
+    mesh but the difference of the two codes' cable models (their curvature measures
+    differ by terms of the order of the axial strain, below 1e-3 here). Tolerance 5e-4 m
+    (0.04 % of the length)."""
     ref = np.loadtxt(DATA, delimiter=",", skiprows=2)
     t = pendulum.t
     x = np.interp(ref[:, 0], t, pendulum["rod.tip.x"])
     y = np.interp(ref[:, 0], t, pendulum["rod.tip.y"])
     err = np.max(np.hypot(x - ref[:, 1], y - ref[:, 2]))
-    assert err <= 1e-3
+    assert err <= 5e-4
