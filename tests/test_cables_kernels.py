@@ -1,7 +1,7 @@
 """Flexible members' kernels (docs/flexible.md): the NumPy version against its own
 finite differences and against the energy, SymPy's small kernels against the NumPy
 version, and the compiled kernels of whole models against the NumPy version to
-1e-12 (DESIGN section 6)."""
+1e-12 (docs/design.md, section 6)."""
 from __future__ import annotations
 
 import numpy as np
@@ -145,7 +145,7 @@ MODELS = ("cantilever", "flexible_pendulum", "solar_array_boom")
 @pytest.mark.parametrize("name", MODELS)
 def test_compiled_matches_numeric(name, compiled, numeric):
     """Every global quantity of the compiled model against the NumPy version at random
-    states near the model's initial one, to 1e-12 of the largest entry (DESIGN
+    states near the model's initial one, to 1e-12 of the largest entry (docs/design.md,
     section 6): clamped, pinned on ground and on a moving body, damped and undamped
     members, gravity and point forces."""
     c, n = compiled(name), numeric(name)

@@ -1,5 +1,5 @@
 """Axial strain and curvature at the nodes of flexible members as result columns
-(DESIGN section 10, docs/flexible.md), computed after a run from the recorded
+(docs/flexible.md), computed after a run from the recorded
 positions and slopes, vectorised over the output samples.
 
 At node k the slope is r' itself, so the strain is |d_k| - 1 exactly. The curvature

@@ -1,4 +1,4 @@
-"""Lowering flexible members (DESIGN section 10, docs/flexible.md) onto fccgen's own
+"""Lowering flexible members (docs/flexible.md) onto fccgen's own
 coordinates: every node is a point (made by the loader, fccgen.model.cables) and a
 *slope* triple d = dr/dx, which is not a unit vector (|d| = 1 + axial strain), so it
 gets no u.u - 1 row. The elements themselves are laid out by fccgen.plan.cables.

@@ -1,4 +1,4 @@
-"""Reading the ``cables:`` section (DESIGN section 10): slender flexible members as
+"""Reading the ``cables:`` section (docs/flexible.md): slender flexible members as
 ANCF cable elements, lowered by :mod:`fccgen.mechanism.cables`.
 
 Each member runs straight, in its stress-free state, from its ``from`` end to its

@@ -314,7 +314,7 @@ class Model:
         return [v for v in self.vectors.values() if not v.fixed]
 
 
-# -- flexible members (DESIGN section 10; fccgen.model.cables, fccgen.mechanism.cables) --
+# -- flexible members (docs/flexible.md; fccgen.model.cables, fccgen.mechanism.cables) --
 
 @dataclass
 class Slope:

@@ -1,4 +1,4 @@
-"""The element kinds of flexible members (DESIGN section 10, docs/flexible.md), as data
+"""The element kinds of flexible members (docs/flexible.md), as data
 for the registries of :mod:`fccgen.plan.classes`.
 
 * ``cable``: one ANCF cable element between nodes 1 and 2, each a point r and a slope
