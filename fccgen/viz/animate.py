@@ -63,6 +63,7 @@ def named_points(model) -> list[str]:
         return list(model.points)
     made = {t.name for jl in mech.joints for t in jl.triples}
     made |= {n for i, j, _ in mech.frames.values() for n in (i, j)}
+    made |= set(mech.internal())          # e.g. the end points of lowered springs
     return [p for p in model.points if p not in made]
 
 
