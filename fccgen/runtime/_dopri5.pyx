@@ -521,8 +521,7 @@ def simulate_dopri5(Engine engine, q0, v0, double t_end, double output_dt, doubl
     r.c_out = _data(arrays["constraint_error"])
     r.w_out = _data(work_out)
     r.pw, r.w = power_state(work), 0.0
-    r.q_bound, r.v_bound = divergence_bounds(np.asarray(qv), np.asarray(vv), t_end,
-                                             min(output_dt, t_end))
+    r.q_bound, r.v_bound = divergence_bounds(np.asarray(qv), np.asarray(vv), t_end, None)
     memcpy(r.y, &qv[0], n * sizeof(double))
     memcpy(r.y + n, &vv[0], n * sizeof(double))
     engine.factor_valid = False

@@ -33,13 +33,19 @@ from ..plan.classes import FUNCTION_KINDS
 DRIFT_FRACTION = 1e-2      # of the peak kinetic energy: 1e4 times the drift of an
                            # RK4 run that follows the motion at the examples' dt
                            # (A02 1e-9 J, scissor boom 2.4e-11 J of 131.6 J)
-DAMPED_KINDS = ("spring", "torsion_spring", "linear_spring")   # damping scalar "c"
+DAMPED_KINDS = ("spring", "torsion_spring", "linear_spring",   # damping scalar "c"
+                "cable")
 # The parameters of an element's forces that have a potential (in V): zeroed, the
-# element's applied forces are those without one (runtime/_power.pyx).
+# element's applied forces are those without one (runtime/_power.pyx). A member's
+# elastic, gravity and constant distributed forces all have one; its damping (c times
+# the stiffness) does not, and vanishes with EA and EI, so a damped member's work is
+# not split (work_split says so).
 CONSERVATIVE = {"body": ("gx", "gy", "gz"), "force": ("Fx", "Fy", "Fz"),
-                "spring": ("k",), "torsion_spring": ("k",), "linear_spring": ("k",)}
+                "spring": ("k",), "torsion_spring": ("k",), "linear_spring": ("k",),
+                "cable": ("EA", "EI", "gx", "gy", "gz", "qx", "qy", "qz"),
+                "point_force": ("Fx", "Fy", "Fz")}
 # Loads without any potential: all their force does work.
-NO_POTENTIAL = ("torque", "force_t", "torque_t", "force_q", "torque_q")
+NO_POTENTIAL = ("torque", "force_t", "torque_t", "force_q", "torque_q", "point_force_t")
 RECORDS_FOR_PEAK = 2000    # records read for the kinetic energy peak (evenly spread)
 
 
@@ -66,6 +72,9 @@ def work_split(plan) -> tuple[list[int], str | None]:
     zero, start = [], 0
     for el in plan.elements:
         kind, names = el.cls.kind, el.cls.param_names
+        if kind == "cable" and el.params[names.index("c")] != 0.0:
+            return zero, (f"{el.label}: the energy check does not split a damped "
+                          "member's work (its damping is proportional to its stiffness)")
         if kind in CONSERVATIVE:
             zero += [start + names.index(n) for n in CONSERVATIVE[kind] if n in names]
         elif kind not in NO_POTENTIAL and el.cls.n_g == 0:

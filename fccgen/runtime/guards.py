@@ -16,18 +16,19 @@ from ..errors import RunWarning
 DRIFT_OF_SIZE = 1e-3
 
 
-def divergence_bounds(q0, v0, t_end: float, dt: float) -> tuple[float, float]:
+def divergence_bounds(q0, v0, t_end: float, dt: float | None) -> tuple[float, float]:
     """(q_bound, v_bound) of a run: 1e6 times the size the state can reach by moving at
     its initial speed, q_ref + |v0| t_end, and 1e6 times the speed that crosses the
-    model's size in one step dt (adaptive methods: the output interval),
-    |v0| + q_ref / dt (q_ref = max |q0|, or 1). An unstable explicit step grows the
-    state by a constant factor per step, so it passes these within tens of steps,
-    while no accurate run comes near them."""
+    model's size in one step dt, |v0| + q_ref / dt (q_ref = max |q0|, or 1; adaptive
+    methods, dt None, have no step to measure speeds by: no speed bound). An unstable
+    explicit step grows the state by a constant factor per step, so it passes these
+    within tens of steps, while no accurate run comes near them."""
     q0, v0 = np.asarray(q0, float), np.asarray(v0, float)
     q_ref = float(np.max(np.abs(q0))) if q0.size else 1.0
     q_ref = q_ref if q_ref > 0.0 else 1.0
     v_ref = float(np.max(np.abs(v0))) if v0.size else 0.0
-    return 1e6 * (q_ref + v_ref * t_end), 1e6 * (v_ref + q_ref / dt)
+    return (1e6 * (q_ref + v_ref * t_end),
+            np.inf if dt is None else 1e6 * (v_ref + q_ref / dt))
 
 
 def check_constraint_drift(solver, result, project: bool) -> None:

@@ -89,7 +89,7 @@ def integrate(accelerations, q0, v0, t_end: float, output_dt: float, method: str
     ode = getattr(scipy.integrate, method)(fun, 0.0, y0, t_end, rtol=rtol, atol=atol,
                                            **kwargs)
     from .guards import divergence_bounds
-    q_bound, v_bound = divergence_bounds(q0, v0, t_end, min(output_dt, t_end))
+    q_bound, v_bound = divergence_bounds(q0, v0, t_end, None)
     t_out = output_times(t_end, output_dt)
     y_out = np.empty((len(t_out), y0.size))
     y_out[0] = ode.y
