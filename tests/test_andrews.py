@@ -41,7 +41,8 @@ def test_the_reference_meets_the_published_values():
     # the published initial values are consistent to their 16+ digits
     assert np.max(np.abs(g)) < 1e-16
     np.testing.assert_allclose(qdd, ref.QDD0, rtol=0, atol=1e-10 * np.max(np.abs(ref.QDD0)))
-    np.testing.assert_allclose(lam, ref.LAMBDA0, rtol=0, atol=1e-12 * np.max(np.abs(ref.LAMBDA0)))
+    np.testing.assert_allclose(lam, ref.LAMBDA0, rtol=0,
+                               atol=1e-12 * np.max(np.abs(ref.LAMBDA0)))
     y = ref.solve([0.0, ref.T_END])[-1]
     # PSIDE at 1e-14 and DOP853 at 1e-13: the crank angle (15.8 rad) agrees to 1.4e-9
     # rad, the rates (up to 1424 rad/s) to 2e-7; positions to 8e-12 m (measured)
@@ -63,8 +64,8 @@ def test_the_file_holds_the_published_geometry():
         assert body["mass"] == p[f"m{k}"]
         assert body["inertia"] == [p[f"i{k}"] / 2, p[f"i{k}"] / 2, p[f"i{k}"]]
         np.testing.assert_allclose(body["center"][:2], at0[name], rtol=0, atol=1e-15)
-        np.testing.assert_allclose(body["frame"]["x"][:2], axes[name][0], rtol=0, atol=1e-15)
-        np.testing.assert_allclose(body["frame"]["y"][:2], axes[name][1], rtol=0, atol=1e-15)
+        for axis, value in zip("xy", axes[name]):
+            np.testing.assert_allclose(body["frame"][axis][:2], value, rtol=0, atol=1e-15)
     torque, spring = MODEL["loads"]
     assert torque == dict(type="torque", body="body1", value=[0, 0, p["mom"]])
     assert (spring["stiffness"], spring["length"]) == (p["c0"], p["l0"])
