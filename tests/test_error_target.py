@@ -147,7 +147,10 @@ def test_a_run_whose_estimate_ends_above_the_target_is_repeated(runs):
     assert acc["value"] < first["value"] and "repeated" in acc["choice"]
     cost = acc["cost"]
     assert cost["repeat"] > 0 and not texts
-    assert cost["whole"] == cost["pilot"] + cost["run"] + cost["estimate"] + cost["repeat"]
+    # the first run is the repeat's coarse twin: no second twin runs
+    assert cost["estimate"] == 0 and "the first run" in acc["estimate"]
+    assert acc["twin_value"] == first["value"]
+    assert cost["whole"] == cost["pilot"] + cost["run"] + cost["repeat"]
 
 
 def test_a_candidate_that_cannot_win_stops_measuring_but_gives_the_growth(runs):

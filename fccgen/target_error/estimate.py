@@ -4,7 +4,8 @@ The estimate is Richardson's: the run is repeated coarser (twice the step, or a
 tolerance 16 times looser) on the same output times, and the distance of the two runs,
 divided by ``R - 1`` where ``R`` is the ratio of their errors (``2^p``, or ``16^a``
 with the exponent the pilot measured), estimates the run's own error at every output
-time. Event times are compared the same way: a latch the coarse twin finds later by
+time. A run repeated at a finer setting (fccgen.target_error.run) takes its first run
+as that twin, with ``R`` the ratio of the two settings to the measured order. Event times are compared the same way: a latch the coarse twin finds later by
 ``dt`` was found ``dt / (R - 1)`` late by the run, and moves every position after it
 by about that time times the speed at the event (docs/accuracy.md).
 """
@@ -22,6 +23,11 @@ from .compare import distance, event_times, speeds
 # A repeated run whose estimate stays above this multiple of what the measured order
 # predicts from the first run's has an error that does not fall with the step.
 CONVERGENCE_SLACK = 4.0
+# A repeated run takes its first run as the coarse twin when the two settings' errors
+# are predicted at least this ratio apart (a repeat aims at E / 2 from an estimate above
+# E, so it always is unless a tolerance limit clamps it): the estimate then divides
+# their distance by R - 1 >= 1, and no second twin runs.
+MIN_RATIO = 2.0
 
 
 @dataclass
@@ -34,18 +40,22 @@ class Estimate:
     twin_value: float
     events: dict | None            # event_time_error, event_position_error; None: differ
     texts: list = field(default_factory=list)      # what the estimate says (warnings)
+    reused: bool = False           # the twin is the first run of a repeat (no cost)
 
 
-def global_estimate(result, twin, frame, choice, twin_value: float) -> Estimate:
-    """The Richardson estimate of a run from its coarse twin, with the event times."""
-    ratio = pilots.KAPPA[choice.method] ** choice.order
+def global_estimate(result, twin, frame, choice, twin_value: float,
+                    reused: bool = False) -> Estimate:
+    """The Richardson estimate of a run from its coarse twin, with the event times:
+    R = (twin's setting / run's setting) ** order (KAPPA ** order for a twin run for
+    the purpose, at least MIN_RATIO for a first run reused as the twin)."""
+    ratio = (twin_value / choice.value) ** choice.order
     t, d = distance(result, twin, frame.what, frame.t_end)
     roundoff = choice.roundoff * float(result.info["steps"])
     est = d / (ratio - 1) + roundoff
     k = int(np.argmax(est)) if len(est) else 0
     found = Estimate(float(est[k]) if len(est) else math.nan,
                      float(t[k]) if len(t) else math.nan, ratio, roundoff, twin_value,
-                     event_errors(result, twin, frame.what, ratio))
+                     event_errors(result, twin, frame.what, ratio), reused=reused)
     if found.events is None:
         found.texts.append(
             f"the run and its coarse twin ({choice.setting} = {twin_value:.3g}) found "

@@ -6,8 +6,8 @@ t_end extrapolates the error's growth in time; a motion that speeds up later gro
 error faster than the pilot saw (Andrews' mechanism: its crank turns about 20 times
 faster at the end than at the end of the pilot). The estimate sees the whole run: when it
 ends above E, the run is repeated once at the setting the estimate names (its
-truncation part scaled by the measured order), and that run and its estimate are the
-result; when the repeat's estimate did not fall as the order says, the error does not
+truncation part scaled by the measured order), the first run serving as the repeat's
+coarse twin, and that run and its estimate are the result; when the repeat's estimate did not fall as the order says, the error does not
 converge with the step there, and the run says so rather than promising.
 """
 from __future__ import annotations
@@ -82,19 +82,28 @@ def simulate_to_error(solver, error, error_on=None, *, t_end=None, output_dt=Non
                 progress(f"error target {error:g}: {again.reason}")
             first = (choice, found, pilots.evaluations(result.info)
                      + pilots.evaluations(twin.info))
-            choice = again
-            result, twin, found = _attempt(solver, frame, choice, **options)
+            reuse = (choice.value / again.value) ** again.order >= estimates.MIN_RATIO
+            previous, choice = result, again
+            result, twin, found = _attempt(solver, frame, choice,
+                                           twin=(previous, first[0].value) if reuse
+                                           else None, **options)
     report(result, twin, frame, choice, found, error, first)
     return result
 
 
-def _attempt(solver, frame, choice, progress, reactions):
-    """The run at the choice, its coarse twin and the estimate they give."""
+def _attempt(solver, frame, choice, progress, reactions, twin=None):
+    """The run at the choice, its coarse twin and the estimate they give; twin:
+    (result, setting) of a coarser run already made (a repeat's first run), which
+    then serves as the twin."""
     run_kwargs = pilots.settings_of(choice.method, choice.value, solver.length_scale)
     result = solver.simulate(t_end=frame.t_end, output_dt=frame.output_dt,
                              method=choice.method, q0=frame.q0, v0=frame.v0,
                              progress=progress, reactions=reactions,
                              **frame.run_options, **run_kwargs)
+    if twin is not None:
+        twin, twin_value = twin
+        return result, twin, estimates.global_estimate(result, twin, frame, choice,
+                                                       twin_value, reused=True)
     twin_value, twin_out = twin_setting(choice.method, choice.value, frame.output_dt)
     twin = frame.run(choice.method, twin_value, frame.t_end, twin_out,
                      stage="error estimate")
@@ -225,14 +234,15 @@ def report(result, twin, frame, choice, found, error: float, first) -> None:
     info["error_on"] = frame.what.columns
     events = found.events or dict(event_time_error=math.nan, event_position_error=math.nan)
     cost = dict(pilot=frame.cost, run=pilots.evaluations(info),
-                estimate=pilots.evaluations(twin.info),
+                estimate=0.0 if found.reused else pilots.evaluations(twin.info),
                 repeat=first[2] if first else 0.0)
     cost["whole"] = sum(cost.values())
     info["accuracy"] = dict(
         choice=choice.reason, method=choice.method, setting=choice.setting,
         value=choice.value, predicted_error=choice.predicted_error,
         estimate=("Richardson: the distance of a coarse twin run "
-                  f"({choice.setting} = {found.twin_value:.4g}) on the same output "
+                  f"({choice.setting} = {found.twin_value:.4g}"
+                  f"{', the first run' if found.reused else ''}) on the same output "
                   f"times, divided by {found.ratio:.4g} - 1"),
         order=choice.order, twin_value=found.twin_value, pilot_piece=frame.t_piece,
         roundoff=found.roundoff, candidates=choice.candidates, **events,
