@@ -11,7 +11,7 @@ from ..run_settings import LINEAR_SOLVERS, RunSettingError, schedule
 from .fields import Reader, child, listing
 from .types import (Angle, AngularVelocity, Body, BodyPoint, Constraint, Distance, Force,
                     Initial, JointSpring, Load, Point, PointOnLine, PointOnPlane,
-                    PointRef,
+                    PointForce, PointRef,
                     SimulateDefaults, Spring, Torque, TorsionSpring, Where)
 from .yamlnodes import YMap, YNode, YScalar, YSeq
 
@@ -147,6 +147,8 @@ class ItemReader(Reader):
         return [self.load(n, f"loads[{k}]") for k, n in enumerate(seq.items)]
 
     def load(self, node: YNode, item: str) -> Load:
+        if _point_form(node):
+            return self.point_force(node, item)
         if self.joint_form(node):
             return self.joint_spring(self.typed(node, item, JOINT_LOAD_KEYS), item)
         m = self.typed(node, item, LOAD_KEYS)
@@ -171,10 +173,10 @@ class ItemReader(Reader):
                    if "damping" in e else 0.0)
         return Spring(ends, stiffness, length, damping, where)
 
-    def load_value(self, node: YNode, item: str) -> tuple[np.ndarray, str]:
+    def load_value(self, node: YNode, item: str, names=None) -> tuple[np.ndarray, str]:
         """(value, "") for three numbers; (zeros, "ex;ex;ex") when a component is
         text: expressions of the time t and the joints' quantities (restricted grammar,
-        docs/expressions.md)."""
+        docs/expressions.md); ``names``: the quantities allowed, if fewer."""
         if not (isinstance(node, YSeq) and any(
                 isinstance(n, YScalar) and isinstance(n.value, str) for n in node.items)):
             return self.vec3(node, item), ""
@@ -183,17 +185,54 @@ class ItemReader(Reader):
         from ..mechanism.expressions import parse_expression
         from .events import joint_quantities
         seq = self.sequence(node, item, 3)
-        names = ["t", *(q for j in self.joints.values() for q in joint_quantities(j))]
+        if names is None:
+            names = ["t", *(q for j in self.joints.values() for q in joint_quantities(j))]
         t = {n: sympy.Symbol(n, real=True) for n in names}
         parts = []
         for k, n in enumerate(seq.items):
             text = n.value if isinstance(n, YScalar) and isinstance(
                 n.value, (bool, int, float)) else (n.text if isinstance(n, YScalar)
                                                    else n.plain())
-            parse_expression(text, t, source=self.source, line=n.line,
-                             item=child(item, k))
+            expr = parse_expression(text, t, source=self.source, line=n.line,
+                                    item=child(item, k))
+            self.load_expression_rules(expr, t, n.line, child(item, k), text)
             parts.append(" ".join((text if isinstance(text, str) else repr(text)).split()))
         return np.zeros(3), ";".join(parts)
+
+    def load_expression_rules(self, expr, symbols: dict, line, item: str, text) -> None:
+        """A load's expression must be affine in the joint rates and speeds (the
+        compiled force Jacobian df/dq' is a kernel of q alone, docs/elements.md), and
+        finite at the start: t = 0 and the written configuration (every joint
+        quantity 0)."""
+        import sympy
+
+        from ..mechanism.expressions import finite_value
+        speeds = [s for n, s in symbols.items() if n.endswith((".rate", ".speed"))]
+        for s in speeds:
+            if expr.has(s) and sympy.diff(expr, s).has(*speeds):
+                name = next(n for n, x in symbols.items() if x == s)
+                raise self.fail(line, item, f"must be linear in the joint rates and "
+                                f"speeds, as a damper is ({name} enters otherwise: abs, "
+                                "min, max, log, powers or products of rates are not "
+                                "supported, since the force's Jacobian in the speeds is "
+                                "computed without them)", text)
+        value = expr.subs({s: 0 for s in symbols.values()})
+        if not finite_value(value):
+            raise self.fail(line, item, "is not a finite number at the start (t = 0, "
+                            f"every joint quantity 0: {sympy.sstr(value)}); 1/A.angle, "
+                            "log(t), sin(t)/t are not", text)
+
+    def point_force(self, node: YNode, item: str) -> PointForce:
+        """``{type: force, point: P, value: [x, y, z]}``: a force on a moving point (a
+        cable node, docs/flexible.md), its components numbers or expressions of t."""
+        e = self.mapping(node, item, ("type", "point", "value"), ()).entries
+        point = self.name_in(e["point"], child(item, "point"), self.points, "point",
+                             "points")
+        if self.points[point].fixed:
+            raise self.fail(e["point"].line, child(item, "point"), "is a fixed point; a "
+                            "force on it would do nothing", point)
+        value, function = self.load_value(e["value"], child(item, "value"), ("t",))
+        return PointForce(point, value, Where(self.source, node.line), function)
 
     @staticmethod
     def joint_form(node: YNode) -> bool:
@@ -374,3 +413,9 @@ class ItemReader(Reader):
         if out.output_dt is not None and out.output_dt < out.dt:
             raise self.bad(e["output_dt"], "simulate.output_dt",
                            f"must be at least dt ({out.dt:g})")
+
+
+def _point_form(node: YNode) -> bool:
+    """A force given on a point (``point:``) instead of a body."""
+    return (isinstance(node, YMap) and isinstance(node.entries.get("type"), YScalar)
+            and node.entries["type"].text == "force" and "point" in node.entries)

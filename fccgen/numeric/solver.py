@@ -447,7 +447,8 @@ def _amax(x) -> float:
 
 
 def _length_scale(plan: Plan) -> float:
-    """The largest body length l of the plan, 1 if it has no body."""
+    """The largest body length l (or cable length) of the plan, 1 if it has none."""
     lengths = [el.params[el.cls.scalar_names.index("l")]
                for el in plan.elements if el.cls.kind == "body"]
+    lengths += [c.length for c in plan.model.cables.values()]
     return float(max(lengths)) if lengths else 1.0

@@ -24,6 +24,8 @@ import json
 from dataclasses import dataclass
 from functools import cached_property
 
+from .cable_kinds import CABLE_KINDS, TIMED_POINT_KINDS
+
 # Scalars of a point end that sits on a body ("body point"): the body's frame numbers
 # and the point's coefficients b1..b3 (r = r_i + b1 r_ij + b2 u + b3 (r_ij x u)/(alpha l)).
 BODY_POINT_SCALARS = ("l", "alpha", "beta", "b1", "b2", "b3")
@@ -135,6 +137,10 @@ JOINT_FAMILIES = {
     "angle": (("lA", "lB", "cos0", "sin0"), ("A.ri", "A.rj", "B.ri", "B.rj", "u")),
     "position": (("s0",), ("u", "ra", "rb")),
 }
+# Flexible members (fccgen/plan/cable_kinds.py): cable elements, clamp rows, point forces.
+TIMED_LOAD_KINDS.update(TIMED_POINT_KINDS)
+MECHANISM_KINDS.update(CABLE_KINDS)
+MECHANISM_KINDS.update(TIMED_POINT_KINDS)
 FUNCTION_KINDS = (*DRIVER_KINDS, *TIMED_LOAD_KINDS, *JOINT_LOAD_KINDS)
 for _kind, (_scalars, _ends, _triples, _foldable, _rows) in MECHANISM_KINDS.items():
     KIND_SCALARS[_kind] = _scalars

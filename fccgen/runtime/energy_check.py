@@ -25,7 +25,8 @@ from ..plan.classes import FUNCTION_KINDS
 DRIFT_FRACTION = 1e-2      # of the peak kinetic energy: 1e4 times the drift of an
                            # RK4 run that follows the motion at the examples' dt
                            # (A02 1e-9 J, scissor boom 2.4e-11 J of 131.6 J)
-DAMPED_KINDS = ("spring", "torsion_spring", "linear_spring")   # damping scalar "c"
+DAMPED_KINDS = ("spring", "torsion_spring", "linear_spring",   # damping scalar "c"
+                "cable")
 
 
 def energy_exchange(plan) -> str | None:
