@@ -163,7 +163,7 @@ def test_a_repeat_whose_error_does_not_fall_warns_that_it_is_no_promise():
     steps = dict(rhs_evaluations=400, newton_iterations=0, steps=100, project=False)
     result = SimpleNamespace(info=dict(steps))
     frame = SimpleNamespace(cost=300.0, what=SimpleNamespace(columns=["P.x"]),
-                            t_piece=0.1, output_dt=0.01)
+                            t_piece=0.1, output_dt=0.01, singular=None)
     with pytest.warns(RunWarning) as seen:
         report(result, SimpleNamespace(info=dict(steps)), frame, again,
                _estimate(8e-6, reused=True), 1e-6, (first, _estimate(1.6e-5), 600.0))

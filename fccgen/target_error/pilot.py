@@ -131,6 +131,7 @@ class Pilot:
     run_options: dict = field(default_factory=dict)    # event_tol, rest_speed
     progress: object = None
     cost: float = 0.0              # evaluations spent in pilot runs
+    singular: dict | None = None   # singular.approach of the pilot's positions
 
     @property
     def sample_dt(self) -> float:

@@ -25,6 +25,7 @@ from .choice import (CANDIDATES, RTOL_MAX, RTOL_MIN, SAFETY, Choice, choose, pre
 from .compare import compared
 from .estimate import singular_warning
 from .ladder import measure
+from .singular import approach, approach_warning
 
 DEFAULT_OUTPUTS = 500      # output times of a run that names no output_dt
 # Differences of pilot runs below NOISE eps L are rounding, not truncation: runs of
@@ -69,6 +70,8 @@ def simulate_to_error(solver, error, error_on=None, *, t_end=None, output_dt=Non
                          progress=progress)
     fits = measure_candidates(frame, error, [method] if method else None,
                               bool(plan.model.events))
+    sampled = next((f.finest for f in fits if f.finest is not None), None)
+    frame.singular = approach(solver, sampled) if sampled is not None else None
     choice = choose(fits, error, t_end, output_dt)
     if progress is not None:
         progress(f"error target {error:g}: {choice.reason}")
@@ -246,6 +249,7 @@ def report(result, twin, frame, choice, found, error: float, first) -> None:
                   f"times, divided by {found.ratio:.4g} - 1"),
         order=choice.order, twin_value=found.twin_value, pilot_piece=frame.t_piece,
         roundoff=found.roundoff, candidates=choice.candidates, **events,
+        singular_approach=frame.singular,
         repeated=(dict(value=first[0].value, estimate=first[1].value,
                        estimate_time=first[1].time) if first else None),
         cost=cost)
@@ -264,6 +268,7 @@ def report(result, twin, frame, choice, found, error: float, first) -> None:
                                           predicted=first is None)
         texts.append(text)
     texts += singular_warning(info)
+    texts += approach_warning(frame.singular, found.value)
     info.setdefault("warnings", []).extend(texts)
     for text in texts:
         warnings.warn(text, RunWarning, stacklevel=4)
