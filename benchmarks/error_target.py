@@ -15,7 +15,10 @@ that meets E: the chosen run's cost over it ("run / best") and the whole command
 only 1e-3). The curves are the grid search of tests/data/error_target_grid.py (error
 against evaluations of rk4 and dopri5 with projection); the runs are drawn on them at
 their run cost (filled) and at their whole cost (open). Writes
-docs/accuracy/error_target.csv, error_target.md and error_target_<case>.png.
+docs/accuracy/error_target.csv, error_target.md and error_target_<case>.png (with
+--out-name NAME: NAME.csv, NAME.md, NAME_<case>.png). A level a case's reference
+cannot judge may be asked for all the same (--cases a02 --levels 1e-6,1e-9): its
+true error is then the distance from that reference.
 """
 from __future__ import annotations
 
@@ -79,7 +82,7 @@ def measure(name: str, levels, build_dir, model_dir, grid: dict) -> list[dict]:
     return rows
 
 
-def plot(name: str, rows: list[dict], grid: dict) -> None:
+def plot(name: str, rows: list[dict], grid: dict, out_name: str = "error_target") -> None:
     try:
         import matplotlib
         matplotlib.use("Agg")
@@ -106,7 +109,7 @@ def plot(name: str, rows: list[dict], grid: dict) -> None:
     ax.set_title(f"{name}: --error runs on the methods' curves")
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(OUT / f"error_target_{name}.png", dpi=110)
+    fig.savefig(OUT / f"{out_name}_{name}.png", dpi=110)
     plt.close(fig)
 
 
@@ -131,6 +134,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--cases", default=",".join(LEVELS))
     ap.add_argument("--levels", help="comma-separated (default: each case's)")
+    ap.add_argument("--out-name", default="error_target",
+                    help="the written files' stem (default error_target)")
     args = ap.parse_args()
     grid = json.loads(GRID.read_text())
     rows = []
@@ -141,13 +146,13 @@ def main() -> None:
             case_rows = measure(name, levels, Path(tmp) / "generated", Path(tmp), grid)
             rows += case_rows
             if name in grid:
-                plot(name, case_rows, grid)
+                plot(name, case_rows, grid, args.out_name)
     OUT.mkdir(parents=True, exist_ok=True)
-    with open(OUT / "error_target.csv", "w", newline="") as fh:
+    with open(OUT / f"{args.out_name}.csv", "w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=list(rows[0]))
         w.writeheader()
         w.writerows(rows)
-    (OUT / "error_target.md").write_text(table(rows))
+    (OUT / f"{args.out_name}.md").write_text(table(rows))
     print(table(rows))
 
 
