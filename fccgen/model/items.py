@@ -258,10 +258,8 @@ class ItemReader(Reader):
                             f"freedom of a {' or '.join(JOINT_SPRING_TYPES[kind])} joint",
                             name)
         free_key = "angle" if kind == "torsion_spring" else "length"
+        # any free angle: the spring's angle is counted over turns (docs/elements.md)
         free = self.number(e[free_key], child(item, free_key)) if free_key in e else 0.0
-        if kind == "torsion_spring" and not abs(free) < math.pi:
-            raise self.bad(e[free_key], child(item, free_key),
-                           "must be a free angle in radians within (-pi, pi)")
         stiffness = self.nonnegative(e["stiffness"], child(item, "stiffness"))
         damping = (self.nonnegative(e["damping"], child(item, "damping"))
                    if "damping" in e else 0.0)
@@ -286,9 +284,6 @@ class ItemReader(Reader):
                                 f"{self.bodies[name].u}", axis)
         stiffness = self.nonnegative(e["stiffness"], child(item, "stiffness"))
         angle = self.number(e["angle"], child(item, "angle")) if "angle" in e else 0.0
-        if not abs(angle) < math.pi:      # the spring starts within half a turn
-            raise self.bad(e["angle"], child(item, "angle"),
-                           "must be a free angle in radians within (-pi, pi)")
         damping = (self.nonnegative(e["damping"], child(item, "damping"))
                    if "damping" in e else 0.0)
         return TorsionSpring((a, b), axis, stiffness, angle, damping, where)

@@ -124,7 +124,8 @@ class _ModelReader(Reader):
         initial = items.initial(e["initial"], joints) if "initial" in e else Initial()
         simulate = items.simulate(e.get("simulate"), METHODS,
                                   self.values_per_output(cables))
-        events = EventReader(self.source, self.points, joints).events(e.get("events"))
+        events = EventReader(self.source, self.points, joints, drivers).events(
+            e.get("events"))
         self.check_event_method(events, simulate, e.get("simulate"))
         return Model(name=name, source=self.source, gravity=gravity, points=self.points,
                      vectors=self.vectors, bodies=self.bodies, constraints=constraints,

@@ -333,8 +333,11 @@ def _torsion_spring(b: _Builder, ld: TorsionSpring, label: str) -> Element:
     """The torsion spring element (docs/elements.md). With p = r_ij - (l beta) u, the
     reference direction of a body perpendicular to the axis u, the angle of body B
     relative to body A is atan2(u.(p_A x p_B), p_A.p_B); it is theta_init at the
-    initial positions, and the free position is theta_init + angle, whose cosine and
-    sine are the parameters cos0, sin0."""
+    initial positions (cos0, sin0 its cosine and sine). The free position is
+    theta_init + angle (free = angle, from the initial configuration). The reference
+    th, cr, sr is the free angle outside runs, so that a kernel called alone measures
+    the deflection within half a turn of the free angle; a run moves it from the
+    start's angle on (turn counting)."""
     m = b.model
     sides = ld.sides or tuple((m.bodies[n].i, m.bodies[n].j) for n in ld.bodies)
     u = np.asarray(m.vectors[ld.axis].along, float)
@@ -344,9 +347,11 @@ def _torsion_spring(b: _Builder, ld: TorsionSpring, label: str) -> Element:
         lam.append(float(rij @ u))                   # l beta
         ref.append(rij - lam[-1] * u)
     theta_init = float(np.arctan2(u @ np.cross(ref[0], ref[1]), ref[0] @ ref[1]))
-    free = theta_init + ld.angle
     scalars = {"k": float(ld.stiffness), "c": float(ld.damping), "lA": lam[0],
-               "lB": lam[1], "cos0": float(np.cos(free)), "sin0": float(np.sin(free))}
+               "lB": lam[1], "cos0": float(np.cos(theta_init)),
+               "sin0": float(np.sin(theta_init)), "free": float(ld.angle),
+               "th": float(ld.angle), "cr": float(np.cos(ld.angle)),
+               "sr": float(np.sin(ld.angle))}
     (a_i, a_j), (b_i, b_j) = sides
     triples = [("A.ri", a_i), ("A.rj", a_j), ("B.ri", b_i), ("B.rj", b_j), ("u", ld.axis)]
     return b.element("torsion_spring", label, ld.where, scalars, triples)

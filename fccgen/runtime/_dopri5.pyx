@@ -25,14 +25,16 @@ import numpy as np
 from fccgen.errors import SimulationError
 
 from ._assemble cimport ASM_G
-from ._engine cimport (AT_POSITIONS, AT_STAGE, AT_STEP, AT_VELOCITIES, ERR_NONE,
-                       ERR_NONFINITE_INPUT, Engine, finite)
+from ._engine cimport (AT_POSITIONS, AT_STAGE, AT_STEP, AT_VELOCITIES, ERR_DIVERGED,
+                       ERR_NONE, ERR_NONFINITE_INPUT, Engine, finite)
 from ._events cimport Bracket, EvC, ev_apply, ev_bracket, ev_bracket_open, \
     ev_bracket_trial, ev_bracket_update, ev_constrain, ev_correct, ev_crossed, ev_crosses, \
-    ev_leaving, ev_refresh, ev_state, ev_watch
+    ev_leaving, ev_refresh, ev_state, ev_watch, ev_watched
 from ._runloop cimport RUN_DONE, RUN_ERROR, RUN_PAUSE, now, write_record
+from ._power cimport Power, power_state, stage_power
 
 from ._messages import error_message
+from .guards import divergence_bounds
 from fccgen.results import keep_rows
 
 cdef enum:
@@ -85,6 +87,13 @@ cdef struct Run:
     double t0                 # start of the last accepted step
     bint stopped              # a stop event ended the run at t_stop
     double t_stop
+    Power *pw                 # work of the forces without potential (NULL: none):
+    double w                  # ... done up to t,
+    double p[7]               # ... the stages' powers,
+    double rw[5]              # ... its continuous extension over the last step
+    double *w_out             # ... and at each record
+    double q_bound            # max |q| and max |v| past these: the run diverged
+    double v_bound            # (fccgen/runtime/guards.py)
 
 
 cdef int _f(Engine e, Run *r, int stage, double t, const double *y, double *k,
@@ -97,8 +106,10 @@ cdef int _f(Engine e, Run *r, int stage, double t, const double *y, double *k,
     memcpy(k, y + n, n * sizeof(double))
     if e.accelerations_at(y, y + n, k + n, reuse) < 0:
         return -1
-    if r.ev != NULL:                          # active lock rows (events)
-        return ev_constrain(e, r.ev, y, y + n, r.t, k + n)
+    if r.ev != NULL and ev_constrain(e, r.ev, y, y + n, r.t, k + n) < 0:
+        return -1                             # active lock rows (events)
+    if r.pw != NULL:                          # the stage's power (_power.pxd)
+        r.p[stage - 1] = stage_power(e, r.pw, y, y + n, k + n)
     return 0
 
 
@@ -147,6 +158,24 @@ cdef double _error_norm(Run *r, double h) noexcept nogil:
         sk = r.atol + r.rtol * fmax(fabs(r.y[i]), fabs(r.y1[i]))
         acc += (d / sk) * (d / sk)
     return sqrt(acc / r.n2)
+
+
+cdef void _dense_work(Run *r, double h) noexcept nogil:
+    """The work over the step by the fifth-order weights, and its continuous extension
+    (the one of _dense, with the stage powers for the stage derivatives)."""
+    cdef double dw = h * (A71 * r.p[0] + A73 * r.p[2] + A74 * r.p[3] + A75 * r.p[4]
+                          + A76 * r.p[5])
+    r.rw[0], r.rw[1] = r.w, dw
+    r.rw[2] = h * r.p[0] - dw
+    r.rw[3] = dw - h * r.p[6] - r.rw[2]
+    r.rw[4] = h * (D1 * r.p[0] + D3 * r.p[2] + D4 * r.p[3] + D5 * r.p[4] + D6 * r.p[5]
+                   + D7 * r.p[6])
+
+
+cdef double _work_at(Run *r, double th) noexcept nogil:
+    """The work at the fraction th of the last step."""
+    cdef double th1 = 1.0 - th
+    return r.rw[0] + th * (r.rw[1] + th1 * (r.rw[2] + th * (r.rw[3] + th1 * r.rw[4])))
 
 
 cdef void _dense(Run *r, double h) noexcept nogil:
@@ -223,7 +252,7 @@ cdef int _first_event(Engine e, Run *r, double h, double t1, double *theta) noex
         return -1
     theta[0], first = 1.0, k
     for j in range(k, 2 * ev.ne):
-        if j > k and not ev_crosses(ev, j, ev.s0[j], ev.s1[j]):
+        if j > k and not ev_watched(ev, j, ev.s0, ev.s1):     # not a held lock
             continue
         if _locate(e, r, j, h, &th) < 0:
             return -2
@@ -245,6 +274,7 @@ cdef int _after_event(Engine e, Run *r, int k) noexcept nogil:
             r.stopped, r.t_stop = True, r.t
             if r.n_out < r.n_req:             # the last record: the stop
                 r.t_req[r.n_out] = r.t
+                r.w_out[r.n_out] = r.w
                 write_record(e, r.n_out, r.y, r.y + n, r.q_out, r.v_out, r.body_out,
                              r.e_out, r.c_out)
                 r.n_out += 1
@@ -262,8 +292,10 @@ cdef int _record(Engine e, Run *r) noexcept nogil:
     cdef Py_ssize_t j = r.n_out, n = r.n2 // 2
     cdef double th, th1, cerr
     cdef int i
+    r.w_out[j] = r.w
     if j > 0:
         _dense_at(r, (r.t_req[j] - r.t0) / r.h, r.yt)
+        r.w_out[j] = _work_at(r, (r.t_req[j] - r.t0) / r.h)
         if r.project:
             e.asm.put_time(r.t_req[j])
             if _project(e, r, r.yt, False) < 0:
@@ -285,6 +317,8 @@ cdef int _accept(Engine e, Run *r, double h) noexcept nogil:
     cdef long recorded
     cdef double th = 1.0, t1
     _dense(r, h)
+    if r.pw != NULL:
+        _dense_work(r, h)
     r.t0 = r.t
     t1 = r.t + h if r.t_end - (r.t + h) > 4 * UROUND * r.t_end else r.t_end
     if r.ev != NULL:
@@ -297,18 +331,27 @@ cdef int _accept(Engine e, Run *r, double h) noexcept nogil:
     r.t = t1
     r.accepted += 1
     recorded = r.n_out
-    while r.n_out < r.n_req and r.t_req[r.n_out] <= r.t * (1 + 4 * UROUND):
+    # a record at an event's time shows the state after it (as RK4's do): the next
+    # step, starting there, writes it (_flush at the end of the run)
+    while r.n_out < r.n_req and (r.t_req[r.n_out] < r.t if k >= 0 else
+                                 r.t_req[r.n_out] <= r.t * (1 + 4 * UROUND)):
         if _record(e, r) < 0:
             return -1
     memcpy(r.y, r.y1, r.n2 * sizeof(double))
+    if r.pw != NULL:
+        r.w = _work_at(r, th)                 # th: 1, or the event's fraction
     e.err_t = r.t
     if not finite(r.y, r.n2):
         e.err_where = AT_STEP
         return e.fail(ERR_NONFINITE_INPUT, 0, 1 if not finite(r.y, n) else 2)
+    if _beyond(e, r.y, n, r.q_bound) or _beyond(e, r.y + n, n, r.v_bound):
+        e.err_where = AT_STEP
+        return e.fail(ERR_DIVERGED, 0, 1 if e.err_bound == r.q_bound else 2)
     if r.project:
         e.asm.put_time(r.t)
         # stage 7's M, B and factorisation are at y1, unless a record projected since
-        if _project(e, r, r.y, r.n_out == recorded and r.ev == NULL) < 0:
+        # (or an event function moved y1: with events, a set with some)
+        if _project(e, r, r.y, r.n_out == recorded and (r.ev == NULL or r.ev.ne == 0)) < 0:
             return -1
         if r.ev != NULL:
             if _after_event(e, r, k) < 0:
@@ -318,10 +361,39 @@ cdef int _accept(Engine e, Run *r, double h) noexcept nogil:
         e.err_where = AT_STAGE
         return _f(e, r, 1, r.t, r.y, r.k[0], e.factor_valid)
     memcpy(r.k[0], r.k[6], r.n2 * sizeof(double))        # FSAL
+    r.p[0] = r.p[6]
+    if r.ev != NULL:                          # angle references only (no projection)
+        ev_refresh(r.ev, r.y)
     e.asm.assemble(r.y, NULL, ASM_G)
     if not e.asm.max_abs_g() <= r.max_cerr:
         r.max_cerr = e.asm.max_abs_g()
     return 0
+
+
+cdef void _flush(Engine e, Run *r) noexcept nogil:
+    """Records left at the end of the run (an event at t_end): the state there."""
+    cdef int n = r.n2 // 2
+    cdef double cerr
+    while r.n_out < r.n_req:
+        r.w_out[r.n_out] = r.w
+        cerr = write_record(e, r.n_out, r.y, r.y + n, r.q_out, r.v_out, r.body_out,
+                            r.e_out, r.c_out)
+        if not cerr <= r.max_cerr:
+            r.max_cerr = cerr
+        r.n_out += 1
+
+
+cdef bint _beyond(Engine e, const double *x, int n, double bound) noexcept nogil:
+    """max |x_i| > bound; the value and bound go to the engine's error record."""
+    cdef int i
+    cdef double big = 0.0
+    for i in range(n):
+        if fabs(x[i]) > big:
+            big = fabs(x[i])
+    if big > bound:
+        e.err_value, e.err_bound = big, bound
+        return True
+    return False
 
 
 cdef int _run(Engine e, Run *r, double deadline) noexcept nogil:
@@ -356,6 +428,7 @@ cdef int _run(Engine e, Run *r, double deadline) noexcept nogil:
             r.last_rejected = True
         if r.t < r.t_end and now() >= deadline:
             return RUN_PAUSE
+    _flush(e, r)
     return RUN_DONE
 
 
@@ -401,9 +474,10 @@ def output_times(double t_end, double output_dt):
 
 def simulate_dopri5(Engine engine, q0, v0, double t_end, double output_dt, double rtol,
                     double atol, double h0, bint project, progress=None,
-                    double progress_interval=0.5, events=None):
+                    double progress_interval=0.5, events=None, work=None):
     """DOPRI5 from (q0, v0) (used as given) to t_end; records at 0, every output_dt and
-    t_end by dense output. h0: the first step (0: Hairer's automatic choice).
+    t_end by dense output. h0: the first step (0: Hairer's automatic choice). work: a
+    _power.WorkTracker (None: none), whose work each record gets (array work).
 
     Returns (arrays, stats) like simulate_rk4, with stats steps (accepted),
     rejected_steps, rhs_evaluations, newton_iterations, projection_failures,
@@ -424,7 +498,10 @@ def simulate_dopri5(Engine engine, q0, v0, double t_end, double output_dt, doubl
     arrays = dict(t=t_req, q=np.zeros((n_out, n)), v=np.zeros((n_out, n)),
                   body=np.zeros((n_out, engine.asm.n_bodies, 6)), energy=np.zeros(n_out),
                   constraint_error=np.zeros(n_out))
-    work = np.zeros((15, 2 * n))
+    work_out = np.zeros(n_out)
+    if work is not None:                     # the work at the records (array "work")
+        arrays["work"] = work_out
+    stage_work = np.zeros((15, 2 * n))
     cdef Run r
     cdef int i
     r.project, r.n2, r.rtol, r.atol, r.t_end = project, 2 * n, rtol, atol, t_end
@@ -432,21 +509,27 @@ def simulate_dopri5(Engine engine, q0, v0, double t_end, double output_dt, doubl
     r.accepted = r.rejected = r.n_rhs = r.newton_total = r.failures = 0
     r.max_cerr = 0.0
     r.n_out, r.n_req, r.t_req = 0, n_out, _data(t_req)
-    r.y, r.y1, r.yt = _data(work[0]), _data(work[1]), _data(work[2])
+    r.y, r.y1, r.yt = _data(stage_work[0]), _data(stage_work[1]), _data(stage_work[2])
     for i in range(7):
-        r.k[i] = _data(work[3 + i])
+        r.k[i] = _data(stage_work[3 + i])
+        r.p[i] = 0.0
     for i in range(5):
-        r.rc[i] = _data(work[10 + i])
+        r.rc[i] = _data(stage_work[10 + i])
+        r.rw[i] = 0.0
     r.q_out, r.v_out = _data(arrays["q"]), _data(arrays["v"])
     r.body_out, r.e_out = _data(arrays["body"]), _data(arrays["energy"])
     r.c_out = _data(arrays["constraint_error"])
+    r.w_out = _data(work_out)
+    r.pw, r.w = power_state(work), 0.0
+    r.q_bound, r.v_bound = divergence_bounds(np.asarray(qv), np.asarray(vv), t_end, None)
     memcpy(r.y, &qv[0], n * sizeof(double))
     memcpy(r.y + n, &vv[0], n * sizeof(double))
     engine.factor_valid = False
     engine.err = ERR_NONE
     r.ev, r.stopped, r.t_stop, r.t0 = NULL, False, t_end, 0.0
     if events is not None:
-        if not project:
+        # a set without event functions only re-bases angle references (springs)
+        if not project and events.n_events:
             raise ValueError("events need the projected DOPRI5 (projection on)")
         r.ev = ev_state(events)
         events.reset(qv, engine)
@@ -455,6 +538,8 @@ def simulate_dopri5(Engine engine, q0, v0, double t_end, double output_dt, doubl
     cdef int status
     cdef double deadline
     engine.running = True
+    if project:     # a step leaving the constraints by 1% of the model's size diverged
+        engine.diverge_residual = 1e-2 * max(float(np.max(np.abs(qv))), 1e-300)
     try:
         _record(engine, &r)
         engine.err_where, engine.err_t, engine.err_h = AT_STAGE, 0.0, h0
@@ -488,6 +573,7 @@ def simulate_dopri5(Engine engine, q0, v0, double t_end, double output_dt, doubl
         raise
     finally:
         engine.running = False
+        engine.diverge_residual = np.inf
     stats = dict(steps=r.accepted, rejected_steps=r.rejected, rhs_evaluations=r.n_rhs,
                  newton_iterations=r.newton_total, projection_failures=r.failures,
                  max_constraint_error=r.max_cerr, last_step=r.h)

@@ -38,6 +38,13 @@ cdef struct EvC:
     int max_per_step          # more events than this in one step: Zeno, rest
     double *p                 # angle references (theta, cos, sin) per angle quantity
     int *angle_row            # per parameter triple: its quantity row
+    int nm                    # element kernels' copies of the references: how many,
+    int *mslot                # ... where (index of theta in mdst; cos, sin follow)
+    int *mang                 # ... and of which angle (its parameter triple)
+    double *mdst              # the element parameters (the engine's Assembler)
+    double *mkeep             # ... their values outside runs (3 nm)
+    double max_turn           # the largest re-basing |angle - theta_r| of the run
+    int max_turn_j            # ... its angle (parameter triple), -1: none yet
     double *s0                # watched values (2 ne: the event functions, then the
     double *s1                # release functions) at the step's start; at its end (or
                               # a trial time), then n numbers of work
@@ -90,6 +97,7 @@ cdef void ev_values(EvC *ev, const double *q, const double *v, double t,
                     double *out) noexcept nogil
 cdef int ev_watch(Engine e, EvC *ev, const double *q, const double *v, double t,
                   double *out) noexcept nogil
+cdef bint ev_watched(EvC *ev, int k, const double *a, const double *b) noexcept nogil
 cdef int ev_crossed(EvC *ev, const double *a, const double *b) noexcept nogil
 cdef bint ev_crosses(EvC *ev, int k, double a, double b) noexcept nogil
 cdef int ev_constrain(Engine e, EvC *ev, const double *q, const double *v,

@@ -43,7 +43,7 @@ import numpy as np
 
 from fccgen import rank as _rank
 
-from ._assemble cimport ASM_B, ASM_E, ASM_G
+from ._assemble cimport ASM_B, ASM_E, ASM_G, Assembler
 from ._engine cimport ERR_SINGULAR, Engine
 from ._solve cimport csolve_apply
 
@@ -62,8 +62,18 @@ cdef double GROW_TOL = _rank.GROW_TOL
 cdef double ROW_FLOOR = _rank.ROW_FLOOR
 
 
+cdef void _mirror(EvC *ev) noexcept nogil:
+    """Copy the angle references into the element kernels' parameters (th, cr, sr of
+    torsion springs and loads of joint angles, fccgen.events.references)."""
+    cdef int i
+    for i in range(ev.nm):
+        memcpy(ev.mdst + ev.mslot[i], ev.p + 3 * ev.mang[i], 3 * sizeof(double))
+
+
 cdef void ev_refresh(EvC *ev, const double *q) noexcept nogil:
-    """Move the angle references to the angles at q (turn counting)."""
+    """Move the angle references to the angles at q (turn counting), and their copies
+    in the element kernels; keep the largest move (a turn near half a turn between
+    two re-basings leaves the atan2's branch in doubt)."""
     cdef int j, row
     cdef double th
     if ev.nr == 0:
@@ -72,9 +82,13 @@ cdef void ev_refresh(EvC *ev, const double *q) noexcept nogil:
     for j in range(ev.nang):
         row = ev.angle_row[j]
         th = ev.r[row]
+        if fabs(th - ev.p[3 * j]) > ev.max_turn:
+            ev.max_turn = fabs(th - ev.p[3 * j])
+            ev.max_turn_j = j
         ev.p[3 * j] = th
         ev.p[3 * j + 1] = cos(th)
         ev.p[3 * j + 2] = sin(th)
+    _mirror(ev)
 
 
 cdef void ev_values(EvC *ev, const double *q, const double *v, double t,
@@ -149,16 +163,23 @@ cdef bint _rests(EvC *ev, int k) noexcept nogil:
     return ev.rested[k] and ev.row[k] >= 0 and ev.active[ev.row[k]]
 
 
+cdef bint ev_watched(EvC *ev, int k, const double *a, const double *b) noexcept nogil:
+    """Watched value k (event function k < ne, or release function of resting bounce
+    k - ne) crosses from a to b and counts: a lock or rest whose rows hold hovers at
+    zero by the position tolerance, and its crossings are that noise, not events."""
+    if k < ev.ne:
+        return ev_crosses(ev, k, a[k], b[k]) and not _locked(ev, k)
+    return _rests(ev, k - ev.ne) and ev_crosses(ev, k, a[k], b[k])
+
+
 cdef int ev_crossed(EvC *ev, const double *a, const double *b) noexcept nogil:
-    """The first watched value that crosses from a to b, or -1: an event function
-    k < ne, or the release function ne + k of a resting bounce k."""
+    """The first watched value that crosses from a to b and counts (ev_watched), or
+    -1: an event function k < ne, or the release function ne + k of a resting bounce
+    k."""
     cdef int k
-    for k in range(ev.ne):
-        if ev_crosses(ev, k, a[k], b[k]) and not _locked(ev, k):
+    for k in range(2 * ev.ne):
+        if ev_watched(ev, k, a, b):
             return k
-    for k in range(ev.ne):
-        if _rests(ev, k) and ev_crosses(ev, ev.ne + k, a[ev.ne + k], b[ev.ne + k]):
-            return ev.ne + k
     return -1
 
 
@@ -620,6 +641,7 @@ cdef class EventSet:
     cdef EvC c
     cdef object module
     cdef readonly object names
+    cdef object mirrored          # the Assembler whose parameters hold the copies
 
     def __cinit__(self, module, int n_q, directions, actions, rows, rows2,
                   restitution, angle_rows, double tol=1e-12, double v_rest=1e-6,
@@ -660,6 +682,8 @@ cdef class EventSet:
         c.acc = <double *>calloc(n + 1, sizeof(double))
         c.aug = c.svm = c.sig = c.svw = NULL
         c.m = 0
+        c.nm, c.mslot, c.mang, c.mdst, c.mkeep = 0, NULL, NULL, NULL, NULL
+        c.max_turn, c.max_turn_j = 0.0, -1
         c.angle_row = <int *>calloc(c.nang + 1, sizeof(int))
         c.direction = <int *>calloc(ne + 1, sizeof(int))
         c.action = <int *>calloc(ne + 1, sizeof(int))
@@ -674,6 +698,8 @@ cdef class EventSet:
             raise MemoryError("cannot allocate the event state")
         for j, x in enumerate(constants):
             c.p[3 * c.nang + j] = x
+        for j in range(c.nang):                   # references 0: cos 1, sin 0
+            c.p[3 * j + 1] = 1.0
         for k in range(ne):
             c.direction[k] = {"rising": 1, "falling": -1, "either": 0}[directions[k]]
             c.action[k] = ACTIONS.index(actions[k])
@@ -689,6 +715,61 @@ cdef class EventSet:
         free(c.angle_row); free(c.direction); free(c.action); free(c.row); free(c.row2)
         free(c.restitution); free(c.log); free(c.used); free(c.rested)
         free(c.rel_sign); free(c.acc); free(c.aug); free(c.svm); free(c.sig); free(c.svw)
+        free(c.mslot); free(c.mang); free(c.mkeep)
+
+    def mirror(self, Assembler asm, slots, angles):
+        """Copy the angle references into ``asm``'s element parameters at every
+        re-basing and reset: the reference of angle ``angles[i]`` (its index among the
+        angle quantities) to the parameters slots[i], slots[i] + 1, slots[i] + 2 (th,
+        cr, sr; fccgen.events.references.reference_slots). Their values now are kept
+        for :meth:`restore`."""
+        cdef EvC *c = &self.c
+        cdef int i, n = len(slots)
+        if len(angles) != n:
+            raise ValueError("need one angle per slot")
+        for slot, j in zip(slots, angles):
+            if not (0 <= j < c.nang and 0 <= slot and slot + 3 <= asm.pptr[asm.n_el]):
+                raise ValueError(f"reference copy out of range: angle {j}, slot {slot}")
+        free(c.mslot); free(c.mang); free(c.mkeep)
+        c.mslot = <int *>calloc(n + 1, sizeof(int))
+        c.mang = <int *>calloc(n + 1, sizeof(int))
+        c.mkeep = <double *>calloc(3 * n + 1, sizeof(double))
+        if c.mslot == NULL or c.mang == NULL or c.mkeep == NULL:
+            raise MemoryError("cannot allocate the reference copies")
+        for i in range(n):
+            c.mslot[i], c.mang[i] = slots[i], angles[i]
+            memcpy(c.mkeep + 3 * i, asm.params + c.mslot[i], 3 * sizeof(double))
+        c.nm = n
+        c.mdst = asm.params
+        self.mirrored = asm
+
+    def restore(self):
+        """Put back the element parameters' values from before the run (outside
+        runs a torsion spring's reference is its free angle)."""
+        cdef EvC *c = &self.c
+        cdef int i
+        for i in range(c.nm):
+            memcpy(c.mdst + c.mslot[i], c.mkeep + 3 * i, 3 * sizeof(double))
+
+    def refresh(self, q):
+        """Move the angle references (and their copies) to the angles at q: for loops
+        that step in Python (fccgen.runtime.scipy_ivp), after each accepted step."""
+        qa = np.ascontiguousarray(q, float)
+        cdef double[::1] qv = qa
+        if qa.shape[0] != self.c.n:
+            raise ValueError(f"q must hold {self.c.n} numbers")
+        if self.c.n:
+            ev_refresh(&self.c, &qv[0])
+
+    @property
+    def largest_turn(self):
+        """(|angle - theta_r| at the largest re-basing of the last run, the index of
+        its angle among the angle quantities; -1 before any)."""
+        return self.c.max_turn, self.c.max_turn_j
+
+    @property
+    def n_events(self):
+        return self.c.ne
 
     def reset(self, q, Engine engine=None):
         """Start a run at q: angle references 0 (the start's angles are 0 by
@@ -699,6 +780,8 @@ cdef class EventSet:
         memset(c.p, 0, 3 * c.nang * sizeof(double))
         for j in range(c.nang):
             c.p[3 * j + 1] = 1.0
+        _mirror(c)
+        c.max_turn, c.max_turn_j = 0.0, -1
         memset(c.active, 0, c.nr * sizeof(int))
         memset(c.used, 0, c.nr * sizeof(int))
         c.n_used = 0

@@ -20,12 +20,14 @@ from libc.math cimport fabs
 
 from ._events cimport Bracket, EvC, ev_apply, ev_bracket, ev_bracket_open, \
     ev_bracket_trial, ev_bracket_update, ev_constrain, ev_correct, ev_crossed, ev_crosses, \
-    ev_leaving, ev_refresh, ev_state, ev_watch
+    ev_leaving, ev_refresh, ev_state, ev_watch, ev_watched
 from ._engine cimport (AT_POSITIONS, AT_STAGE, AT_STEP, AT_VELOCITIES, ERR_DIVERGED,
                        ERR_NONE, ERR_NONFINITE_INPUT, Engine, finite)
 from ._runloop cimport RUN_DONE, RUN_ERROR, RUN_PAUSE, now, write_record
+from ._power cimport Power, power_state, stage_power
 
 from ._messages import error_message
+from .guards import divergence_bounds
 from fccgen.results import keep_rows
 
 
@@ -69,26 +71,34 @@ cdef struct Run:
     double t0                 # time at the start of the step (stage times)
     bint stopped              # a stop event ended the run at t_stop
     double t_stop
+    Power *pw                 # work of the forces without potential (NULL: none):
+    double w                  # ... done so far, at the saved step start (events),
+    double wsave
+    double p[4]               # ... the stages' powers
+    double *w_out             # ... and at each record
 
 
 cdef int _stage(Engine e, Run *r, int stage, const double *q, const double *v, double *a,
                 bint reuse) noexcept nogil:
+    cdef int rc
     e.err_stage = stage
     r.n_rhs += 1
     if r.baumgarte:
-        return e.baumgarte_at(q, v, a, r.alpha, r.beta)
-    if e.accelerations_at(q, v, a, reuse) < 0:
-        return -1
-    if r.ev != NULL:                          # active lock rows (events)
-        return ev_constrain(e, r.ev, q, v, r.t0, a)
-    return 0
+        rc = e.baumgarte_at(q, v, a, r.alpha, r.beta)
+    else:
+        rc = e.accelerations_at(q, v, a, reuse)
+        if rc == 0 and r.ev != NULL:          # active lock rows (events)
+            rc = ev_constrain(e, r.ev, q, v, r.t0, a)
+    if rc == 0 and r.pw != NULL:              # the stage's power (_power.pxd)
+        r.p[stage - 1] = stage_power(e, r.pw, q, v, a)
+    return rc
 
 
 cdef int _step(Engine e, Run *r, double t, double h) noexcept nogil:
     """One classical RK4 step of (q' = v, v' = a(t, q, v)) of size h from t, in
     place; leaves the time at t + h."""
     cdef int i, n = e.n
-    cdef double h2 = 0.5 * h, h6 = h / 6.0
+    cdef double h2 = 0.5 * h, h6 = h / 6.0, w0 = r.w
     e.asm.put_time(t)
     if _stage(e, r, 1, r.q, r.v, r.a1, e.factor_valid) < 0: return -1
     for i in range(n):
@@ -108,6 +118,8 @@ cdef int _step(Engine e, Run *r, double t, double h) noexcept nogil:
     for i in range(n):
         r.q[i] += h6 * (r.v[i] + 2.0 * r.v2[i] + 2.0 * r.v3[i] + r.v4[i])
         r.v[i] += h6 * (r.a1[i] + 2.0 * r.a2[i] + 2.0 * r.a3[i] + r.a4[i])
+    if r.pw != NULL:                          # the work, by the step's own weights
+        r.w = w0 + h6 * (r.p[0] + 2.0 * r.p[1] + 2.0 * r.p[2] + r.p[3])
     return 0
 
 
@@ -159,23 +171,12 @@ cdef bint _diverged(Engine e, const double *x, double bound) noexcept nogil:
     return False
 
 
-def divergence_bounds(q0, v0, double t_end, double dt):
-    """(q_bound, v_bound) of a fixed-step run: 1e6 times the size the state can reach
-    by moving at its initial speed, q_ref + |v0| t_end, and 1e6 times the speed that
-    crosses the model's size in one step, |v0| + q_ref / dt (q_ref = max |q0|, or 1).
-    An unstable explicit step grows the state by a constant factor per step, so it
-    passes these within tens of steps, while no accurate run comes near them."""
-    q_ref = float(np.max(np.abs(q0))) if len(q0) else 1.0
-    q_ref = q_ref if q_ref > 0.0 else 1.0
-    v_ref = float(np.max(np.abs(v0))) if len(v0) else 0.0
-    return 1e6 * (q_ref + v_ref * t_end), 1e6 * (v_ref + q_ref / dt)
-
-
 cdef void _record(Engine e, Run *r, double t) noexcept nogil:
     """Write record r.n_out: t, q, v, body outputs, energy, max |g|."""
     r.t_out[r.n_out] = t
     cdef double cerr = write_record(e, r.n_out, r.q, r.v, r.q_out, r.v_out, r.body_out,
                                     r.e_out, r.c_out)
+    r.w_out[r.n_out] = r.w
     if not cerr <= r.max_cerr:
         r.max_cerr = cerr
     r.n_out += 1
@@ -186,6 +187,7 @@ cdef int _state_at(Engine e, Run *r, double t0, double tau) noexcept nogil:
     (a re-integrated partial step), into r.q, r.v."""
     memcpy(r.q, r.eq, e.n * sizeof(double))
     memcpy(r.v, r.evv, e.n * sizeof(double))
+    r.w = r.wsave
     e.factor_valid = False
     r.t0 = t0
     return _step(e, r, t0, tau)
@@ -228,7 +230,7 @@ cdef int _events(Engine e, Run *r, double t0, double h) noexcept nogil:
             return ev_watch(e, ev, r.q, r.v, t0 + h, ev.s0)
         best, first = h, k
         for j in range(k, 2 * ev.ne):           # the earliest of those that crossed
-            if j > k and not ev_crosses(ev, j, ev.s0[j], ev.s1[j]):
+            if j > k and not ev_watched(ev, j, ev.s0, ev.s1):     # not a held lock
                 continue
             if _locate(e, r, j, t0, h, &tau) < 0:
                 return -1
@@ -253,6 +255,7 @@ cdef int _events(Engine e, Run *r, double t0, double h) noexcept nogil:
         t0, h = t0 + best, h - best
         memcpy(r.eq, r.q, e.n * sizeof(double))
         memcpy(r.evv, r.v, e.n * sizeof(double))
+        r.wsave = r.w
         if h <= 0.0:
             return 0
         r.t0 = t0
@@ -273,6 +276,7 @@ cdef int _run(Engine e, Run *r, double deadline) noexcept nogil:
         if r.ev != NULL:
             memcpy(r.eq, r.q, e.n * sizeof(double))
             memcpy(r.evv, r.v, e.n * sizeof(double))
+            r.wsave = r.w
         r.t0 = t
         if _step(e, r, t, h) < 0:
             return RUN_ERROR
@@ -318,37 +322,39 @@ cdef void _start(Engine e, Run *r, double[::1] q0, double[::1] v0, dict arrays):
 
 def simulate_rk4(Engine engine, q0, v0, double t_end, double dt, long n_steps,
                  long output_every, bint project, progress=None,
-                 double progress_interval=0.5, events=None):
+                 double progress_interval=0.5, events=None, work=None):
     """Classical RK4 from (q0, v0) (used as given) over n_steps steps of dt, the last
     one shortened to end at t_end; after each step, if project, position then velocity
     projection. Records t = 0, every output_every steps and t_end.
 
     progress(t) is called when the run pauses, at most every progress_interval seconds
-    of wall time. Returns (arrays, stats): fresh arrays t, q, v, body, energy,
-    constraint_error; stats steps, rhs_evaluations, newton_iterations (total),
-    max_newton_iterations, projection_failures, max_constraint_error. Raises
+    of wall time. work: a _power.WorkTracker (None: no work to track). Returns
+    (arrays, stats): fresh arrays t, q, v, body, energy, constraint_error (and with a
+    tracker work, of the forces without potential); stats steps, rhs_evaluations,
+    newton_iterations (total), max_newton_iterations, projection_failures, max_constraint_error. Raises
     SimulationError (with the time and what failed) on a singular mass matrix or a
     non-finite state.
     """
     return _simulate(engine, q0, v0, t_end, dt, n_steps, output_every, project, False,
-                     0.0, 0.0, progress, progress_interval, events)
+                     0.0, 0.0, progress, progress_interval, events, work)
 
 
 def simulate_baumgarte(Engine engine, q0, v0, double t_end, double dt, long n_steps,
                        long output_every, double alpha, double beta, progress=None,
-                       double progress_interval=0.5):
+                       double progress_interval=0.5, events=None, work=None):
     """RK4 on the index-1 equations with Baumgarte stabilisation,
     B q'' = -(dB/dt) q' - 2 alpha B q' - beta^2 g, without projection; otherwise as
-    :func:`simulate_rk4` (same arguments, records and stats)."""
+    :func:`simulate_rk4` (same arguments, records and stats; events: a set without
+    event functions, whose angle references it re-bases after every step)."""
     if not (alpha >= 0 and beta >= 0):
         raise ValueError("Baumgarte alpha and beta must be non-negative")
     return _simulate(engine, q0, v0, t_end, dt, n_steps, output_every, False, True,
-                     alpha, beta, progress, progress_interval)
+                     alpha, beta, progress, progress_interval, events, work)
 
 
 def _simulate(Engine engine, q0, v0, double t_end, double dt, long n_steps,
               long output_every, bint project, bint baumgarte, double alpha, double beta,
-              progress, double progress_interval, events=None):
+              progress, double progress_interval, events=None, work=None):
     """The shared driver of simulate_rk4 and simulate_baumgarte."""
     if engine.running:
         raise RuntimeError("this engine is already running a simulation")
@@ -365,6 +371,9 @@ def _simulate(Engine engine, q0, v0, double t_end, double dt, long n_steps,
     arrays = dict(t=np.zeros(n_out), q=np.zeros((n_out, n)), v=np.zeros((n_out, n)),
                   body=np.zeros((n_out, engine.asm.n_bodies, 6)), energy=np.zeros(n_out),
                   constraint_error=np.zeros(n_out))
+    work_out = np.zeros(n_out)
+    if work is not None:                     # the work at the records (array "work")
+        arrays["work"] = work_out
     cdef Run r
     r.project, r.n_steps, r.every, r.dt, r.t_end = project, n_steps, output_every, dt, t_end
     r.baumgarte, r.alpha, r.beta = baumgarte, alpha, beta
@@ -374,8 +383,12 @@ def _simulate(Engine engine, q0, v0, double t_end, double dt, long n_steps,
     r.q_bound, r.v_bound = divergence_bounds(np.asarray(qv), np.asarray(vv), t_end, dt)
     _start(engine, &r, qv, vv, arrays)
     r.ev, r.stopped, r.t_stop = NULL, False, t_end
+    r.pw, r.w, r.wsave = power_state(work), 0.0, 0.0
+    r.w_out = _data(work_out)
+    r.p[0] = r.p[1] = r.p[2] = r.p[3] = 0.0
     if events is not None:
-        if baumgarte or not project:
+        # a set without event functions only re-bases angle references (springs)
+        if (baumgarte or not project) and events.n_events:
             raise ValueError("events need the projected RK4 (method rk4, projection on)")
         saved = np.zeros(2 * n)
         r.eq, r.evv = _data(saved), _data(saved) + n
