@@ -304,11 +304,13 @@ def _error_summary(info) -> str:
     """The choice of an error target and the error the run reached."""
     acc = info["accuracy"]
     cost = acc["cost"]
+    repeat = (f", first run and its estimate {cost['repeat']:.3g}" if cost.get("repeat")
+              else "")
     return (f"error target {info['error_target']:g}: chose {acc['choice']}\n"
             f"estimated error {info['error_estimate']:.3g} (largest at t = "
             f"{info['error_estimate_time']:.6g}; {acc['estimate']}); cost in evaluations: "
             f"pilot {cost['pilot']:.3g}, run {cost['run']:.3g}, estimate "
-            f"{cost['estimate']:.3g}")
+            f"{cost['estimate']:.3g}{repeat}; whole {cost.get('whole', 0):.3g}")
 
 
 def _run_summary(result) -> str:

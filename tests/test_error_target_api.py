@@ -3,6 +3,7 @@ the numeric version, and its warnings (the accuracy itself: test_error_target.py
 from __future__ import annotations
 
 import warnings
+from types import SimpleNamespace
 
 import pytest
 
@@ -10,7 +11,9 @@ from conftest import EXAMPLES
 from fccgen.cli import main
 from fccgen.errors import RunWarning
 from fccgen.results import Result
-from fccgen.target_error.run import singular_warning
+from fccgen.target_error.choice import Choice
+from fccgen.target_error.estimate import Estimate, converged, singular_warning
+from fccgen.target_error.run import report
 
 DOUBLE = EXAMPLES / "double_pendulum.yaml"
 SHORT = dict(t_end=1.0, output_dt=0.01)
@@ -135,3 +138,39 @@ def test_the_command_line_refuses_what_does_not_go_with_error(build_dir, capsys,
                                                                message):
     code = main(["simulate", str(DOUBLE), "--build-dir", str(build_dir), "-q", *args])
     assert code == 1 and message in capsys.readouterr().err
+
+
+def _estimate(value, roundoff=0.0, reused=False):
+    return Estimate(value, 1.0, 16.0, roundoff, 0.02,
+                    dict(event_time_error=0.0, event_position_error=0.0), reused=reused)
+
+
+def test_a_repeat_converged_when_its_estimate_fell_as_the_order_says():
+    first = Choice("rk4", "dt", 0.01, 5e-7, 100.0, 4.0)
+    again = Choice("rk4", "dt", 0.005, 5e-7, 200.0, 4.0)
+    # halving an order-4 step divides the error by 16
+    assert converged(first, again, _estimate(1.6e-5), _estimate(1e-6))
+    assert converged(first, again, _estimate(1.6e-5), _estimate(4e-6))
+    assert not converged(first, again, _estimate(1.6e-5), _estimate(5e-6))
+
+
+def test_a_repeat_whose_error_does_not_fall_warns_that_it_is_no_promise():
+    """A motion whose error does not fall with the step (a branch point, chaos): the
+    repeated run's estimate stays high, and the warning says why rather than naming a
+    step that would reach the target."""
+    first = Choice("rk4", "dt", 0.01, 5e-7, 100.0, 4.0, reason="first")
+    again = Choice("rk4", "dt", 0.005, 5e-7, 200.0, 4.0, reason="again")
+    steps = dict(rhs_evaluations=400, newton_iterations=0, steps=100, project=False)
+    result = SimpleNamespace(info=dict(steps))
+    frame = SimpleNamespace(cost=300.0, what=SimpleNamespace(columns=["P.x"]),
+                            t_piece=0.1, output_dt=0.01, singular=None)
+    with pytest.warns(RunWarning) as seen:
+        report(result, SimpleNamespace(info=dict(steps)), frame, again,
+               _estimate(8e-6, reused=True), 1e-6, (first, _estimate(1.6e-5), 600.0))
+    [text] = [str(w.message) for w in seen]
+    assert "exceeds the target" in text and "does not fall with the step" in text
+    assert "would reach" not in text
+    cost = result.info["accuracy"]["cost"]
+    # the first run is the repeat's twin: no estimate of its own is paid for
+    assert cost == dict(pilot=300.0, run=400.0, estimate=0.0, repeat=600.0, whole=1300.0)
+    assert result.info["accuracy"]["repeated"]["estimate"] == 1.6e-5

@@ -23,7 +23,7 @@ SPARSE = ["a01_pendulum", "double_pendulum", "four_bar", "four_bar_driven", "fre
           "solar_array_boom_latched", "tape_spring_hinge"]
 # examples of SPARSE_MIN_COORDINATES coordinates or more (members' nodes and slopes)
 LARGE = {"a02_n_four_bar", "scissor_boom", "cantilever", "flexible_pendulum",
-         "solar_array_boom"}
+         "solar_array_boom", "andrews"}
 MANIFOLD = ["bricard", "deployable", "deployable_joints"]     # dense: the rows' kind
 EVENTS = ["panel_latch", "pendulum_limit", "solar_array"]     # dense: events
 

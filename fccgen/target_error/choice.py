@@ -20,6 +20,13 @@ from .pilot import KAPPA, Fit, fixed_step
 SAFETY = 0.5
 RTOL_MIN, RTOL_MAX = 1e-13, 1e-3     # the tolerances the choice may take
 CANDIDATES = ("dopri5", "rk4", "ali3p")
+# The coarsest setting the choice may take, as a multiple of the coarsest pilot rung:
+# half a rung (dopri5) or two rungs (fixed steps) beyond what the pilot measured.
+# Beyond it a method may leave its asymptotic range (dopri5 at loose tolerances: the
+# error no longer follows the tolerance, and the twin's estimate with it; measured on
+# Andrews' mechanism) or its stability (rk4 on the heavy top: stable at dt = 5 ms,
+# diverging at 10 ms).
+EXTRAPOLATION = {"dopri5": 4.0, "rk4": 4.0, "ali3p": 4.0}
 
 
 @dataclass
@@ -56,7 +63,8 @@ def twin_share(fit: Fit) -> float:
 
 def predict(fit: Fit, target: float, t_end: float, output_dt: float) -> dict:
     """The setting a candidate would take and what the fit predicts for it."""
-    s = fit.setting_for(SAFETY * target, t_end)
+    s = min(fit.setting_for(SAFETY * target, t_end),
+            EXTRAPOLATION[fit.method] * fit.rungs[0][0])
     if fit.method == "dopri5":
         s = min(RTOL_MAX, max(RTOL_MIN, s))
     else:

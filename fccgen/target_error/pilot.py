@@ -1,13 +1,14 @@
-"""The pilot: short runs that measure, for each candidate method, how its error falls
-with its setting, how fast it grows over the run, and what a step costs.
+"""The pilot's data: what a candidate's short runs measured (:class:`Fit`: how its
+error falls with its setting, how fast it grows over the run, what a step costs), the
+frame the pilot and the run share (:class:`Pilot`), and the fit of order, error
+constant and growth from the rungs' error histories. Which rungs run is
+fccgen.target_error.ladder's business.
 
-Each candidate runs over a piece of the run ``[0, T_p]`` at three settings, a ratio
-``kappa`` apart (rk4 and ali3p: steps ``2h, h, h/2``; dopri5: tolerances
-``16 rtol, rtol, rtol / 16``), all recording on the run's output times. The differences
-of neighbouring rungs are step-doubling (Richardson) estimates: if the error is
-``C s^a``, the difference of the rungs at ``kappa s`` and ``s`` is ``C s^a (kappa^a - 1)``
-and the two differences' ratio is ``kappa^a``, so the order ``a`` is measured, not
-assumed. The fine pair's difference over the piece gives the error's growth in time,
+If the error is ``C s^a``, the difference of rungs at ``kappa s`` and ``s`` is
+``C s^a (kappa^a - 1)`` and the ratio of two neighbouring differences is ``kappa^a``
+(step doubling): the order ``a`` is measured, not assumed; with a reference run more
+accurate than the rungs, their distances from it are their errors and two rungs give
+order and constant. The error's history over the piece gives its growth in time,
 fitted as ``t^beta``. Costs are deterministic counts (:func:`evaluations`), never
 seconds, so a choice is the same on every machine.
 """
@@ -19,9 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import FccgenError
 from ..progress import restaged
-from .compare import check_columns, distance
 
 # Setting ratio between pilot rungs, and the nominal exponent of the error in the
 # setting: rk4 error ~ dt^4, ali3p (trapezoidal rule) ~ dt^2, dopri5 with error-per-step
@@ -33,6 +32,7 @@ NOMINAL_ORDER = {"rk4": 4.0, "ali3p": 2.0, "dopri5": 1.0}
 # and the final estimate checks it.
 GROWTH_MIN, GROWTH_MAX = 1.0, 4.0
 PILOT_FRACTION = 1 / 10      # the pilot piece, as a share of the run
+PILOT_SAMPLES = 10           # the pilot records at least this many times in its piece
 # Round-off: every step leaves a rounding error that no smaller step removes, and
 # more steps add more of it. Measured on A01 (pendulum, 2000 s, closed-form
 # reference): rk4 at dt = 1e-4 and 5.5e-5 ends 1.6e-9 and 2.6e-9 m off, where its
@@ -40,6 +40,9 @@ PILOT_FRACTION = 1 / 10      # the pilot piece, as a share of the run
 # Predictions and estimates add ROUNDOFF_PER_STEP * eps * L per step (docs/accuracy.md).
 ROUNDOFF_PER_STEP = 0.5
 ATOL_RATIO = 1e-3            # dopri5: atol = rtol * ATOL_RATIO * length scale
+# A reference run judges a rung directly when its own estimated error is at most this
+# share of the rung's: the rung's measured error is then within 10 % of its own.
+REFERENCE_MARGIN = 10.0
 
 
 def evaluations(info: dict) -> float:
@@ -73,6 +76,8 @@ class Fit:
 
     steps0: float = math.nan       # middle rung's steps over the piece
     roundoff: float = 0.0          # round-off per step (length units)
+    judged_by: str = ""            # "rungs" (step doubling) or the reference's label
+    finest: object = field(default=None, repr=False)    # the finest rung's result
 
     def truncation_at(self, s: float, t_end: float) -> float:
         return (self.err0 * (s / self.s0) ** self.order
@@ -101,8 +106,15 @@ class Fit:
     def as_dict(self) -> dict:
         keys = ("method", "setting", "status", "note", "s0", "err0", "order",
                 "measured_order", "cost0", "steps0", "cost_exponent", "growth", "t_piece",
-                "roundoff")
+                "roundoff", "judged_by")
         return {k: getattr(self, k) for k in keys}
+
+    @property
+    def finest_error(self) -> float:
+        """The estimated error of the finest rung over the piece."""
+        if self.status != "ok" or not self.rungs:
+            return math.inf
+        return self.err0 * (self.rungs[-1][0] / self.s0) ** self.order
 
 
 @dataclass
@@ -119,16 +131,28 @@ class Pilot:
     run_options: dict = field(default_factory=dict)    # event_tol, rest_speed
     progress: object = None
     cost: float = 0.0              # evaluations spent in pilot runs
+    singular: dict | None = None   # singular.approach of the pilot's positions
+
+    @property
+    def sample_dt(self) -> float:
+        """The pilot's output interval: the run's, divided so that a tenth of the run
+        holds at least PILOT_SAMPLES of them (the growth in time is fitted to the
+        second half of them); fixed steps of the pilot divide it, so they divide the
+        run's output interval too."""
+        piece = self.t_end * PILOT_FRACTION
+        return self.output_dt / max(1, math.ceil(PILOT_SAMPLES * self.output_dt / piece
+                                                 - 1e-9))
 
     @property
     def t_piece(self) -> float:
-        n = max(2, math.ceil(self.t_end * PILOT_FRACTION / self.output_dt - 1e-9))
-        return min(self.t_end, n * self.output_dt)
+        """The pilot piece [0, t_piece]: a tenth of the run, in whole sample_dt."""
+        n = math.ceil(self.t_end * PILOT_FRACTION / self.sample_dt - 1e-9)
+        return min(self.t_end, n * self.sample_dt)
 
     def run(self, method: str, setting: float, t_end: float, output_dt=None,
             stage: str = "pilot"):
         """One quiet run (its warnings are the pilot's business, not the user's)."""
-        kwargs = dict(t_end=t_end, output_dt=output_dt or self.output_dt, method=method,
+        kwargs = dict(t_end=t_end, output_dt=output_dt or self.sample_dt, method=method,
                       q0=self.q0, v0=self.v0, reactions=False,
                       progress=restaged(self.progress, f"{stage} {method}"),
                       **self.run_options)
@@ -153,38 +177,12 @@ def fixed_step(output_dt: float, h: float) -> float:
     return output_dt / max(1, math.ceil(output_dt / h - 1e-9))
 
 
-def measure(pilot: Pilot, method: str, s_mid: float) -> Fit:
-    """Run a candidate's three rungs about s_mid over the piece and fit its error."""
-    kappa = KAPPA[method]
-    fit = Fit(method, "rtol" if method == "dopri5" else "dt", pilot.t_piece)
-    if method == "dopri5":
-        ladder = [s_mid * kappa, s_mid, s_mid / kappa]
-    else:
-        n = max(2, 2 * math.ceil(pilot.output_dt / s_mid / 2 - 1e-9))   # even
-        ladder = [pilot.output_dt / (n // 2), pilot.output_dt / n, pilot.output_dt / (2 * n)]
-    results = []
-    for s in ladder:
-        try:
-            r = pilot.run(method, s, fit.t_piece)
-        except (FccgenError, ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
-            fit.status = ("unsupported" if isinstance(exc, ValueError)
-                          and "unknown method" in str(exc) else "failed")
-            fit.note = f"{fit.setting} = {s:.3g}: " + " ".join(str(exc).split())
-            return fit
-        if not results:
-            check_columns(pilot.what, r)
-        cost = evaluations(r.info)
-        pilot.cost += cost
-        fit.rungs.append((s, cost, int(r.info["steps"]), int(r.info.get("rejected_steps") or 0)))
-        results.append(r)
-    _fit(fit, pilot, [distance(a, b, pilot.what, fit.t_piece)
-                      for a, b in zip(results, results[1:])], kappa)
-    return fit
-
-
-def _fit(fit: Fit, pilot: Pilot, diffs, kappa: float) -> None:
-    """Order, error constant, growth and cost law from the rung differences."""
-    (t, d1), (_, d2) = diffs
+def fit_rungs(fit: Fit, pilot: Pilot, histories, kappa: float,
+              direct: bool = False) -> None:
+    """Order, error constant, growth and cost law from two error histories: the
+    differences of neighbouring rungs (coarse-middle, middle-fine), or with ``direct``
+    the errors of the coarse and the middle rung against a reference."""
+    (t, d1), (_, d2) = histories
     e1, e2 = float(np.max(d1)), float(np.max(d2))
     nominal = NOMINAL_ORDER[fit.method]
     if not (math.isfinite(e1) and math.isfinite(e2)):
@@ -204,12 +202,13 @@ def _fit(fit: Fit, pilot: Pilot, diffs, kappa: float) -> None:
                     "was not measured, the method's nominal order is used")
     ratio = kappa ** fit.order
     fit.s0 = fit.rungs[rung][0]
-    # error of a rung = its difference from the next finer rung * R / (R - 1)
-    fit.err0 = max(e, pilot.noise) * ratio / (ratio - 1)
-    # growth belongs to the problem, not the setting: measured on the coarse pair,
-    # whose difference stands furthest above the noise
+    # error of a rung = its difference from the next finer rung * R / (R - 1), or its
+    # distance from the reference
+    fit.err0 = max(e, pilot.noise) * (1.0 if direct else ratio / (ratio - 1))
+    # growth belongs to the problem, not the setting: measured on the coarse pair (or
+    # the coarse rung's error), whose difference stands furthest above the noise
     fit.growth = growth(t, d1, pilot.noise)
-    c0, c2 = fit.rungs[0][1], fit.rungs[2][1]
+    c0, c2 = fit.rungs[0][1], fit.rungs[-1][1]
     fit.cost0, fit.steps0 = fit.rungs[rung][1], fit.rungs[rung][2]
     fit.roundoff = ROUNDOFF_PER_STEP * float(np.finfo(float).eps) * pilot.length_scale
     if fit.method == "dopri5":

@@ -35,6 +35,8 @@ LADDERS = {
     "a02": dict(n=(1, 12), rtol=(1e-6, 1e-9)),
     "top": dict(n=(1, 400), rtol=(1e-4, 1e-12)),
     "solar": dict(n=(1, 200), rtol=(1e-3, 1e-10)),
+    "andrews": dict(n=(1, 300), rtol=(1e-3, 1e-12)),
+    "a02s": dict(n=(1, 60), rtol=(1e-4, 1e-12)),
 }
 
 

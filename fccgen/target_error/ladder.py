@@ -1,0 +1,163 @@
+"""Which pilot rungs run, coarsest first, and when a candidate stops early.
+
+dopri5 runs ``16 rtol`` and ``rtol``, then ``rtol / 16``, or ``256 rtol`` when the
+pair already places the choice above ``4 rtol``: the rungs then bracket the tolerance
+the run will take (the choice extrapolates no further than half a rung beyond them,
+fccgen.target_error.choice.EXTRAPOLATION), and the added rung is the cheapest.
+
+A fixed-step candidate (rk4, ali3p) runs steps ``2h`` and ``h``. When a reference
+(dopri5's finest rung) is at least REFERENCE_MARGIN times more accurate than a rung,
+the rung's distance from it is its error: two rungs then give order, constant and
+growth, and the finest rung ``h / 2`` (half of the candidate's pilot cost) is not run.
+Otherwise the three rungs are compared among themselves (step doubling). After each
+rung, ``can_win`` sees the most optimistic fit measured so far (the method's nominal
+order, no larger than any it can measure); when it says the candidate cannot be the
+cheapest, no more rungs run and the fit is "skipped", its growth measured all the
+same (the fixed-step history is the smoothest one, see run.share_growth).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..errors import FccgenError
+from .compare import check_columns, distance
+from .pilot import (KAPPA, NOMINAL_ORDER, REFERENCE_MARGIN, ROUNDOFF_PER_STEP, Fit, Pilot,
+                    evaluations, fit_rungs, growth)
+
+
+def measure(pilot: Pilot, method: str, s_mid: float, *, reference: Fit | None = None,
+            aim: tuple[float, float] | None = None, can_win=None) -> Fit:
+    """A candidate's fit from its rungs about s_mid over the pilot piece.
+
+    reference: a measured candidate whose finest rung may judge this one's rungs;
+    aim: (error, t_end) the choice will aim at (places dopri5's third rung);
+    can_win: fit -> None, or the reason the candidate cannot be the cheapest."""
+    fit = Fit(method, "rtol" if method == "dopri5" else "dt", pilot.t_piece)
+    if method == "dopri5":
+        _adaptive(pilot, fit, [KAPPA[method] * s_mid, s_mid], aim)
+    else:
+        n = max(2, 2 * math.ceil(pilot.sample_dt / s_mid / 2 - 1e-9))   # even
+        usable = reference is not None and reference.status == "ok"
+        _fixed(pilot, fit, [pilot.sample_dt / (n // 2), pilot.sample_dt / n],
+               reference if usable else None, can_win)
+    return fit
+
+
+def _adaptive(pilot: Pilot, fit: Fit, ladder: list, aim) -> None:
+    kappa = KAPPA[fit.method]
+    results = [_rung(pilot, fit, s) for s in ladder]
+    if None in results:
+        return
+    finer = (aim is None
+             or _provisional(fit, pilot, results, aim) <= ladder[1] * math.sqrt(kappa))
+    third = _rung(pilot, fit, ladder[1] / kappa if finer else ladder[0] * kappa)
+    if third is None:
+        return
+    if finer:
+        results.append(third)
+    else:
+        results.insert(0, third)
+        fit.rungs.insert(0, fit.rungs.pop())
+    _by_rungs(pilot, fit, results, kappa)
+
+
+def _fixed(pilot: Pilot, fit: Fit, ladder: list, reference: Fit | None, can_win) -> None:
+    kappa = KAPPA[fit.method]
+    coarse = _rung(pilot, fit, ladder[0])
+    if coarse is None:
+        return
+    label = (f"{reference.method} {reference.setting} = {reference.rungs[-1][0]:.3g}"
+             if reference is not None else "")
+    judged = _judged(pilot, fit, coarse, reference)
+    if judged is not None and _stops(fit, can_win, _trial(pilot, fit, 0, judged, 1.0,
+                                                          label)):
+        return
+    mid = _rung(pilot, fit, ladder[1])
+    if mid is None:
+        return
+    if judged is not None:
+        judged_mid = _judged(pilot, fit, mid, reference)
+        if judged_mid is not None:
+            fit.judged_by = label
+            fit_rungs(fit, pilot, [judged, judged_mid], kappa, direct=True)
+            fit.finest = mid
+            return
+    pair = distance(coarse, mid, pilot.what, fit.t_piece)
+    ratio = kappa ** NOMINAL_ORDER[fit.method]
+    if _stops(fit, can_win, _trial(pilot, fit, 1, pair, ratio / (ratio - 1), "rungs")):
+        return
+    fine = _rung(pilot, fit, ladder[1] / kappa)
+    if fine is not None:
+        _by_rungs(pilot, fit, [coarse, mid, fine], kappa)
+
+
+def _judged(pilot: Pilot, fit: Fit, result, reference: Fit | None):
+    """The error history of a rung against the reference, when the reference is
+    accurate enough to judge it; None otherwise."""
+    if reference is None:
+        return None
+    t, d = distance(result, reference.finest, pilot.what, fit.t_piece)
+    return (t, d) if reference.finest_error * REFERENCE_MARGIN <= float(np.max(d)) else None
+
+
+def _trial(pilot: Pilot, fit: Fit, rung: int, history, factor: float,
+           judged_by: str) -> Fit:
+    """The most optimistic fit of what is measured: rung ``rung``'s error (the history's
+    largest value times ``factor``) at the method's nominal order."""
+    t, d = history
+    s, cost, steps, _ = fit.rungs[rung]
+    return Fit(fit.method, fit.setting, fit.t_piece, rungs=list(fit.rungs), s0=s,
+               err0=max(float(np.max(d)), pilot.noise) * factor,
+               order=NOMINAL_ORDER[fit.method], cost0=cost, steps0=steps,
+               growth=growth(t, d, pilot.noise), judged_by=judged_by,
+               roundoff=ROUNDOFF_PER_STEP * float(np.finfo(float).eps) * pilot.length_scale)
+
+
+def _stops(fit: Fit, can_win, trial: Fit) -> bool:
+    """Whether the candidate stops here (can_win gave a reason): the fit is then
+    "skipped", with the reason and the trial's growth."""
+    why = can_win(trial) if can_win is not None and math.isfinite(trial.err0) else None
+    if why:
+        fit.status, fit.note = "skipped", why
+        fit.growth, fit.judged_by = trial.growth, trial.judged_by
+    return bool(why)
+
+
+def _by_rungs(pilot: Pilot, fit: Fit, results: list, kappa: float) -> None:
+    fit.judged_by = "rungs"
+    fit_rungs(fit, pilot, [distance(a, b, pilot.what, fit.t_piece)
+                           for a, b in zip(results, results[1:])], kappa)
+    fit.finest = results[-1]
+
+
+def _rung(pilot: Pilot, fit: Fit, s: float):
+    """One rung's result (its cost and steps recorded in fit.rungs), or None with the
+    fit marked failed (or unsupported) and why."""
+    try:
+        r = pilot.run(fit.method, s, fit.t_piece)
+    except (FccgenError, ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+        fit.status = ("unsupported" if isinstance(exc, ValueError)
+                      and "unknown method" in str(exc) else "failed")
+        fit.note = f"{fit.setting} = {s:.3g}: " + " ".join(str(exc).split())
+        return None
+    if not fit.rungs:
+        check_columns(pilot.what, r)
+    cost = evaluations(r.info)
+    pilot.cost += cost
+    fit.rungs.append((s, cost, int(r.info["steps"]),
+                      int(r.info.get("rejected_steps") or 0)))
+    return r
+
+
+def _provisional(fit: Fit, pilot: Pilot, results, aim) -> float:
+    """The setting a fit of the first two rungs alone (the method's nominal order)
+    would choose for ``aim`` = (error, t_end)."""
+    t, d = distance(results[0], results[1], pilot.what, fit.t_piece)
+    e = float(np.max(d))
+    if not (math.isfinite(e) and e > pilot.noise):
+        return 0.0
+    ratio = KAPPA[fit.method] ** NOMINAL_ORDER[fit.method]
+    trial = _trial(pilot, fit, 1, (t, d), ratio / (ratio - 1), "rungs")
+    return trial.s0 * (aim[0] / trial.truncation_at(trial.s0, aim[1])) ** (1 / trial.order)
