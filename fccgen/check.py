@@ -36,6 +36,7 @@ from .analysis.cables import cable_lines
 from .mechanism.report import DEPENDENT_TOL, dependency_text, dependent_rows, rows_text
 from . import rank as rank_rule
 from . import rank_sparse
+from .diagnose import explained
 from .errors import BuildError, FccgenError, SimulationError
 from .method_limits import check_notes
 from .methods import names as method_names
@@ -155,15 +156,14 @@ def check_model(path, progress=None, *, generate: bool = True) -> CheckReport:
     try:
         with single_threaded_blas():     # a spinning OpenBLAS doubled the CPU time of
             report = _report(solver, say)    # the 1000-bar check
-    except SimulationError as exc:
-        if str(exc).startswith(f"{source}:"):
-            raise
-        raise SimulationError(f"{source}: {exc}") from None
+    except SimulationError as exc:       # located at the written state (fccgen.locate)
+        raise explained(exc, solver, *_written_state(solver)) from None
     except FccgenError:                  # ModelError (a ValueError too) names its item
         raise
     except (ArithmeticError, ValueError) as exc:      # an expression at the start, ...
-        raise SimulationError(f"{source}: the initial state cannot be evaluated "
-                              f"({type(exc).__name__}: {exc})") from None
+        raise explained(SimulationError(
+            f"the initial state cannot be evaluated ({type(exc).__name__}: {exc})"),
+            solver, *_written_state(solver)) from None
     report.generation = generate_kernels(solver.plan, say) if generate else NOT_GENERATED
     return report
 
@@ -267,11 +267,14 @@ def _initial_state(solver):
             warnings.simplefilter("error", RuntimeWarning)
             return solver.initial_state()
     except (RuntimeWarning, ArithmeticError) as exc:
-        raise SimulationError(
-            f"{solver.plan.model.source}: the initial state cannot be evaluated ({exc}): "
-            "a load or spring is singular at the start (one that reads the angle of a "
-            "hinge whose bodies' frame points lie on its axis has no reference "
-            "direction?)") from None
+        raise explained(SimulationError(
+            f"the initial state cannot be evaluated ({exc}): a load or spring is "
+            "singular at the start"), solver, *_written_state(solver)) from None
+
+
+def _written_state(solver):
+    """(q, v) as the model file writes them, where a failure at the start is located."""
+    return np.array(solver.plan.q0, float), np.array(solver.plan.v_target, float)
 
 
 def _large_rows(B, labels, rank, groups, notes, say,

@@ -60,11 +60,16 @@ class ModelError(FccgenError, ValueError):
         self.item = item
         self.rule = rule
         self.value = value
-        where = f"{file}:{line}" if line is not None else f"{file}"
-        text = f"{where}: {clip(item, SHOWN_ITEM_CHARS)}: {clip(rule, SHOWN_RULE_CHARS)}"
-        if show_value:
-            text += f" (got {shown(value)})"
-        super().__init__(text)
+        super().__init__(located_text(file, line, item, rule, value, show_value))
+
+
+def located_text(file, line, item: str, rule: str, value=None, show_value: bool = True):
+    """``file:line: item: rule (got value)``, cut as ModelError's message is."""
+    where = f"{file}:{line}" if line is not None else f"{file}"
+    text = f"{where}: {clip(item, SHOWN_ITEM_CHARS)}: {clip(rule, SHOWN_RULE_CHARS)}"
+    if show_value:
+        text += f" (got {shown(value)})"
+    return text
 
 
 class BuildError(FccgenError, RuntimeError):
@@ -74,7 +79,20 @@ class BuildError(FccgenError, RuntimeError):
 
 class SimulationError(FccgenError, RuntimeError):
     """A simulation cannot go on (singular mass matrix on the constraint manifold,
-    failed assembly, non-finite state)."""
+    failed assembly, non-finite state).
+
+    :meth:`located` makes one that names the model item it comes from as a ModelError
+    does (``file``, ``line``, ``item``, ``rule``, ``value``; fccgen.locate)."""
+
+    file = line = item = rule = value = None
+
+    @classmethod
+    def located(cls, file, line, item: str, rule: str, value=None, *,
+                show_value: bool = True):
+        """``file:line: item: rule (got value)``, with those attributes set."""
+        out = cls(located_text(file, line, item, rule, value, show_value))
+        out.file, out.line, out.item, out.rule, out.value = file, line, item, rule, value
+        return out
 
 
 class HostError(FccgenError, RuntimeError):
