@@ -230,8 +230,8 @@ def _report(solver, report) -> CheckReport:
     with np.errstate(all="ignore"):               # a nan is the answer, not a warning
         forces = solver.applied_forces(init.q, init.v)
     _require_finite(model.source, {"the applied forces (loads and springs)": forces},
-                    "; a load or spring is singular at the start (a torsion spring whose "
-                    "body has no direction perpendicular to its axis?)")
+                    "; a load or spring is singular at the start (a spring whose ends "
+                    "coincide?)")
     say("check: rank decision")
     decision = rank_rule.decide(B, B.shape[1], plan.row_groups)
     rank = max(decision.rank, 0)

@@ -19,7 +19,7 @@ from ..mechanism.initial_positions import assemble_at_joints
 from ..mechanism.initial_speeds import initial_speeds
 from ..mechanism.reactions import add_reactions
 from ..run_settings import linear_solver_choice, solver_tolerances
-from ..errors import SimulationError
+from ..errors import FccgenError, SimulationError
 from ..progress import run_reporter
 from ..plan import Plan
 from ..results import InitialState, Result, timed_run
@@ -327,6 +327,11 @@ class NumericSolver:
                                settings=self.settings())
         except SimulationError as exc:
             raise explained(exc, self, q0, v0, step_setting(m, sched, opts, dt)) from None
+        except FccgenError:
+            raise
+        except (ArithmeticError, ValueError) as exc:  # a load's arithmetic in NumPy
+            raise explained(SimulationError(f"the run cannot be evaluated ({exc})"), self,
+                            q0, v0, step_setting(m, sched, opts, dt)) from None
         finally:
             turn = self.references.largest_turn
             self.references.restore()          # direct kernel calls: as planned
