@@ -95,3 +95,16 @@ def test_frame_points_off_the_axis_keep_their_measure(tmp_path):
     path.write_text(HINGE.format(ixx=I_XX, load=SPRING).replace("axis: [1, 0, 0]",
                                                                "axis: [0, 1, 0]"))
     assert "B_origin" not in fccgen.load_numeric(path).plan.model.points
+
+
+def test_a_torsion_spring_on_a_cylindrical_joint_on_its_axis(tmp_path):
+    """Section 3 of the audit: a torsion spring on a cylindrical joint passed check
+    and failed simulate. On the same axis it swings as the torsion pendulum (gravity
+    along -z does not slide it along x)."""
+    import fccgen
+    path = tmp_path / "cylindrical.yaml"
+    path.write_text(HINGE.format(ixx=I_XX, load=SPRING).replace(
+        "type: revolute, bodies: [a, b]", "type: cylindrical, bodies: [a, b]"))
+    result = fccgen.load_numeric(path).simulate()
+    assert _closed_form_error(result) < 1e-7
+    assert np.max(np.abs(result["B.position"])) < 1e-9
