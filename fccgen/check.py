@@ -37,7 +37,7 @@ from .mechanism.report import DEPENDENT_TOL, dependency_text, dependent_rows, ro
 from . import rank as rank_rule
 from . import rank_sparse
 from .diagnose import explained
-from .errors import BuildError, FccgenError, SimulationError
+from .errors import BuildError, FccgenError, SimulationError, located_text
 from .method_limits import check_notes
 from .methods import names as method_names
 from .progress import Reporter
@@ -187,9 +187,11 @@ def generate_kernels(plan, say=None) -> str:
             try:
                 done = print_class(derive_class(cls))
             except Exception as exc:          # noqa: BLE001 -- any failure is the answer
-                raise BuildError(f"{source}: the kernels of element class {cls.name} "
-                                 f"({cls.describe()}) cannot be generated: "
-                                 f"{type(exc).__name__}: {exc}") from None
+                el = next(e for e in plan.elements if e.cls.key == cls.key)
+                raise BuildError(located_text(
+                    source, el.where.line, el.label,
+                    f"the kernels of element class {cls.name} ({cls.describe()}) cannot "
+                    f"be generated: {type(exc).__name__}: {exc}", show_value=False)) from None
             if len(_PRINTED) >= PRINTED_KEPT:
                 _PRINTED.clear()
             _PRINTED[cls.key] = done
@@ -206,8 +208,10 @@ def generate_kernels(plan, say=None) -> str:
                    [e.name for e in plan.model.events], print_kernels(system),
                    event_hash(system), ["-O2"])
         except Exception as exc:              # noqa: BLE001
-            raise BuildError(f"{source}: the event kernels cannot be generated: "
-                             f"{type(exc).__name__}: {exc}") from None
+            first = plan.model.events[0]
+            raise BuildError(located_text(
+                source, first.where.line, "events", "the event kernels cannot be "
+                f"generated: {type(exc).__name__}: {exc}", show_value=False)) from None
         line += f"; event kernels of {len(plan.model.events)} events too"
     return line
 
