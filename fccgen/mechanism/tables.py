@@ -90,8 +90,8 @@ def _open_table(path: str, source: str, fail) -> bytes:
     except FileNotFoundError:
         raise fail(f"table file does not exist ({table_path(path, source)})") from None
     except (OSError, RuntimeError) as exc:                      # a symlink loop, ...
-        raise fail(f"table file cannot be opened ({getattr(exc, 'strerror', None) or exc})"
-                   ) from None
+        why = os_reason(exc) if isinstance(exc, OSError) else str(exc)
+        raise fail(f"table file cannot be opened ({why})") from None
     if not any(file.is_relative_to(folder) for folder in folders):
         raise fail(f"table file {file} is outside the model file's folder {folders[0]}: "
                    f"a table may read only files under that folder, or under a folder "
