@@ -36,7 +36,8 @@ from .analysis.cables import cable_lines
 from .mechanism.report import DEPENDENT_TOL, dependency_text, dependent_rows, rows_text
 from . import rank as rank_rule
 from . import rank_sparse
-from .errors import BuildError, FccgenError, SimulationError
+from .diagnose import explained
+from .errors import BuildError, FccgenError, SimulationError, located_text
 from .method_limits import check_notes
 from .methods import names as method_names
 from .progress import Reporter
@@ -155,15 +156,14 @@ def check_model(path, progress=None, *, generate: bool = True) -> CheckReport:
     try:
         with single_threaded_blas():     # a spinning OpenBLAS doubled the CPU time of
             report = _report(solver, say)    # the 1000-bar check
-    except SimulationError as exc:
-        if str(exc).startswith(f"{source}:"):
-            raise
-        raise SimulationError(f"{source}: {exc}") from None
+    except SimulationError as exc:       # located at the written state (fccgen.locate)
+        raise explained(exc, solver, *_written_state(solver)) from None
     except FccgenError:                  # ModelError (a ValueError too) names its item
         raise
     except (ArithmeticError, ValueError) as exc:      # an expression at the start, ...
-        raise SimulationError(f"{source}: the initial state cannot be evaluated "
-                              f"({type(exc).__name__}: {exc})") from None
+        raise explained(SimulationError(
+            f"the initial state cannot be evaluated ({type(exc).__name__}: {exc})"),
+            solver, *_written_state(solver)) from None
     report.generation = generate_kernels(solver.plan, say) if generate else NOT_GENERATED
     return report
 
@@ -187,9 +187,11 @@ def generate_kernels(plan, say=None) -> str:
             try:
                 done = print_class(derive_class(cls))
             except Exception as exc:          # noqa: BLE001 -- any failure is the answer
-                raise BuildError(f"{source}: the kernels of element class {cls.name} "
-                                 f"({cls.describe()}) cannot be generated: "
-                                 f"{type(exc).__name__}: {exc}") from None
+                el = next(e for e in plan.elements if e.cls.key == cls.key)
+                raise BuildError(located_text(
+                    source, el.where.line, el.label,
+                    f"the kernels of element class {cls.name} ({cls.describe()}) cannot "
+                    f"be generated: {type(exc).__name__}: {exc}", show_value=False)) from None
             if len(_PRINTED) >= PRINTED_KEPT:
                 _PRINTED.clear()
             _PRINTED[cls.key] = done
@@ -206,8 +208,10 @@ def generate_kernels(plan, say=None) -> str:
                    [e.name for e in plan.model.events], print_kernels(system),
                    event_hash(system), ["-O2"])
         except Exception as exc:              # noqa: BLE001
-            raise BuildError(f"{source}: the event kernels cannot be generated: "
-                             f"{type(exc).__name__}: {exc}") from None
+            first = plan.model.events[0]
+            raise BuildError(located_text(
+                source, first.where.line, "events", "the event kernels cannot be "
+                f"generated: {type(exc).__name__}: {exc}", show_value=False)) from None
         line += f"; event kernels of {len(plan.model.events)} events too"
     return line
 
@@ -230,8 +234,8 @@ def _report(solver, report) -> CheckReport:
     with np.errstate(all="ignore"):               # a nan is the answer, not a warning
         forces = solver.applied_forces(init.q, init.v)
     _require_finite(model.source, {"the applied forces (loads and springs)": forces},
-                    "; a load or spring is singular at the start (a torsion spring whose "
-                    "body has no direction perpendicular to its axis?)")
+                    "; a load or spring is singular at the start (a spring whose ends "
+                    "coincide?)")
     say("check: rank decision")
     decision = rank_rule.decide(B, B.shape[1], plan.row_groups)
     rank = max(decision.rank, 0)
@@ -267,11 +271,14 @@ def _initial_state(solver):
             warnings.simplefilter("error", RuntimeWarning)
             return solver.initial_state()
     except (RuntimeWarning, ArithmeticError) as exc:
-        raise SimulationError(
-            f"{solver.plan.model.source}: the initial state cannot be evaluated ({exc}): "
-            "a load or spring is singular at the start (one that reads the angle of a "
-            "hinge whose bodies' frame points lie on its axis has no reference "
-            "direction?)") from None
+        raise explained(SimulationError(
+            f"the initial state cannot be evaluated ({exc}): a load or spring is "
+            "singular at the start"), solver, *_written_state(solver)) from None
+
+
+def _written_state(solver):
+    """(q, v) as the model file writes them, where a failure at the start is located."""
+    return np.array(solver.plan.q0, float), np.array(solver.plan.v_target, float)
 
 
 def _large_rows(B, labels, rank, groups, notes, say,

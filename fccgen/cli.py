@@ -23,6 +23,7 @@ from . import __version__
 from .cli_progress import ProgressDisplay as _Progress
 from .cli_progress import write_line
 from .errors import (CacheRepairWarning, FccgenError, ModelError, PartialResultWarning,
+                     os_reason, shown_path,
                      RunWarning)
 from .methods import describe as describe_methods
 from .methods import names as method_names
@@ -427,8 +428,8 @@ def _guarded(args, progress) -> int:
     except (FccgenError, ValueError) as exc:
         return _error(progress, f"error: {exc}{_partial_note(exc, args)}", 1)
     except OSError as exc:      # anything the library did not word itself
-        where = f" {exc.filename}" if exc.filename else ""
-        return _error(progress, f"error: cannot use{where}: {exc.strerror or exc}", 1)
+        where = f" {shown_path(exc.filename)}" if exc.filename else ""
+        return _error(progress, f"error: cannot use{where}: {os_reason(exc)}", 1)
 
 
 def _run(args, progress) -> int:

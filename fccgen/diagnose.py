@@ -14,35 +14,52 @@ import numpy as np
 from .errors import SimulationError
 
 
-def massless_motion(plan, M: np.ndarray, B: np.ndarray, top: int = 4) -> str:
-    """A sentence naming the coordinates (and the model items that use them) of the
-    motion with the least kinetic energy, or '' when M is positive definite on the
-    null space of B."""
+def massless_users(plan, M: np.ndarray, B: np.ndarray, top: int = 4):
+    """(coordinate names, labels of the model items using them) of the motion with the
+    least kinetic energy, or None when M is positive definite on the null space of B."""
     import scipy.linalg                  # only on this (rare) path
     N = scipy.linalg.null_space(B) if B.size else np.eye(M.shape[0])
     if N.shape[1] == 0:
-        return ""
+        return None
     w, z = np.linalg.eigh(N.T @ M @ N)
     scale = max(float(np.max(np.abs(np.diag(M)))), 1e-300)
     if w[0] > 1e-12 * scale:
-        return ""
+        return None
     x = N @ z[:, 0]
     order = np.argsort(-np.abs(x))
     coords = [int(i) for i in order[:top] if abs(x[i]) > 0.1 * abs(x[order[0]])]
     names = [f"{plan.triples[i // 3][0]}.{'xyz'[i % 3]}" for i in coords]
     slots = {i // 3 for i in coords}
     users = sorted({el.label for el in plan.elements if slots & set(el.slots)})
+    return names, users
+
+
+def massless_motion(plan, M: np.ndarray, B: np.ndarray, top: int = 4) -> str:
+    """A sentence naming the coordinates (and the model items that use them) of the
+    motion with the least kinetic energy, or '' when M is positive definite on the
+    null space of B."""
+    found = massless_users(plan, M, B, top)
+    if found is None:
+        return ""
+    names, users = found
     text = (f"the motion with no mass or inertia moves {', '.join(names)}")
     if users:
         text += f" (used by {', '.join(users[:6])}{', ...' if len(users) > 6 else ''})"
     return text + ("; give those bodies mass and inertia, or constrain that motion")
 
 
-def explained(exc: SimulationError, solver, q) -> SimulationError:
-    """exc with the model file in front and, for a singular mass matrix, the motion
-    without inertia named (fccgen.diagnose); attributes such as partial_result are
-    kept."""
+def explained(exc: SimulationError, solver, q, v=None, setting=None) -> SimulationError:
+    """exc as a located SimulationError (fccgen.locate): the model file, the line and
+    the item it comes from, the solver's own sentence as the rule and, for a singular
+    mass matrix, the motion without inertia named; attributes such as partial_result
+    are kept. setting: (name, value, given) of the run's step setting."""
+    from .locate import failure_state, locate
+    if getattr(exc, "item", None) is not None:
+        return exc
     text = str(exc)
+    source = str(solver.plan.model.source)
+    if text.startswith(f"{source}: "):
+        text = text[len(source) + 2:]
     if "singular" in text:
         try:
             hint = massless_motion(solver.plan, solver.mass_matrix(q),
@@ -51,9 +68,9 @@ def explained(exc: SimulationError, solver, q) -> SimulationError:
             hint = ""
         if hint:
             text += f"; {hint}"
-    source = str(solver.plan.model.source)
-    if not text.startswith(source):
-        text = f"{source}: {text}"
-    out = SimulationError(text)
-    out.__dict__.update(exc.__dict__)
+    qs, vs, ts = failure_state(exc, q, v)
+    where = locate(solver, text, qs, vs, ts, setting)
+    out = SimulationError.located(source, where.line, where.item, text, where.value)
+    out.__dict__.update({k: x for k, x in exc.__dict__.items()
+                         if k not in ("file", "line", "item", "rule", "value")})
     return out

@@ -60,11 +60,37 @@ class ModelError(FccgenError, ValueError):
         self.item = item
         self.rule = rule
         self.value = value
-        where = f"{file}:{line}" if line is not None else f"{file}"
-        text = f"{where}: {clip(item, SHOWN_ITEM_CHARS)}: {clip(rule, SHOWN_RULE_CHARS)}"
-        if show_value:
-            text += f" (got {shown(value)})"
-        super().__init__(text)
+        super().__init__(located_text(file, line, item, rule, value, show_value))
+
+
+def shown_path(path, limit: int = SHOWN_ITEM_CHARS) -> str:
+    """A path as a message shows it: whole up to ``limit`` characters, else its end
+    (the file's own name) after how long it was."""
+    text = str(path)
+    if len(text) <= limit:
+        return text
+    return f"({len(text)} characters) ...{text[-limit:]}"
+
+
+def os_reason(exc: OSError) -> str:
+    """Why an OSError happened, in the user's words: a name or path too long for the
+    file system says so and what to do, rather than the system's "File name too
+    long"."""
+    import errno as codes
+    if exc.errno == codes.ENAMETOOLONG:
+        return ("its path is longer than the file system allows (at most 255 bytes a "
+                "folder or file name, 4096 the whole path); use a shorter name or folder")
+    return exc.strerror or str(exc)
+
+
+def located_text(file, line, item: str, rule: str, value=None, show_value: bool = True):
+    """``file:line: item: rule (got value)``, cut as ModelError's message is."""
+    file = shown_path(file)
+    where = f"{file}:{line}" if line is not None else f"{file}"
+    text = f"{where}: {clip(item, SHOWN_ITEM_CHARS)}: {clip(rule, SHOWN_RULE_CHARS)}"
+    if show_value:
+        text += f" (got {shown(value)})"
+    return text
 
 
 class BuildError(FccgenError, RuntimeError):
@@ -74,7 +100,20 @@ class BuildError(FccgenError, RuntimeError):
 
 class SimulationError(FccgenError, RuntimeError):
     """A simulation cannot go on (singular mass matrix on the constraint manifold,
-    failed assembly, non-finite state)."""
+    failed assembly, non-finite state).
+
+    :meth:`located` makes one that names the model item it comes from as a ModelError
+    does (``file``, ``line``, ``item``, ``rule``, ``value``; fccgen.locate)."""
+
+    file = line = item = rule = value = None
+
+    @classmethod
+    def located(cls, file, line, item: str, rule: str, value=None, *,
+                show_value: bool = True):
+        """``file:line: item: rule (got value)``, with those attributes set."""
+        out = cls(located_text(file, line, item, rule, value, show_value))
+        out.file, out.line, out.item, out.rule, out.value = file, line, item, rule, value
+        return out
 
 
 class HostError(FccgenError, RuntimeError):
@@ -105,9 +144,14 @@ class HostError(FccgenError, RuntimeError):
             advice = f"free some space{elsewhere}"
         elif exc.errno in (codes.ENOTDIR, codes.EEXIST, codes.EISDIR):
             advice = f"a file or folder of that name is in the way: move it{elsewhere}"
+        elif exc.errno == codes.ENAMETOOLONG:
+            reason = ("the path is longer than the file system allows (at most 255 bytes "
+                      "a folder or file name, 4096 the whole path)")
+            advice = f"use a shorter name or folder{elsewhere}"
         else:
             advice = f"check the path{elsewhere}"
-        where = exc.filename if (name_file and exc.filename is not None) else path
+        where = shown_path(exc.filename if (name_file and exc.filename is not None)
+                           else path)
         return cls(f"cannot {doing} {where}: {reason}. To fix it, {advice}.",
                    errno=exc.errno)
 

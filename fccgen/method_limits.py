@@ -29,10 +29,15 @@ def reason(model, method: str) -> str:
 def refuse(model, method: str | None) -> None:
     """ValueError naming the model file when ``method`` (None: the model's own)
     cannot run ``model``."""
+    from .errors import located_text
     method = model.simulate.method if method is None else method
     why = reason(model, method)
     if why:
-        raise ValueError(f"{model.source}: {why}")
+        first = model.events[0]
+        limit = first.joint is not None and first.name in (f"{first.joint}_lower",
+                                                            f"{first.joint}_upper")
+        item = f"joints.{first.joint}.limits" if limit else f"events.{first.name}"
+        raise ValueError(located_text(model.source, first.where.line, item, why, method))
 
 
 def check_notes(model, methods) -> list[str]:

@@ -74,10 +74,11 @@ def test_simulate_refuses_ali3p_on_a_model_with_events_before_building(tmp_path,
                  "--build-dir", str(build), "-q"])
     out, err = capsys.readouterr()
     assert code == 1 and out == ""
-    assert err == (f"fccgen: error: {EXAMPLES / 'pendulum_limit.yaml'}: method ali3p does "
+    assert err == (f"fccgen: error: {EXAMPLES / 'pendulum_limit.yaml'}:13: joints.A.limits: "
+                   "method ali3p does "
                    "not take models with events (this one has A_lower, A_upper, quarter): "
                    "its trapezoidal step has no event location yet, nor the lock and "
-                   "bounce projections; use rk4 or dopri5 (docs/events.md)\n")
+                   "bounce projections; use rk4 or dopri5 (docs/events.md) (got 'ali3p')\n")
     assert not build.exists()
 
 

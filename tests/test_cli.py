@@ -158,7 +158,7 @@ def test_partial_result_only_when_asked(stop, keep, cli_build_dir, tmp_path, cap
     partial = tmp_path / "run.partial.csv"
     if not keep:
         assert list(tmp_path.iterdir()) == []
-        assert err.endswith("(test); no results written\n" if stop == "error" else
+        assert err.endswith("(test) (got 0.001); no results written\n" if stop == "error" else
                             "fccgen: interrupted; no results written\n")
         return
     assert err.endswith(f"partial result written to {partial}\n")

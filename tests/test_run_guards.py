@@ -71,6 +71,7 @@ def test_singular_mass_matrix_names_the_file_and_the_massless_motion(
     path = tmp_path / "massless_tip.yaml"
     path.write_text(MASSLESS_TIP)
     solver = fccgen.load_numeric(path) if numeric else fccgen.load(path, build_dir)
-    with pytest.raises(SimulationError, match=r"massless_tip\.yaml: .*singular.*moves "
+    with pytest.raises(SimulationError, match=r"massless_tip\.yaml:13: bodies\.tip: "
+                                              r".*singular.*moves "
                                               r"Q\.y \(used by bodies\.tip\)"):
         solver.initial_state()

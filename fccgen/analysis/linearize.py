@@ -29,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..diagnose import explained
 from ..errors import SimulationError
 from .tangent import (amax, bases, central_jacobian, cube_root_step, curvature,
                       min_norm_multipliers, step_size)
@@ -65,7 +66,7 @@ def linearize(solver, q, v=None) -> Linearization:
     N, Y, _ = bases(solver, q)
     M = solver.mass_matrix(q)
     M_r = N.T @ M @ N
-    _check_inertia(solver, M_r)
+    _check_inertia(solver, M_r, q)
     B = solver.constraint_jacobian(q)
     a = np.asarray(solver.accelerations(q, v), float)
     lam = min_norm_multipliers(B, solver.applied_forces(q, v) - solver.h_vector(q, v)
@@ -89,7 +90,7 @@ def linearize(solver, q, v=None) -> Linearization:
     return Linearization(q=q, v=v, null_basis=N, range_basis=Y, M_r=M_r, C_r=C_r, K_r=K_r)
 
 
-def _check_inertia(solver, M_r) -> None:
+def _check_inertia(solver, M_r, q) -> None:
     """Refuse a reduced mass matrix that is singular: its diagonal-scaled form
     D^-1/2 M_r D^-1/2 (independent of the units of each z) has an eigenvalue at or
     below 1e-12 of its largest, or a diagonal entry is not positive."""
@@ -102,10 +103,10 @@ def _check_inertia(solver, M_r) -> None:
         eig = np.linalg.eigvalsh(0.5 * (M_r + M_r.T) * np.outer(s, s))
         ok = eig[0] > 1e-12 * eig[-1]
     if not ok:
-        raise SimulationError(f"{solver.plan.model.source}: the reduced mass matrix "
-                              "N^T M N is singular: a motion without inertia (a "
-                              "massless body, or mass with no inertia about a free "
-                              "axis); modes are not defined")
+        raise explained(SimulationError("the reduced mass matrix N^T M N is singular: a "
+                                        "motion without inertia (a massless body, or "
+                                        "mass with no inertia about a free axis); modes "
+                                        "are not defined"), solver, q)
 
 
 def state_from_z(lin: Linearization, solver, z, zdot, tol=1e-13, max_iterations=30):

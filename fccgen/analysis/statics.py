@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import SimulationError
+from ..locate import loads_location
 from .tangent import amax, bases, curvature, min_norm_multipliers
 
 FORCE_RTOL = 1e-11       # max |N^T f| relative to the largest applied force entry
@@ -142,12 +143,14 @@ def statics(solver, q0=None, *, force_rtol=FORCE_RTOL, max_iterations=MAX_ITERAT
             continue
         ds *= 0.5
         if ds < min_load_step:
-            raise SimulationError(
+            where = loads_location(solver.plan.model)
+            raise SimulationError.located(
+                solver.plan.model.source, where.line, where.item,
                 f"statics: Newton's method did not converge at load factor "
                 f"{target:.6g} even with load steps of {2 * ds:.3g} (reached load factor "
                 f"{s:.6g} after {iterations} iterations): the loads may have no "
                 f"equilibrium (e.g. a free body under gravity); 'fccgen modes --about "
-                f"initial' linearizes about the initial state instead")
+                f"initial' linearizes about the initial state instead", where.value)
     return _equilibrium(solver, q, iterations, steps)
 
 

@@ -73,12 +73,50 @@ def with_joint_uses(lowerer, ld):
     return replace(ld, joints=tuple(uses))
 
 
+# A side measures an angle about the axis by its direction's part perpendicular to
+# the axis; a direction along the axis has none, and one nearly along it measures the
+# coordinates' rounding. The body's frame points i, j measure it when their line is at
+# least this sine off the axis (the kernels of existing models stay as they were),
+# else the better of them and the body's unit vector u. The body rules keep u at
+# least 1e-3 (sine) off r_ij (fccgen.model.checks.PARALLEL_SIN), so one of the two is
+# about 5e-4 or more off any axis.
+SIDE_SIN_PREFERRED = 0.1
+
+
+def body_side(lowerer, j, body: str, origin: str, what: str):
+    """Two triples (r_i, r_j) of ``body`` (not ground) whose difference is a direction
+    of the body off the joint axis: its frame points i, j, or, when they lie along the
+    axis, a fixed point ``origin`` at 0 and the body's unit vector u (u - 0 = u).
+    ``origin`` is made once and shared by both sides and every reader of the joint's
+    angle; ``what`` names the reader in a clash of names."""
+    if body in lowerer.frames:
+        i, jj, u = lowerer.frames[body]
+    else:
+        i, jj, u = (lowerer.bodies[body].i, lowerer.bodies[body].j, lowerer.bodies[body].u)
+    axis = np.asarray(j.axes[0], float)
+    axis = axis / np.linalg.norm(axis)
+    pair = _off_axis(lowerer.points[jj].at - lowerer.points[i].at, axis)
+    if pair >= SIDE_SIN_PREFERRED or pair >= _off_axis(lowerer.vectors[u].along, axis):
+        return i, jj
+    if origin in lowerer.taken:
+        raise lowerer.clash(j.where.line, f"joints.{j.name}", origin, what)
+    if origin not in lowerer.points:                 # both sides share it
+        lowerer.points[origin] = Point(origin, np.zeros(3), True, j.where)
+    return origin, u
+
+
+def _off_axis(direction, axis) -> float:
+    """Sine of the angle between ``direction`` and the unit ``axis`` (0: along it)."""
+    d = np.asarray(direction, float)
+    n = float(np.linalg.norm(d))
+    return float(np.linalg.norm(np.cross(d, axis)) / n) if n > 0.0 else 0.0
+
+
 def _side(lowerer, j, body: str) -> tuple[str, str]:
-    """Two points of ``body`` whose difference is not along the joint axis."""
+    """Two triples of ``body`` whose difference is not along the joint axis."""
     if body != GROUND:
-        if body in lowerer.frames:
-            return lowerer.frames[body][:2]
-        return (lowerer.bodies[body].i, lowerer.bodies[body].j)
+        return body_side(lowerer, j, body, f"{j.name}_origin",
+                         "a load reading this joint's angle")
     names = (f"{j.name}_load0", f"{j.name}_load1")
     if names[0] not in lowerer.points:
         at = (j.at[0], j.at[0] + perpendiculars(j.axes[0])[0])

@@ -31,7 +31,7 @@ from ..model.types import (GROUND, Angle, Attached, BodyPoint, Distance, DriverR
 from ..plan.geometry import body_rotation
 from .bodies import choose_frame, typical_body
 from .cables import lower_cables
-from .joint_loads import with_joint_uses
+from .joint_loads import body_side, with_joint_uses
 
 # |nu3| (the component of a tied vector along the body's e3) from which its two-row
 # form (components on e1, e2) is used: below it the two rows lose rank as w nears
@@ -212,10 +212,9 @@ class _Lowerer:
                     self.points[name] = Point(name, np.asarray(value, float), True,
                                               ld.where)
                 sides.append(names)
-            elif body in self.frames:
-                sides.append(self.frames[body][:2])
             else:
-                sides.append((self.bodies[body].i, self.bodies[body].j))
+                sides.append(body_side(self, j, body, f"{j.name}_origin",
+                                       "this joint's torsion spring"))
         return TorsionSpring(j.bodies, f"{j.name}_axis", ld.stiffness, ld.free,
                              ld.damping, ld.where, sides=tuple(sides))
 

@@ -43,7 +43,7 @@ import numpy as np
 import sympy
 from scipy.interpolate import CubicSpline
 
-from ..errors import ModelError
+from ..errors import ModelError, os_reason
 
 # Each interval prints as about 190 bytes of C; gcc -O2 compiled a 1,000-row table
 # (value times second derivative, 385 kB) in 8 s and 0.2 GB, a 10,000-row one in 125 s
@@ -90,8 +90,8 @@ def _open_table(path: str, source: str, fail) -> bytes:
     except FileNotFoundError:
         raise fail(f"table file does not exist ({table_path(path, source)})") from None
     except (OSError, RuntimeError) as exc:                      # a symlink loop, ...
-        raise fail(f"table file cannot be opened ({getattr(exc, 'strerror', None) or exc})"
-                   ) from None
+        why = os_reason(exc) if isinstance(exc, OSError) else str(exc)
+        raise fail(f"table file cannot be opened ({why})") from None
     if not any(file.is_relative_to(folder) for folder in folders):
         raise fail(f"table file {file} is outside the model file's folder {folders[0]}: "
                    f"a table may read only files under that folder, or under a folder "
@@ -100,7 +100,7 @@ def _open_table(path: str, source: str, fail) -> bytes:
         fd = os.open(file, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0)
                      | getattr(os, "O_NOFOLLOW", 0))
     except OSError as exc:
-        raise fail(f"table file cannot be opened ({exc.strerror or exc})") from None
+        raise fail(f"table file cannot be opened ({os_reason(exc)})") from None
     try:
         info = os.fstat(fd)
         if not stat.S_ISREG(info.st_mode):
@@ -110,7 +110,7 @@ def _open_table(path: str, source: str, fail) -> bytes:
         with os.fdopen(fd, "rb", closefd=False) as f:
             data = f.read(MAX_BYTES + 1)
     except OSError as exc:
-        raise fail(f"table file cannot be read ({exc.strerror or exc})") from None
+        raise fail(f"table file cannot be read ({os_reason(exc)})") from None
     finally:
         os.close(fd)
     if len(data) > MAX_BYTES:

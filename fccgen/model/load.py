@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import ModelError
+from ..errors import ModelError, os_reason
 from ..methods import EVENT_METHODS, names as _method_names
 from . import checks
 from .events import EventReader
@@ -49,7 +49,7 @@ def load_model(path) -> Model:
                          show_value=False) from None
     except OSError as exc:
         raise ModelError(source, None, "model file",
-                         f"cannot be read ({exc.strerror or exc})", show_value=False) from None
+                         f"cannot be read ({os_reason(exc)})", show_value=False) from None
     if len(text) > MAX_INPUT_CHARS:
         raise ModelError(source, None, "model file", f"is longer than {MAX_INPUT_CHARS} "
                          "characters, the most a model file may hold", show_value=False)

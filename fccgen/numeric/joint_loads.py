@@ -66,10 +66,11 @@ def _dual(node: ast.AST, env: dict) -> tuple[float, np.ndarray]:
             return a * b, da * b + a * db
         if op is ast.Div:
             return a / b, (da * b - a * db) / (b * b)
-        if not db.any():                                     # a ** constant
+        if op is ast.Pow and not db.any():                   # a ** constant
             return a ** b, (b * a ** (b - 1.0) if b != 0.0 else 0.0) * da
-        value = a ** b
-        return value, value * (db * math.log(a) + b * da / a)
+        if op is ast.Pow:
+            value = a ** b
+            return value, value * (db * math.log(a) + b * da / a)
     if isinstance(node, ast.Call):
         args = [_dual(x, env) for x in node.args]
         name = node.func.id
@@ -82,7 +83,8 @@ def _dual(node: ast.AST, env: dict) -> tuple[float, np.ndarray]:
             return math.atan2(y, x), (x * dy - y * dx) / (x * x + y * y)
         pick = min if name == "min" else max
         return pick(args, key=lambda z: z[0])
-    raise ValueError(f"not in the restricted grammar: {ast.dump(node)}")
+    raise ValueError(f"{ast.unparse(node)!r} is not in the restricted grammar "
+                     "(docs/expressions.md)")
 
 
 @lru_cache(maxsize=None)
@@ -158,7 +160,11 @@ class _JointLoad:
                 pairs = (("position", a, ga, 0 * ga), ("speed", r, gr, ga))
             for name, value, gq, gv in pairs:
                 env[f"{joint}.{name}"] = (value, np.concatenate([gq, gv]))
-        rows = [_dual(tree, env) for tree in _trees(cls.function.split("|", 1)[1])]
+        text = cls.function.split("|", 1)[1]
+        try:
+            rows = [_dual(tree, env) for tree in _trees(text)]
+        except ValueError as exc:         # the user's text, never a syntax tree
+            raise ValueError(f"the load {text.replace(';', ', ')!r}: {exc}") from None
         for name, (value, _) in zip(self.names, rows):
             x.s[name] = value
         self.dF = np.array([g for _, g in rows])         # 3 x 2 n_q

@@ -12,13 +12,14 @@ import numpy as np
 from .. import methods as registry
 from .. import rank as rank_rule
 from ..diagnose import explained
+from ..locate import step_setting
 from ..mechanism.driver_branch import check_driver_branches
 from ..mechanism.driver_forces import add_driver_columns, driver_rows
 from ..mechanism.initial_positions import assemble_at_joints
 from ..mechanism.initial_speeds import initial_speeds
 from ..mechanism.reactions import add_reactions
 from ..run_settings import linear_solver_choice, solver_tolerances
-from ..errors import SimulationError
+from ..errors import FccgenError, SimulationError
 from ..progress import run_reporter
 from ..plan import Plan
 from ..results import InitialState, Result, timed_run
@@ -244,7 +245,12 @@ class NumericSolver:
         """plan.q0 assembled onto the constraints and plan.v_target made consistent."""
         self.set_time(0.0)
         q_given = np.array(self.plan.q0, float)
-        q, iterations = self.project_positions(q_given)
+        try:
+            q, iterations = self.project_positions(q_given)
+        except SimulationError as exc:
+            raise explained(SimulationError(
+                f"the initial positions cannot be assembled onto the constraints: {exc}"),
+                self, q_given) from None
         q = assemble_at_joints(self, q)
         self.decide_rank(q)
         v_given = np.array(self.plan.v_target, float)
@@ -320,7 +326,12 @@ class NumericSolver:
             result = timed_run(self.plan, m, sched, opts, project, run,
                                settings=self.settings())
         except SimulationError as exc:
-            raise explained(exc, self, q0) from None
+            raise explained(exc, self, q0, v0, step_setting(m, sched, opts, dt)) from None
+        except FccgenError:
+            raise
+        except (ArithmeticError, ValueError) as exc:  # a load's arithmetic in NumPy
+            raise explained(SimulationError(f"the run cannot be evaluated ({exc})"), self,
+                            q0, v0, step_setting(m, sched, opts, dt)) from None
         finally:
             turn = self.references.largest_turn
             self.references.restore()          # direct kernel calls: as planned

@@ -110,8 +110,8 @@ def _eval(node: ast.AST, t: Jet) -> Jet:
             return _atan2(*args)
         if name in ("min", "max") and len(args) >= 2:
             return (min if name == "min" else max)(args, key=lambda j: j[0])
-    raise ValueError(f"not an expression of t in the restricted grammar: "
-                     f"{ast.dump(node)}")
+    raise ValueError(f"{ast.unparse(node)!r} is not an expression of t in the "
+                     "restricted grammar (docs/expressions.md)")
 
 
 def table_jet(text: str) -> Callable[[float], Jet]:
@@ -142,5 +142,8 @@ def time_function(text: str) -> Callable[[float], Jet]:
     tree = ast.parse(text.strip(), mode="eval").body
 
     def evaluate(time: float) -> Jet:
-        return _eval(tree, (float(time), 1.0, 0.0))
+        try:
+            return _eval(tree, (float(time), 1.0, 0.0))
+        except ValueError as exc:         # the user's text, never a syntax tree
+            raise ValueError(f"the expression {text.strip()!r}: {exc}") from None
     return evaluate

@@ -343,7 +343,7 @@ def _torsion_spring(b: _Builder, ld: TorsionSpring, label: str) -> Element:
     u = np.asarray(m.vectors[ld.axis].along, float)
     ref, lam = [], []
     for i, j in sides:
-        rij = np.asarray(m.points[j].at, float) - np.asarray(m.points[i].at, float)
+        rij = np.asarray(b.value(j), float) - np.asarray(b.value(i), float)
         lam.append(float(rij @ u))                   # l beta
         ref.append(rij - lam[-1] * u)
     theta_init = float(np.arctan2(u @ np.cross(ref[0], ref[1]), ref[0] @ ref[1]))

@@ -14,6 +14,7 @@ import numpy as np
 from .. import methods as registry
 from .. import rank as rank_rule
 from ..diagnose import explained
+from ..locate import step_setting
 from ..mechanism.driver_branch import check_driver_branches
 from ..mechanism.driver_forces import add_driver_columns, driver_rows
 from ..mechanism.initial_positions import assemble_at_joints
@@ -245,8 +246,9 @@ class CompiledSolver:
         try:
             q, iterations = self.project_positions(q_given)
         except SimulationError as exc:
-            raise SimulationError(f"{plan.model.source}: the initial positions cannot be "
-                                  f"assembled onto the constraints: {exc}") from None
+            raise explained(SimulationError(
+                f"the initial positions cannot be assembled onto the constraints: {exc}"),
+                self, q_given) from None
         q = assemble_at_joints(self, q)
         self.decide_rank(q)
         try:
@@ -365,7 +367,7 @@ class CompiledSolver:
             result = timed_run(self.plan, m, sched, opts, project, run,
                                settings=self.settings())
         except SimulationError as exc:
-            raise explained(exc, self, q0) from None
+            raise explained(exc, self, q0, v0, step_setting(m, sched, opts, dt)) from None
         finally:
             if events is not None:
                 log, turn = events.log(), events.largest_turn
