@@ -265,7 +265,7 @@ def reactions(solver, result, sparse: bool | None = None) -> tuple[dict[str, np.
     cols = {f"{jl.joint.name}.{c}": np.empty(n)
             for jl in plan.model.mechanism.joints for c in COMPONENTS}
     turns: dict[int, float] = {}
-    ranks, unknowns, dense, worst = [], 0, 0, 0.0
+    ranks, unknowns, dense, worst, patterns = [], 0, 0, 0.0, {}
     for start in range(0, n, chunk):
         rows = slice(start, min(n, start + chunk))
         q = np.column_stack([result.columns[f"{t}.{c}"][rows] for t in names for c in "xyz"])
@@ -279,7 +279,7 @@ def reactions(solver, result, sparse: bool | None = None) -> tuple[dict[str, np.
         at = [(body, e, motion.triple(point)[0] - motion.centre(body)[0])
               for body, e, point in drivers]
         balance = system(plan, motion, index, applied(plan, motion, index, turns), at)
-        x, rank, solved_dense, res = solve_records(balance, sparse)
+        x, rank, solved_dense, res = solve_records(balance, sparse, patterns)
         ranks.append(rank)
         unknowns, dense, worst = balance.shape[1], dense + solved_dense, max(worst, res)
         _fill(cols, plan, balance.spans, x, rows)
