@@ -118,3 +118,18 @@ def test_the_example_generator_writes_a_loadable_model(tmp_path):
     assert example_module("make_panel_array").main(["make", "3", str(path)]) == 0
     plan = fccgen.api.plan_model(path)
     assert len(plan.model.mechanism.joints) == 3
+
+
+def test_a_band_too_wide_takes_superlu_with_the_same_answer(panels, monkeypatch):
+    """Structures whose E^T E is not banded in the Cuthill-McKee order factorise it by
+    SuperLU in symmetric mode, certified by its inertia."""
+    from fccgen.mechanism import reaction_solve
+    solver, _ = panels
+    result = _run(solver, t_end=0.05)
+    banded, _ = reactions(solver, result)
+    monkeypatch.setattr(reaction_solve, "BAND_FILL", 0)
+    wide, info = reactions(solver, result)
+    dense, _ = reactions(solver, result, sparse=False)
+    assert info["dense_records"] == 0
+    assert _worst(wide, dense) <= SPARSE_VS_DENSE * _largest(dense)
+    assert _worst(banded, dense) <= SPARSE_VS_DENSE * _largest(dense)
