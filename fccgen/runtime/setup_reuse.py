@@ -109,8 +109,9 @@ def kept_initial_state(solver, compute):
     if not reused:
         state = compute()
         store.put(key, state)
-    else:
-        solver.decide_rank(state.q)            # as a fresh one leaves the engine
+    else:                                      # as a fresh one leaves the solver:
+        solver.set_time(0.0)                   # at t = 0, the rank decided at q
+        solver.decide_rank(state.q)
     within = store.log.get("rank_decision", {}).get("seconds", 0.0) - within
     store.record("initial_state", time.process_time() - start - within, reused)
     return replace(state, q=np.array(state.q, dtype=float), v=np.array(state.v, dtype=float))
