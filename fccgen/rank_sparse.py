@@ -39,7 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
-from scipy.sparse.linalg import eigsh, splu
+from scipy.sparse.linalg import ArpackError, eigsh, splu
 
 from .rank import (AMBIGUOUS_LOW, DECIDE_TOL, GROW_TOL, RankDecision, dense_decision,
                    scales_from_norms)
@@ -137,8 +137,12 @@ def largest(G) -> float:
     """sigma_1 = sqrt(the largest eigenvalue of G) (Lanczos, a fixed start vector)."""
     if G.shape[0] <= 2:
         return float(np.sqrt(np.linalg.eigvalsh(G.toarray())[-1]))
-    value = eigsh(G, k=1, which="LA", v0=np.ones(G.shape[0]), tol=1e-10,
-                  return_eigenvectors=False)            # sigma_1 to ~1e-10 relative
+    try:
+        value = eigsh(G, k=1, which="LA", v0=np.ones(G.shape[0]), tol=1e-10,
+                      return_eigenvectors=False)        # sigma_1 to ~1e-10 relative
+    except ArpackError:      # the ones vector in G's null space: a fixed random start
+        value = eigsh(G, k=1, which="LA", tol=1e-10, return_eigenvectors=False,
+                      v0=np.random.default_rng(0).standard_normal(G.shape[0]))
     return float(np.sqrt(value[0]))
 
 

@@ -16,8 +16,10 @@ orthonormal columns; a joint's drivers widen it by the driven direction, so its
 reaction holds the motor's torque (force) too. A coordinate driver of a point adds
 one unknown, the force x e along its direction e at the point, on the one moving body
 that carries the point (a point two bodies share is refused). The rows of all moving
-bodies stacked give E x = b per result row, solved by the pseudo-inverse (an SVD per
-row). Where E has fewer independent columns than unknowns (redundant constraints,
+bodies stacked give E x = b per result row (:mod:`.reaction_system`: E sparse, its
+pattern fixed), solved by the pseudo-inverse, a record at a time and a chunk of records
+at a time (:mod:`.reaction_solve`: a certified sparse factorisation per record, the SVD
+where it cannot certify). Where E has fewer independent columns than unknowns (redundant constraints,
 e.g. a planar four-bar of revolutes) the reactions are not unique and the
 minimum-norm x (in N and N m together) is reported, with
 ``info["reactions"]["unique"]`` false.
@@ -33,18 +35,22 @@ item.
 """
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
-from ..errors import ModelError, SimulationError
+from ..errors import ModelError, RunWarning, SimulationError
 from ..model.types import (GROUND, Attached, BodyPoint, DriverRow, Force,
                            LinearSpring, Spring, Torque, TorsionSpring)
 from .body_motion import Motion
-from .reaction_bases import COMPONENTS, bases
+from .reaction_bases import COMPONENTS
+from .reaction_solve import solve_records
+from .reaction_system import system
 
-# Relative singular value of E (its largest = 1) below which a direction counts as
-# lost: redundant constraints give singular values at the level of the recorded
-# constraint error (~1e-11 of a length), real ones are O(1) in N and N m per metre.
-RANK_RTOL = 1e-8
+# Bytes of working arrays per chunk of records (body frames, the balance's blocks and
+# right-hand sides): the records are solved a chunk at a time, so that the memory of
+# the reactions does not grow with the length of the run.
+CHUNK_BYTES = 48 * 2 ** 20
 
 
 def _refuse(item_where, item: str, rule: str, value=None) -> ModelError:
@@ -136,8 +142,10 @@ def _driven_body(plan, held, row, k) -> str:
     return bodies[0]
 
 
-def applied(plan, motion: Motion, index: dict[str, int]) -> np.ndarray:
-    """(n, 6 n_b) applied forces and torques about each moving body's mass centre."""
+def applied(plan, motion: Motion, index: dict[str, int], turns=None) -> np.ndarray:
+    """(n, 6 n_b) applied forces and torques about each moving body's mass centre.
+    turns: per torsion spring, the unwrapped angle of the record before the first of
+    ``motion`` (updated in place; None: these records start the run)."""
     model = plan.model
     out = np.zeros((motion.n, 6 * len(index)))
     centres = {b: motion.centre(b)[0] for b in index}
@@ -166,7 +174,7 @@ def applied(plan, motion: Motion, index: dict[str, int]) -> np.ndarray:
         elif isinstance(ld, Spring):
             _spring(plan, motion, held, ld, k, add)
         elif isinstance(ld, TorsionSpring):
-            _torsion(plan, motion, ld, k, add)
+            _torsion(plan, motion, ld, k, add, {} if turns is None else turns)
         elif isinstance(ld, LinearSpring):
             _linear(plan, motion, ld, k, add)
     return out
@@ -192,7 +200,7 @@ def _spring(plan, motion, held, ld, k, add):
             add(body, force=sign * f, at=r)
 
 
-def _torsion(plan, motion, ld, k, add):
+def _torsion(plan, motion, ld, k, add, turns):
     """Torque -T u on body B and +T u on body A, T = k phi + c phi' with phi as the
     element computes it (docs/elements.md), its turns counted along the records
     (unwrapped from the initial angle), and phi' = (w_B - w_A) . u."""
@@ -206,7 +214,9 @@ def _torsion(plan, motion, ld, k, add):
     D = np.einsum("ni,ni->n", u, np.cross(perp[0], perp[1]))
     P = np.einsum("ni,ni->n", perp[0], perp[1])
     turned = np.arctan2(p["cos0"] * D - p["sin0"] * P, p["cos0"] * P + p["sin0"] * D)
-    phi = np.unwrap(np.concatenate([[0.0], turned]))[1:] - p["free"]
+    unwrapped = np.unwrap(np.concatenate([[turns.get(k, 0.0)], turned]))[1:]
+    turns[k] = float(unwrapped[-1])
+    phi = unwrapped - p["free"]
     w = [motion.body(b).omega if _moving(plan, b) else 0.0 for b in ld.bodies]
     rate = np.einsum("ni,ni->n", w[1] - w[0] + np.zeros_like(u), u)
     torque = (p["k"] * phi + p["c"] * rate)[:, None] * u
@@ -237,83 +247,60 @@ def _joint_bodies(plan, point_a: str) -> tuple[str, str]:
                 if jl.joint.name == joint)
 
 
-def balance(plan, motion: Motion, index: dict[str, int]):
-    """(E, b, joint column slices): the stacked Newton-Euler rows (module docstring)."""
-    n, nb = motion.n, len(index)
-    blocks, spans = [], []
-    lowering = plan.model.mechanism
-    driven: dict[str, set[str]] = {}
-    for d in lowering.drivers:
-        driven.setdefault(d.joint, set()).add(d.quantity)
-    for jl in lowering.joints:
-        p, Pf, Pt = bases(jl, motion, driven.get(jl.joint.name, frozenset()))
-        block = np.zeros((n, 6 * nb, Pf.shape[2] + Pt.shape[2]))
-        for body, sign in zip(jl.joint.bodies, (-1.0, 1.0)):
-            if body not in index:
-                continue
-            k = 6 * index[body]
-            arm = p - motion.centre(body)[0]
-            block[:, k:k + 3, :Pf.shape[2]] = sign * Pf
-            block[:, k + 3:k + 6, :Pf.shape[2]] = sign * np.cross(
-                arm[:, :, None], Pf, axis=1)
-            block[:, k + 3:k + 6, Pf.shape[2]:] = sign * Pt
-        spans.append((Pf, Pt))
-        blocks.append(block)
-    blocks += _coordinate_blocks(plan, motion, index)
-    E = np.concatenate(blocks, axis=2) if blocks else np.zeros((n, 6 * nb, 0))
-    inertial = np.zeros((n, 6 * nb))
-    for body, b in index.items():
-        inertial[:, 6 * b:6 * b + 3] = plan.model.bodies[body].mass * motion.centre(body)[1]
-        inertial[:, 6 * b + 3:6 * b + 6] = motion.momentum_rate(body)
-    return E, inertial - applied(plan, motion, index), spans
-
-
-def _coordinate_blocks(plan, motion, index) -> list[np.ndarray]:
-    """One column per coordinate driver: the force along its direction e at its point,
-    on the body that carries the point (:func:`_driven_body`)."""
-    held, out = carriers(plan.model), []
-    for k, c in enumerate(plan.model.constraints):
-        if not (isinstance(c, DriverRow) and c.kind == "coordinate"):
-            continue
-        body = _driven_body(plan, held, c, k)
-        e = np.array([c.scalars[x] for x in ("ex", "ey", "ez")])
-        arm = motion.triple(c.triples[0])[0] - motion.centre(body)[0]
-        block = np.zeros((motion.n, 6 * len(index), 1))
-        b = 6 * index[body]
-        block[:, b:b + 3, 0] = e
-        block[:, b + 3:b + 6, 0] = np.cross(arm, e)
-        out.append(block)
-    return out
-
-
-def solve(E: np.ndarray, b: np.ndarray):
-    """(x, rank per row): minimum-norm least-squares x of E x = b, row by row."""
-    if E.shape[2] == 0:
-        return np.zeros((len(b), 0)), np.zeros(len(b), int)
-    U, s, Vt = np.linalg.svd(E, full_matrices=False)
-    keep = s > RANK_RTOL * s[:, :1]
-    inv = np.where(keep, 1.0 / np.where(keep, s, 1.0), 0.0)
-    y = np.einsum("nki,nk->ni", U, b) * inv
-    return np.einsum("nij,ni->nj", Vt, y), keep.sum(axis=1)
-
-
-def reactions(solver, result) -> tuple[dict[str, np.ndarray], dict]:
+def reactions(solver, result, sparse: bool | None = None) -> tuple[dict[str, np.ndarray],
+                                                                     dict]:
     """(columns, info) of the joint reactions over the rows of ``result``; ModelError
-    when a load or constraint cannot be attributed to a body (module docstring)."""
+    when a load or constraint cannot be attributed to a body (module docstring).
+
+    The records are taken a chunk at a time (CHUNK_BYTES of working arrays) and each
+    record's E x = b is solved on its own (fccgen.mechanism.reaction_solve; sparse:
+    None picks the way by size, True/False forces the sparse or the dense way)."""
     plan = solver.plan
     check_attributable(plan)
-    names = [name for name, _ in plan.triples]
-    q = np.column_stack([result.columns[f"{t}.{c}"] for t in names for c in "xyz"])
-    v = np.column_stack([result.columns[f"{t}.v{c}"] for t in names for c in "xyz"])
-    a = np.empty_like(q)
-    for k, t in enumerate(result.t):
-        solver.set_time(float(t))              # a driven model's q'' depends on t
-        a[k] = solver.accelerations(q[k], v[k])
-    motion = Motion(plan, q, v, a)
     index = {name: k for k, (name, _) in enumerate(plan.bodies)}
-    E, b, spans = balance(plan, motion, index)
-    x, rank = solve(E, b)
-    cols: dict[str, np.ndarray] = {}
+    drivers = _coordinate_drivers(plan)
+    names = [name for name, _ in plan.triples]
+    n = len(result.t)
+    chunk = chunk_records(plan, len(index))
+    cols = {f"{jl.joint.name}.{c}": np.empty(n)
+            for jl in plan.model.mechanism.joints for c in COMPONENTS}
+    turns: dict[int, float] = {}
+    ranks, unknowns, dense, worst, patterns = [], 0, 0, 0.0, {}
+    for start in range(0, n, chunk):
+        rows = slice(start, min(n, start + chunk))
+        q = np.column_stack([result.columns[f"{t}.{c}"][rows] for t in names for c in "xyz"])
+        v = np.column_stack([result.columns[f"{t}.v{c}"][rows] for t in names
+                             for c in "xyz"])
+        a = np.empty_like(q)
+        for k, t in enumerate(result.t[rows]):
+            solver.set_time(float(t))          # a driven model's q'' depends on t
+            a[k] = solver.accelerations(q[k], v[k])
+        motion = Motion(plan, q, v, a)
+        at = [(body, e, motion.triple(point)[0] - motion.centre(body)[0])
+              for body, e, point in drivers]
+        balance = system(plan, motion, index, applied(plan, motion, index, turns), at)
+        x, rank, solved_dense, res = solve_records(balance, sparse, patterns)
+        ranks.append(rank)
+        unknowns, dense, worst = balance.shape[1], dense + solved_dense, max(worst, res)
+        _fill(cols, plan, balance.spans, x, rows)
+    rank = np.concatenate(ranks) if ranks else np.zeros(0, int)
+    info = dict(computed=True, unknowns=int(unknowns),
+                rank=int(rank.min()) if len(rank) else 0,
+                unique=bool(np.all(rank == unknowns)), residual=worst,
+                dense_records=int(dense), records=int(n))
+    return cols, info
+
+
+def chunk_records(plan, n_bodies: int) -> int:
+    """Records per chunk: CHUNK_BYTES over an estimate of one record's working arrays
+    (a body's frames and derivatives ~ 200 floats, a joint's blocks ~ 200)."""
+    per_record = 8 * (200 * n_bodies + 200 * len(plan.model.mechanism.joints)
+                      + 4 * plan.n_q + 1)
+    return int(min(1024, max(1, CHUNK_BYTES // per_record)))
+
+
+def _fill(cols, plan, spans, x, rows) -> None:
+    """Write the joints' F and T of the records ``rows`` into ``cols``."""
     start = 0
     for jl, (Pf, Pt) in zip(plan.model.mechanism.joints, spans):
         nf, nt = Pf.shape[2], Pt.shape[2]
@@ -321,14 +308,19 @@ def reactions(solver, result) -> tuple[dict[str, np.ndarray], dict]:
         T = np.einsum("nik,nk->ni", Pt, x[:, start + nf:start + nf + nt])
         start += nf + nt
         for k, c in enumerate(COMPONENTS):
-            cols[f"{jl.joint.name}.{c}"] = (F if k < 3 else T)[:, k % 3].copy()
-    residual = np.einsum("nij,nj->ni", E, x) - b
-    unknowns = E.shape[2]
-    info = dict(computed=True, unknowns=int(unknowns),
-                rank=int(rank.min()) if len(rank) else 0,
-                unique=bool(np.all(rank == unknowns)),
-                residual=float(np.max(np.abs(residual))) if residual.size else 0.0)
-    return cols, info
+            cols[f"{jl.joint.name}.{c}"][rows] = (F if k < 3 else T)[:, k % 3]
+
+
+def _coordinate_drivers(plan) -> list[tuple[str, np.ndarray, str]]:
+    """(body, direction e, point) of each coordinate driver: one unknown, the force
+    along e at its point, on the body that carries the point (:func:`_driven_body`)."""
+    held, out = carriers(plan.model), []
+    for k, c in enumerate(plan.model.constraints):
+        if isinstance(c, DriverRow) and c.kind == "coordinate":
+            out.append((_driven_body(plan, held, c, k),
+                        np.array([c.scalars[x] for x in ("ex", "ey", "ez")]),
+                        c.triples[0]))
+    return out
 
 
 def minimum_norm_note(info: dict) -> str:
@@ -344,9 +336,16 @@ def add_reactions(solver, result):
         return result
     try:
         cols, info = reactions(solver, result)
-    except (ModelError, SimulationError, np.linalg.LinAlgError) as exc:
+    except (ModelError, SimulationError, np.linalg.LinAlgError, MemoryError,
+            RuntimeError, ValueError) as exc:
         # the run itself succeeded: keep it, and say why it has no reactions
-        result.info["reactions"] = dict(computed=False, reason=str(exc))
+        reason = (f"out of memory ({exc})" if isinstance(exc, MemoryError) and str(exc)
+                  else "out of memory" if isinstance(exc, MemoryError) else str(exc))
+        result.info["reactions"] = dict(computed=False, reason=reason)
+        if not isinstance(exc, ModelError):   # a model they do not apply to: info only
+            text = f"the joint reactions were not computed: {reason}; the run is kept"
+            result.info.setdefault("warnings", []).append(text)
+            warnings.warn(text, RunWarning, stacklevel=3)
         return result
     result.columns.update(cols)
     if not info["unique"]:

@@ -31,6 +31,7 @@ from .paths import (SPARSE_MIN_COORDINATES, make_engine, pattern_samples,
 from ._rk4 import simulate_baumgarte, simulate_rk4
 from .energy_check import check_energy, kinetic_peak, work_tracker
 from .guards import check_constraint_drift
+from .setup_reuse import SetupStore, kept_decision, kept_initial_state
 from .turns import REBASING, turn_check
 
 
@@ -134,6 +135,7 @@ class CompiledSolver:
         self._asm = make_assembler(plan, module)
         self.row_groups = plan.row_groups
         self.linear_solver = linear_solver_choice(plan.model.simulate, linear_solver)
+        self.setup_store = SetupStore(self)      # set-ups kept per start (setup_reuse)
         self.sparse = use_sparse(self.linear_solver, self.n_q)
         dense_only = dense_only_reason(plan)
         if self.sparse and dense_only:
@@ -238,7 +240,11 @@ class CompiledSolver:
 
     def initial_state(self) -> InitialState:
         """The model's initial positions assembled onto the constraints and its initial
-        speeds projected onto B q' = 0, with the residuals before and after."""
+        speeds projected onto B q' = 0, with the residuals before and after (kept for
+        the next call from the same start: fccgen.runtime.setup_reuse)."""
+        return kept_initial_state(self, self._fresh_initial_state)
+
+    def _fresh_initial_state(self) -> InitialState:
         plan = self.plan
         self.set_time(0.0)
         q_given = np.array(plan.q0, dtype=float)
@@ -350,6 +356,7 @@ class CompiledSolver:
         opts = registry.options_for(m, rtol, atol, method_options)
         sched = registry.schedule(m, d, t_end, dt, output_dt, opts)
         self.set_time(0.0)
+        self.setup_store.start_run()
         q0, v0 = self._start_state(q0, v0)
         project = bool(project) and m.projects
         report = run_reporter(progress, sched.t_end)
@@ -372,6 +379,7 @@ class CompiledSolver:
             if events is not None:
                 log, turn = events.log(), events.largest_turn
                 events.restore()          # direct kernel calls: references as planned
+        result.info["setup"] = self.setup_store.report()
         if report is not None:
             report.finish(result.t[-1])          # the run's end: 100%
         if events is not None:
@@ -455,12 +463,13 @@ class CompiledSolver:
         """Decide the rank of B at q by the SVD gap test (fccgen.rank) and keep it in
         the engine's factorisations (runs and direct calls) until the next decision.
         Every run decides at its start; before the first decision the factorisations
-        count QR pivots above rank_tol."""
-        B = self._jacobian_for_rank(q)
-        decision = rank_rule.decide(B, self.n_q, self.row_groups)
+        count QR pivots above rank_tol. The same q (parameters, tolerances) takes the
+        decision made before (fccgen.runtime.setup_reuse)."""
+        decision = kept_decision(self, q, lambda: rank_rule.decide(
+            self._jacobian_for_rank(q), self.n_q, self.row_groups))
         self._decided_at = np.array(q, dtype=float)
         if self._auto_small:
-            self._choose_small_path(q, B, decision)
+            self._choose_small_path(q, self._jacobian_for_rank(q), decision)
         self._engine.decide_rank(q, decision.rank)
         if self._dense_engine is not None and self._dense_engine is not self._engine:
             self._dense_engine.decide_rank(q, decision.rank)
