@@ -30,6 +30,7 @@ from libc.string cimport memcpy, memset
 
 import numpy as np
 
+from ._cengine cimport fcc_assemble, fcc_put_time, fcc_max_abs_g, fcc_scaled_residual
 from ._assemble cimport ASM_B, ASM_M, Assembler
 from ._sparse_blocks cimport SparseBlocks, alloc_zeroed
 from ._sparse_blocks import PENALTY
@@ -115,7 +116,7 @@ cdef class ALRefinement(SparseBlocks):
         self.r1 = <double *>alloc_zeroed(n, sizeof(double))
         self.dx = <double *>alloc_zeroed(n, sizeof(double))
         self.base = <double *>alloc_zeroed(n, sizeof(double))
-        self.lz = <double *>alloc_zeroed(max([asm.cls[e].n_g for e in range(asm.n_el)]
+        self.lz = <double *>alloc_zeroed(max([asm.model.cls[e].n_g for e in range(asm.n_el)]
                                              + [1]), sizeof(double))
         self.cg_max = CG_MAX
         self.refine_max = REFINE_MAX

@@ -69,6 +69,7 @@ from fccgen.errors import SimulationError
 
 from fccgen.results import keep_rows
 
+from ._cengine cimport fcc_assemble, fcc_put_time, fcc_max_abs_g, fcc_scaled_residual
 from ._assemble cimport (ASM_B, ASM_C, ASM_F, ASM_G, ASM_H, ASM_KQ,
                          ASM_KV, ASM_M, ASM_T)
 from ._engine cimport Engine, finite
@@ -144,18 +145,18 @@ cdef int _tangent(Engine e, Run *r, double h) noexcept nogil:
     cdef char uplo = b'L'
     for i in range(n):
         for j in range(i, n):
-            x = 0.5 * (e.asm.M[i * n + j] + e.asm.M[j * n + i]
-                       - h2 * (e.asm.fv[i * n + j] + e.asm.fv[j * n + i])
-                       - h4 * (e.asm.fq[i * n + j] + e.asm.fq[j * n + i]))
+            x = 0.5 * (e.asm.a.M[i * n + j] + e.asm.a.M[j * n + i]
+                       - h2 * (e.asm.a.fv[i * n + j] + e.asm.a.fv[j * n + i])
+                       - h4 * (e.asm.a.fq[i * n + j] + e.asm.a.fq[j * n + i]))
             r.T[i * n + j] = x
     for k in range(r.m):
         for i in range(n):
-            bk = e.asm.B[k * n + i]
+            bk = e.asm.a.B[k * n + i]
             if bk == 0.0:
                 continue
             bk *= h4 * r.alpha[k]
             for j in range(i, n):
-                r.T[i * n + j] += bk * e.asm.B[k * n + j]
+                r.T[i * n + j] += bk * e.asm.a.B[k * n + j]
     for i in range(n):
         for j in range(i, n):
             r.T2[i * n + j] = r.T2[j * n + i] = r.T[i * n + j]
@@ -195,7 +196,7 @@ cdef void _add_bt_alpha(Engine e, Run *r, const double *y, double scale,
         if c == 0.0:
             continue
         for j in range(n):
-            out[j] += c * e.asm.B[k * n + j]
+            out[j] += c * e.asm.a.B[k * n + j]
 
 
 cdef int _assemble(Engine e, Run *r, const double *q, const double *v,
@@ -203,11 +204,11 @@ cdef int _assemble(Engine e, Run *r, const double *q, const double *v,
     """Assemble and check that the state and what was assembled are finite."""
     cdef int bad
     r.n_asm += 1
-    e.asm.assemble(q, v, flags)
+    fcc_assemble(&e.asm.a, q, v, flags)
     bad = e.nonfinite_input(q, v, flags)
-    if bad == 0 and flags & ASM_KQ and not finite(e.asm.fq, r.n * r.n):
+    if bad == 0 and flags & ASM_KQ and not finite(e.asm.a.fq, r.n * r.n):
         bad = 9
-    if bad == 0 and flags & ASM_KV and not finite(e.asm.fv, r.n * r.n):
+    if bad == 0 and flags & ASM_KV and not finite(e.asm.a.fv, r.n * r.n):
         bad = 10
     if bad:
         return _failed(r, FAIL_NONFINITE, 0, bad)
@@ -239,9 +240,9 @@ cdef int _newton(Engine e, Run *r, double h, int *iterations) noexcept nogil:
             return -1
         if it > 0:
             for i in range(r.m):
-                r.lam[i] += r.alpha[i] * e.asm.g[i]
+                r.lam[i] += r.alpha[i] * e.asm.a.g[i]
             if dqmax <= r.tol or it >= r.max_newton:
-                res = e.asm.scaled_residual()
+                res = fcc_scaled_residual(&e.asm.a)
                 if dqmax <= r.tol and res <= r.tol:
                     break
                 if it >= r.max_newton and dqmax <= r.tol:
@@ -256,12 +257,12 @@ cdef int _newton(Engine e, Run *r, double h, int *iterations) noexcept nogil:
             return _failed(r, FAIL_NEWTON, it, 0)
         # -F = -(h^2/4) [M q'' + h - f + B^T (alpha g + lambda)]
         for i in range(n):
-            x = e.asm.h[i] - e.asm.f[i]
+            x = e.asm.a.h[i] - e.asm.a.f[i]
             for j in range(n):
-                x += e.asm.M[i * n + j] * r.a[j]
+                x += e.asm.a.M[i * n + j] * r.a[j]
             r.r[i] = -h4 * x
         for i in range(r.m):
-            r.w[i] = e.asm.g[i] + r.lam[i] / r.alpha[i]
+            r.w[i] = e.asm.a.g[i] + r.lam[i] / r.alpha[i]
         _add_bt_alpha(e, r, r.w, -h4, r.r)
         if _tangent(e, r, h) < 0:
             return -1
@@ -286,14 +287,14 @@ cdef int _project(Engine e, Run *r, double h) noexcept nogil:
     cdef int i, j, k, n = r.n
     cdef double h4 = 0.25 * h * h, x
     for k in range(2):
-        if k == 0 and e.asm.n_time and _assemble(e, r, r.q, r.v, ASM_T) < 0:
+        if k == 0 and e.asm.model.n_time and _assemble(e, r, r.q, r.v, ASM_T) < 0:
             return -1
         if k == 1 and _assemble(e, r, r.q, r.v, ASM_C) < 0:
             return -1
         for i in range(r.m):       # B x + dg/dt for speeds, B x + bias for accelerations
-            x = e.asm.c[i] if k == 1 else (e.asm.gt[i] if e.asm.n_time else 0.0)
+            x = e.asm.a.c[i] if k == 1 else (e.asm.a.gt[i] if e.asm.model.n_time else 0.0)
             for j in range(n):
-                x += e.asm.B[i * n + j] * (r.a[j] if k == 1 else r.v[j])
+                x += e.asm.a.B[i * n + j] * (r.a[j] if k == 1 else r.v[j])
             r.w[i] = x
         for i in range(n):
             r.r[i] = 0.0
@@ -332,7 +333,7 @@ cdef int _run(Engine e, Run *r, double deadline) noexcept nogil:
         memcpy(r.q0, r.q, n * sizeof(double))
         memcpy(r.v0, r.v, n * sizeof(double))
         memcpy(r.a0, r.a, n * sizeof(double))
-        e.asm.put_time(t + h)
+        fcc_put_time(&e.asm.a, t + h)
         if _newton(e, r, h, &it) < 0 or _project(e, r, h) < 0:
             return RUN_ERROR
         r.newton_total += it

@@ -24,6 +24,7 @@ import numpy as np
 
 from fccgen.errors import SimulationError
 
+from ._cengine cimport fcc_assemble, fcc_put_time, fcc_max_abs_g, fcc_scaled_residual
 from ._assemble cimport ASM_G
 from ._engine cimport (AT_POSITIONS, AT_STAGE, AT_STEP, AT_VELOCITIES, ERR_NONE,
                        ERR_NONFINITE_INPUT, Engine, finite)
@@ -91,7 +92,7 @@ cdef int _f(Engine e, Run *r, int stage, double t, const double *y, double *k,
             bint reuse) noexcept nogil:
     """k = (v, a(t, q, v)) at y = (q, v)."""
     cdef int n = r.n2 // 2
-    e.asm.put_time(t)
+    fcc_put_time(&e.asm.a, t)
     e.err_stage = stage
     r.n_rhs += 1
     memcpy(k, y + n, n * sizeof(double))
@@ -265,7 +266,7 @@ cdef int _record(Engine e, Run *r) noexcept nogil:
     if j > 0:
         _dense_at(r, (r.t_req[j] - r.t0) / r.h, r.yt)
         if r.project:
-            e.asm.put_time(r.t_req[j])
+            fcc_put_time(&e.asm.a, r.t_req[j])
             if _project(e, r, r.yt, False) < 0:
                 return -1
             e.factor_valid = False        # the factorisation is not the one at r.y
@@ -306,7 +307,7 @@ cdef int _accept(Engine e, Run *r, double h) noexcept nogil:
         e.err_where = AT_STEP
         return e.fail(ERR_NONFINITE_INPUT, 0, 1 if not finite(r.y, n) else 2)
     if r.project:
-        e.asm.put_time(r.t)
+        fcc_put_time(&e.asm.a, r.t)
         # stage 7's M, B and factorisation are at y1, unless a record projected since
         if _project(e, r, r.y, r.n_out == recorded and r.ev == NULL) < 0:
             return -1
@@ -318,9 +319,9 @@ cdef int _accept(Engine e, Run *r, double h) noexcept nogil:
         e.err_where = AT_STAGE
         return _f(e, r, 1, r.t, r.y, r.k[0], e.factor_valid)
     memcpy(r.k[0], r.k[6], r.n2 * sizeof(double))        # FSAL
-    e.asm.assemble(r.y, NULL, ASM_G)
-    if not e.asm.max_abs_g() <= r.max_cerr:
-        r.max_cerr = e.asm.max_abs_g()
+    fcc_assemble(&e.asm.a, r.y, NULL, ASM_G)
+    if not fcc_max_abs_g(&e.asm.a) <= r.max_cerr:
+        r.max_cerr = fcc_max_abs_g(&e.asm.a)
     return 0
 
 

@@ -19,6 +19,7 @@ import numpy as np
 
 from fccgen.errors import SimulationError
 
+from ._cengine cimport fcc_assemble, fcc_put_time, fcc_max_abs_g, fcc_scaled_residual
 from ._assemble cimport ASM_B, ASM_C, ASM_F, ASM_G, ASM_H, ASM_M, ASM_T, Assembler
 from ._solve cimport (CSolve, csolve_apply, csolve_factor, csolve_free, csolve_init,
                      csolve_reset_stats, csolve_svd_rank)
@@ -59,8 +60,8 @@ cdef class Engine:
             raise MemoryError("cannot allocate the engine's work arrays")
         cdef int e, k
         for e in range(asm.n_el):
-            for k in range(asm.gptr[e], asm.gptr[e + 1]):
-                self.row_group[k] = asm.gptr[e]
+            for k in range(asm.model.gptr[e], asm.model.gptr[e + 1]):
+                self.row_group[k] = asm.model.gptr[e]
         self.sol.group = self.row_group
         self.work = <double *>calloc(4 * self.n + self.m + 1, sizeof(double))
         if self.work == NULL:
@@ -136,18 +137,18 @@ cdef class Engine:
         cdef int n = self.n, m = self.m
         if q != NULL and not finite(q, n): return 1
         if v != NULL and not finite(v, n): return 2
-        if flags & ASM_M and not finite(self.asm.M, n * n): return 3
-        if flags & ASM_H and not finite(self.asm.h, n): return 4
-        if flags & ASM_F and not finite(self.asm.f, n): return 5
-        if flags & ASM_B and not finite(self.asm.B, m * n): return 6
-        if flags & ASM_C and not finite(self.asm.c, m): return 7
-        if flags & ASM_G and not finite(self.asm.g, m): return 8
+        if flags & ASM_M and not finite(self.asm.a.M, n * n): return 3
+        if flags & ASM_H and not finite(self.asm.a.h, n): return 4
+        if flags & ASM_F and not finite(self.asm.a.f, n): return 5
+        if flags & ASM_B and not finite(self.asm.a.B, m * n): return 6
+        if flags & ASM_C and not finite(self.asm.a.c, m): return 7
+        if flags & ASM_G and not finite(self.asm.a.g, m): return 8
         return 0
 
     cdef int factor(self, const double *q) noexcept nogil:
         """Factor the assembled M and B; on failure, blame a non-finite input first."""
         cdef int old = self.sol.rank_fixed, bad, k
-        cdef int info = csolve_factor(&self.sol, self.asm.M, self.asm.B)
+        cdef int info = csolve_factor(&self.sol, self.asm.a.M, self.asm.a.B)
         self.factor_valid = False
         if self.sol.grew:
             k = self.n_rank_log
@@ -169,13 +170,13 @@ cdef class Engine:
         cdef int i, flags = ASM_H | ASM_F | ASM_C
         if not reuse:
             flags |= ASM_M | ASM_B
-        self.asm.assemble(q, v, flags)
+        fcc_assemble(&self.asm.a, q, v, flags)
         if not reuse and self.factor(q) < 0:
             return -1
         for i in range(self.n):
-            self.rhs[i] = self.asm.f[i] - self.asm.h[i]
+            self.rhs[i] = self.asm.a.f[i] - self.asm.a.h[i]
         for i in range(self.m):
-            self.nb[i] = -self.asm.c[i]
+            self.nb[i] = -self.asm.a.c[i]
         csolve_apply(&self.sol, self.rhs, NULL, self.nb, a)
         if not finite(a, self.n):
             i = self.nonfinite_input(q, v, flags)
@@ -189,21 +190,21 @@ cdef class Engine:
         g' = B v + dg/dt and c the constraint bias (g'' - B a)."""
         cdef int i, j, n = self.n
         cdef int flags = ASM_M | ASM_B | ASM_H | ASM_F | ASM_C | ASM_G
-        if self.asm.n_time:
+        if self.asm.model.n_time:
             flags |= ASM_T
         cdef double bv
         cdef const double *row
-        self.asm.assemble(q, v, flags)
+        fcc_assemble(&self.asm.a, q, v, flags)
         if self.factor(q) < 0:
             return -1
         for i in range(n):
-            self.rhs[i] = self.asm.f[i] - self.asm.h[i]
+            self.rhs[i] = self.asm.a.f[i] - self.asm.a.h[i]
         for i in range(self.m):
-            row = self.asm.B + i * n
-            bv = self.asm.gt[i] if self.asm.n_time else 0.0
+            row = self.asm.a.B + i * n
+            bv = self.asm.a.gt[i] if self.asm.model.n_time else 0.0
             for j in range(n):
                 bv += row[j] * v[j]
-            self.nb[i] = -self.asm.c[i] - 2.0 * alpha * bv - beta * beta * self.asm.g[i]
+            self.nb[i] = -self.asm.a.c[i] - 2.0 * alpha * bv - beta * beta * self.asm.a.g[i]
         csolve_apply(&self.sol, self.rhs, NULL, self.nb, a)
         if not finite(a, n):
             i = self.nonfinite_input(q, v, flags)
@@ -214,11 +215,11 @@ cdef class Engine:
         """Assemble at q what the position projection asks for: g (ASM_G), B (ASM_B)
         and M (ASM_M), where this engine's solves read them (here: the assembler's
         dense arrays; the sparse path keeps M and B as element blocks)."""
-        self.asm.assemble(q, NULL, flags)
+        fcc_assemble(&self.asm.a, q, NULL, flags)
 
     cdef double constraint_residual(self) noexcept nogil:
         """max_k |g_k| / ||B_k|| with the g and B assembled last."""
-        return self.asm.scaled_residual()
+        return fcc_scaled_residual(&self.asm.a)
 
     cdef void solve_constrained(self, const double *Q, const double *w, const double *b,
                                 double *x) noexcept nogil:
@@ -281,7 +282,7 @@ cdef class Engine:
                 iterations[0] = it
                 return -1
             for i in range(self.m):
-                self.nb[i] = -self.asm.g[i]
+                self.nb[i] = -self.asm.a.g[i]
             self.solve_newton(self.nb, self.dq)
             for i in range(self.n):
                 q[i] += self.dq[i]
@@ -309,18 +310,18 @@ cdef class Engine:
         in sol; have_B: B is already assembled at q."""
         cdef int i
         cdef int flags = ASM_M if have_B else ASM_M | ASM_B
-        if self.asm.n_time:
+        if self.asm.model.n_time:
             flags |= ASM_T
-        self.asm.assemble(q, NULL, flags)
+        fcc_assemble(&self.asm.a, q, NULL, flags)
         self.sol.check_growth = 1             # q has just been projected (or is given)
         i = self.factor(q)
         self.sol.check_growth = 0
         if i < 0:
             return -1
-        if self.asm.n_time:
+        if self.asm.model.n_time:
             for i in range(self.m):
-                self.nb[i] = -self.asm.gt[i]
-        csolve_apply(&self.sol, NULL, v, self.nb if self.asm.n_time else NULL,
+                self.nb[i] = -self.asm.a.gt[i]
+        csolve_apply(&self.sol, NULL, v, self.nb if self.asm.model.n_time else NULL,
                      self.vtmp)
         if not finite(self.vtmp, self.n):
             i = self.nonfinite_input(q, v, ASM_M | ASM_B)
@@ -340,7 +341,7 @@ cdef class Engine:
         cdef double before = 0.0, cut = 0.0, mv, md
         cdef const double *row
         for i in range(n):
-            row = self.asm.M + i * n
+            row = self.asm.a.M + i * n
             mv = 0.0
             md = 0.0
             for j in range(n):
@@ -382,7 +383,7 @@ cdef class Engine:
 
     def set_time(self, double t):
         """Evaluate later calls at the time t (models with drivers; Assembler.set_time)."""
-        self.asm.put_time(t)
+        fcc_put_time(&self.asm.a, t)
 
     def accelerations(self, q, v):
         """q'' at (q, v): a fresh array."""

@@ -43,6 +43,7 @@ import numpy as np
 
 from fccgen import rank as _rank
 
+from ._cengine cimport fcc_assemble, fcc_put_time, fcc_max_abs_g, fcc_scaled_residual
 from ._assemble cimport ASM_B, ASM_E, ASM_G
 from ._engine cimport ERR_SINGULAR, Engine
 from ._solve cimport csolve_apply
@@ -288,8 +289,8 @@ cdef int ev_correct(Engine e, EvC *ev, double *q, double *v) noexcept nogil:
 
 
 cdef double _kinetic(Engine e, const double *q, const double *v) noexcept nogil:
-    e.asm.assemble(q, v, ASM_E)
-    return e.asm.energy[0]
+    fcc_assemble(&e.asm.a, q, v, ASM_E)
+    return e.asm.a.energy[0]
 
 
 cdef double _row_error(EvC *ev, const double *q) noexcept nogil:
@@ -324,9 +325,9 @@ cdef void _scaled_rows(Engine e, EvC *ev, const double *q) noexcept nogil:
     cdef int i, j, k, n = ev.n, rows = ev.m + ev.nr
     cdef double norm, largest
     cdef double *w = ev.sig + rows                  # rows numbers of work after sig
-    e.asm.assemble(q, NULL, ASM_B)
+    fcc_assemble(&e.asm.a, q, NULL, ASM_B)
     ev.tab.quantity_gradients(q, NULL, 0.0, ev.p, ev.rg)
-    memcpy(ev.aug, e.asm.B, ev.m * n * sizeof(double))
+    memcpy(ev.aug, e.asm.a.B, ev.m * n * sizeof(double))
     memcpy(ev.aug + ev.m * n, ev.rg, ev.nr * n * sizeof(double))
     for k in range(rows):
         norm = 0.0
@@ -534,7 +535,7 @@ cdef int ev_watch(Engine e, EvC *ev, const double *q, const double *v, double t,
             any_rest = True
     if not any_rest:
         return 0
-    e.asm.put_time(t)
+    fcc_put_time(&e.asm.a, t)
     if e.accelerations_at(q, v, ev.acc, False) < 0:
         return -1
     if ev_constrain(e, ev, q, v, t, ev.acc) < 0:
@@ -599,8 +600,8 @@ cdef int ev_apply(Engine e, EvC *ev, int k, double *q, double *v,
                 return -1
             _rest_sign(ev, k, q, v, t, approach)
     e.factor_valid = False
-    e.asm.assemble(q, NULL, ASM_G)
-    cerr = e.asm.max_abs_g()
+    fcc_assemble(&e.asm.a, q, NULL, ASM_G)
+    cerr = fcc_max_abs_g(&e.asm.a)
     if ev.nr:
         cerr = max(cerr, _row_error(ev, q))
     if ev.n_log < ev.cap_log:

@@ -15,6 +15,7 @@ import numpy as np
 
 from fccgen.errors import SimulationError
 
+from ._cengine cimport fcc_assemble, fcc_put_time, fcc_max_abs_g, fcc_scaled_residual
 from ._assemble cimport ASM_G
 from libc.math cimport fabs
 
@@ -89,12 +90,12 @@ cdef int _step(Engine e, Run *r, double t, double h) noexcept nogil:
     place; leaves the time at t + h."""
     cdef int i, n = e.n
     cdef double h2 = 0.5 * h, h6 = h / 6.0
-    e.asm.put_time(t)
+    fcc_put_time(&e.asm.a, t)
     if _stage(e, r, 1, r.q, r.v, r.a1, e.factor_valid) < 0: return -1
     for i in range(n):
         r.qs[i] = r.q[i] + h2 * r.v[i]
         r.v2[i] = r.v[i] + h2 * r.a1[i]
-    e.asm.put_time(t + h2)
+    fcc_put_time(&e.asm.a, t + h2)
     if _stage(e, r, 2, r.qs, r.v2, r.a2, False) < 0: return -1
     for i in range(n):
         r.qs[i] = r.q[i] + h2 * r.v2[i]
@@ -103,7 +104,7 @@ cdef int _step(Engine e, Run *r, double t, double h) noexcept nogil:
     for i in range(n):
         r.qs[i] = r.q[i] + h * r.v3[i]
         r.v4[i] = r.v[i] + h * r.a3[i]
-    e.asm.put_time(t + h)
+    fcc_put_time(&e.asm.a, t + h)
     if _stage(e, r, 4, r.qs, r.v4, r.a4, False) < 0: return -1
     for i in range(n):
         r.q[i] += h6 * (r.v[i] + 2.0 * r.v2[i] + 2.0 * r.v3[i] + r.v4[i])
@@ -131,15 +132,15 @@ cdef int _after_step(Engine e, Run *r) noexcept nogil:
         r.newton_total += it
         if it > r.newton_max:
             r.newton_max = it
-        cerr = e.asm.max_abs_g()             # g is left assembled at the final q
+        cerr = fcc_max_abs_g(&e.asm.a)             # g is left assembled at the final q
         e.err_where = AT_VELOCITIES
         if e.project_velocities_at(r.q, r.v, e.b_fresh) < 0:
             return -1
         if r.ev != NULL and ev_correct(e, r.ev, r.q, r.v) < 0:
             return -1
     else:
-        e.asm.assemble(r.q, NULL, ASM_G)
-        cerr = e.asm.max_abs_g()
+        fcc_assemble(&e.asm.a, r.q, NULL, ASM_G)
+        cerr = fcc_max_abs_g(&e.asm.a)
     if not cerr <= r.max_cerr:
         r.max_cerr = cerr
     return 0
@@ -313,7 +314,7 @@ cdef void _start(Engine e, Run *r, double[::1] q0, double[::1] v0, dict arrays):
     r.c_out = _data(arrays["constraint_error"])
     e.factor_valid = False
     e.err = ERR_NONE
-    e.asm.put_time(0.0)
+    fcc_put_time(&e.asm.a, 0.0)
 
 
 def simulate_rk4(Engine engine, q0, v0, double t_end, double dt, long n_steps,

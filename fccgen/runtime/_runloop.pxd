@@ -3,6 +3,7 @@
 from libc.string cimport memcpy
 from posix.time cimport CLOCK_MONOTONIC, clock_gettime, timespec
 
+from ._cengine cimport fcc_assemble, fcc_put_time, fcc_max_abs_g, fcc_scaled_residual
 from ._assemble cimport ASM_BODY, ASM_E, ASM_G
 from ._engine cimport Engine
 
@@ -25,11 +26,11 @@ cdef inline double write_record(Engine e, Py_ssize_t j, const double *q, const d
     """Write record j of the state (q, v): coordinates, speeds, body outputs, energy and
     max |g|; return that max |g|."""
     cdef Py_ssize_t n = e.asm.n_q, nb6 = 6 * e.asm.n_bodies
-    e.asm.assemble(q, v, ASM_G | ASM_E | ASM_BODY)
+    fcc_assemble(&e.asm.a, q, v, ASM_G | ASM_E | ASM_BODY)
     memcpy(q_out + j * n, q, n * sizeof(double))
     memcpy(v_out + j * n, v, n * sizeof(double))
     if nb6:
-        memcpy(body_out + j * nb6, e.asm.body, nb6 * sizeof(double))
-    e_out[j] = e.asm.energy[0] + e.asm.energy[1]
-    c_out[j] = e.asm.max_abs_g()
+        memcpy(body_out + j * nb6, e.asm.a.body, nb6 * sizeof(double))
+    e_out[j] = e.asm.a.energy[0] + e.asm.a.energy[1]
+    c_out[j] = fcc_max_abs_g(&e.asm.a)
     return c_out[j]

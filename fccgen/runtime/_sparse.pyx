@@ -78,6 +78,7 @@ from fccgen import rank as rank_rule
 from .sparsity import jacobian_csr
 
 from ._al_refine cimport ALRefinement
+from ._cengine cimport fcc_assemble, fcc_put_time, fcc_max_abs_g, fcc_scaled_residual
 from ._assemble cimport ASM_B, ASM_C, ASM_F, ASM_G, ASM_H, ASM_M, ASM_T
 from ._engine cimport (ERR_NONFINITE_INPUT, ERR_NONFINITE_RESULT, Engine,
                        RANK_LOG_SIZE, finite)
@@ -228,29 +229,29 @@ cdef class SparseEngine(ALRefinement):
                               bint reuse) noexcept nogil:
         cdef int i, flags = ASM_H | ASM_F | ASM_C
         if reuse:
-            self.asm.assemble(q, v, flags)
+            fcc_assemble(&self.asm.a, q, v, flags)
         else:
             flags |= ASM_M | ASM_B
             self.assemble_blocks(q, v, flags)
             if self.factor(q) < 0:
                 return -1
         for i in range(self.n):
-            self.rhs[i] = self.asm.f[i] - self.asm.h[i]
+            self.rhs[i] = self.asm.a.f[i] - self.asm.a.h[i]
         for i in range(self.m):
-            self.nb[i] = -self.asm.c[i]
+            self.nb[i] = -self.asm.a.c[i]
         self.solve_kkt(self.rhs, NULL, self.nb, a, True, False)
         return self.finish(q, v, a, flags)
 
     cdef int baumgarte_at(self, const double *q, const double *v, double *a,
                           double alpha, double beta) noexcept nogil:
         cdef int i, flags = ASM_M | ASM_B | ASM_H | ASM_F | ASM_C | ASM_G
-        self.asm.assemble(q, v, ASM_H | ASM_F | ASM_C | ASM_G
-                          | (ASM_T if self.asm.n_time else 0))
+        fcc_assemble(&self.asm.a, q, v, ASM_H | ASM_F | ASM_C | ASM_G
+                          | (ASM_T if self.asm.model.n_time else 0))
         self.assemble_mb(q, ASM_M | ASM_B)
         if self.factor(q) < 0:
             return -1
         for i in range(self.n):
-            self.rhs[i] = self.asm.f[i] - self.asm.h[i]
+            self.rhs[i] = self.asm.a.f[i] - self.asm.a.h[i]
         self.baumgarte_targets(v, alpha, beta, self.nb)
         self.solve_kkt(self.rhs, NULL, self.nb, a, True, False)
         return self.finish(q, v, a, flags)
@@ -262,18 +263,18 @@ cdef class SparseEngine(ALRefinement):
         time-dependent constraints, dg/dt; blocks of B)."""
         cdef int i
         self.mult_b(v, b)
-        if self.asm.n_time:
+        if self.asm.model.n_time:
             for i in range(self.m):
-                b[i] += self.asm.gt[i]
+                b[i] += self.asm.a.gt[i]
         for i in range(self.m):
-            b[i] = -self.asm.c[i] - 2.0 * alpha * b[i] - beta * beta * self.asm.g[i]
+            b[i] = -self.asm.a.c[i] - 2.0 * alpha * b[i] - beta * beta * self.asm.a.g[i]
 
     # -- the varying parts of Engine.project_positions_at ---------------------------
     cdef void assemble_constraints(self, const double *q, int flags) noexcept nogil:
         """g into the assembler (the fixed rows checked: SparseBlocks.set_pinned),
         M and B as element blocks."""
         if flags & ASM_G:
-            self.asm.assemble(q, NULL, ASM_G)
+            fcc_assemble(&self.asm.a, q, NULL, ASM_G)
             self.check_fixed_g()
         if flags & (ASM_M | ASM_B):
             self.assemble_mb(q, flags & (ASM_M | ASM_B))
@@ -295,7 +296,7 @@ cdef class SparseEngine(ALRefinement):
         cdef int i, n = self.n
         cdef double trial, step, size
         for i in range(self.m):
-            self.nb[i] = -self.asm.g[i]
+            self.nb[i] = -self.asm.a.g[i]
         memset(self.base, 0, <size_t>n * sizeof(double))
         self.first_pass(self.nb, False, self.dq)   # B^T alpha (-g): zero where pinned
         memcpy(self.qsave, q, <size_t>n * sizeof(double))
@@ -330,7 +331,7 @@ cdef class SparseEngine(ALRefinement):
                 or self.n > self.dense_fallback_max):
             return
         self.gather_dense()
-        if csolve_factor(&self.sol, self.asm.M, self.asm.B) == 0:
+        if csolve_factor(&self.sol, self.asm.a.M, self.asm.a.B) == 0:
             csolve_apply(&self.sol, Q, w, b, x)
             self.n_fallback += 1
 
@@ -443,11 +444,11 @@ cdef class SparseEngine(ALRefinement):
         self.n_svd += 1
         memset(self.sol.A, 0, <size_t>self.m * n * sizeof(double))
         for e in range(self.asm.n_el):      # dense B (m x n, row-major) from the blocks
-            nq = self.asm.cls[e].n_q
-            idx = self.asm.qidx + self.asm.qptr[e]
+            nq = self.asm.model.cls[e].n_q
+            idx = self.asm.model.qidx + self.asm.model.qptr[e]
             blk = self.Bblk + self.bptr[e]
-            row = self.asm.gptr[e]
-            for r in range(self.asm.cls[e].n_g):
+            row = self.asm.model.gptr[e]
+            for r in range(self.asm.model.cls[e].n_g):
                 for a in range(nq):
                     self.sol.A[(row + r) * n + idx[a]] = blk[r * nq + a]
         svd = csolve_svd_rank(&self.sol, self.sol.A, GROW_TOL)
@@ -500,12 +501,12 @@ cdef class SparseEngine(ALRefinement):
         """b of the velocity projection's B w = b: -dg/dt at the time set last
         (zero when no constraint depends on time)."""
         cdef int i
-        if not self.asm.n_time:
+        if not self.asm.model.n_time:
             memset(b, 0, <size_t>self.m * sizeof(double))
             return
-        self.asm.assemble(q, NULL, ASM_T)
+        fcc_assemble(&self.asm.a, q, NULL, ASM_T)
         for i in range(self.m):
-            b[i] = -self.asm.gt[i]
+            b[i] = -self.asm.a.gt[i]
 
     cdef bint pinned_still(self, const double *v) noexcept nogil:
         """v is zero on every pinned coordinate (as after a projection): then the
@@ -528,7 +529,7 @@ cdef class SparseEngine(ALRefinement):
         for i in range(n):
             self.dx[i] = v[i] - w[i]
             before += v[i] * self.mv[i]
-        if self.asm.n_time:
+        if self.asm.model.n_time:
             self.mult_m_full(self.dx, self.t, False)
             for i in range(n):
                 cut += self.dx[i] * self.t[i]

@@ -20,8 +20,9 @@ from libc.string cimport memset
 
 import numpy as np
 
-from ._assemble cimport (ASM_B, ASM_C, ASM_F, ASM_G, ASM_H, ASM_M, Assembler,
-                        element_vectors)
+from ._cengine cimport fcc_assemble, fcc_put_time, fcc_max_abs_g, fcc_scaled_residual
+from ._assemble cimport ASM_B, ASM_C, ASM_F, ASM_G, ASM_H, ASM_M, Assembler
+from ._cengine cimport fcc_element_vectors as element_vectors
 from ._engine cimport (ERR_LAPACK, ERR_NONFINITE_INPUT, ERR_PATTERN, ERR_SINGULAR, Engine,
                        finite)
 from ._ldl cimport ldl_numeric, ldl_rows, ldl_solve, ldl_symbolic
@@ -139,9 +140,9 @@ def element_structure(Assembler asm):
     """(q_ptr, q_idx, couples) of the assembler's elements: couples[e] is True when
     element e has a mass matrix or constraint rows (it adds a block to A)."""
     cdef int e
-    q_ptr = np.array([asm.qptr[e] for e in range(asm.n_el + 1)], dtype=np.intc)
-    q_idx = np.array([asm.qidx[e] for e in range(asm.qptr[asm.n_el])], dtype=np.intc)
-    couples = np.array([asm.cls[e].mass_matrix != NULL or asm.cls[e].n_g > 0
+    q_ptr = np.array([asm.model.qptr[e] for e in range(asm.n_el + 1)], dtype=np.intc)
+    q_idx = np.array([asm.model.qidx[e] for e in range(asm.model.qptr[asm.n_el])], dtype=np.intc)
+    couples = np.array([asm.model.cls[e].mass_matrix != NULL or asm.model.cls[e].n_g > 0
                         for e in range(asm.n_el)], dtype=bool)
     return q_ptr, q_idx, couples
 
@@ -177,7 +178,7 @@ cdef class SparseBlocks(Engine):
         self.mptr = <int *>alloc_zeroed(asm.n_el + 1, sizeof(int))
         self.bptr = <int *>alloc_zeroed(asm.n_el + 1, sizeof(int))
         for e in range(asm.n_el):
-            k = asm.cls[e]
+            k = asm.model.cls[e]
             nq = k.n_q
             local = max(local, nq)
             total_m += nq * nq if k.mass_matrix != NULL else 0
@@ -195,23 +196,23 @@ cdef class SparseBlocks(Engine):
         self.sng = <int *>alloc_zeroed(asm.n_el, sizeof(int))
         self.sptr = <int *>alloc_zeroed(asm.n_el + 1, sizeof(int))
         self.sgptr = <int *>alloc_zeroed(asm.n_el + 1, sizeof(int))
-        self.sidx = <int *>alloc_zeroed(asm.qptr[asm.n_el], sizeof(int))
-        self.sloc = <int *>alloc_zeroed(asm.qptr[asm.n_el], sizeof(int))
+        self.sidx = <int *>alloc_zeroed(asm.model.qptr[asm.n_el], sizeof(int))
+        self.sloc = <int *>alloc_zeroed(asm.model.qptr[asm.n_el], sizeof(int))
         self.srow = <int *>alloc_zeroed(asm.n_g, sizeof(int))
         self.srloc = <int *>alloc_zeroed(asm.n_g, sizeof(int))
         self.efix = <double *>alloc_zeroed(asm.n_el, sizeof(double))
         for e in range(asm.n_el + 1):
-            self.sptr[e] = asm.qptr[e]
-            self.sgptr[e] = asm.gptr[e]
+            self.sptr[e] = asm.model.qptr[e]
+            self.sgptr[e] = asm.model.gptr[e]
         for e in range(asm.n_el):
-            self.snq[e] = asm.cls[e].n_q
-            self.sng[e] = asm.cls[e].n_g
-            for i in range(asm.cls[e].n_q):
-                self.sidx[asm.qptr[e] + i] = asm.qidx[asm.qptr[e] + i]
-                self.sloc[asm.qptr[e] + i] = i
-            for i in range(asm.cls[e].n_g):
-                self.srow[asm.gptr[e] + i] = asm.gptr[e] + i
-                self.srloc[asm.gptr[e] + i] = i
+            self.snq[e] = asm.model.cls[e].n_q
+            self.sng[e] = asm.model.cls[e].n_g
+            for i in range(asm.model.cls[e].n_q):
+                self.sidx[asm.model.qptr[e] + i] = asm.model.qidx[asm.model.qptr[e] + i]
+                self.sloc[asm.model.qptr[e] + i] = i
+            for i in range(asm.model.cls[e].n_g):
+                self.srow[asm.model.gptr[e] + i] = asm.model.gptr[e] + i
+                self.srloc[asm.model.gptr[e] + i] = i
         self.mcptr = self.mptr
         self.bcptr = self.bptr
         self.Mc = self.Mblk
@@ -360,18 +361,18 @@ cdef class SparseBlocks(Engine):
         where = {}                            # row -> (element, local row)
         norms = {}
         for e in range(n_el):
-            c = self.asm.cls[e]
+            c = self.asm.model.cls[e]
             if c.constraint_jacobian == NULL or c.constraint_rate != NULL:
                 continue
             nq, ng = c.n_q, c.n_g
-            idx = [self.asm.qidx[self.asm.qptr[e] + a] for a in range(nq)]
+            idx = [self.asm.model.qidx[self.asm.model.qptr[e] + a] for a in range(nq)]
             for r in range(ng):
                 at = self.bptr[e] + r * nq
                 entries = blocks[0][at:at + nq]
                 if any(not np.array_equal(entries, b[at:at + nq]) for b in blocks[1:]):
                     continue
                 norm = float(np.sqrt(np.dot(entries, entries)))
-                row = self.asm.gptr[e] + r
+                row = self.asm.model.gptr[e] + r
                 if not (norm > 0.0 and abs(g0[row]) <= self.position_tol * norm):
                     continue
                 coef = {}
@@ -391,20 +392,20 @@ cdef class SparseBlocks(Engine):
         self.bcptr = <int *>alloc_zeroed(n_el + 1, sizeof(int))
         self.compact = True
         for e in range(n_el):
-            c = self.asm.cls[e]
+            c = self.asm.model.cls[e]
             nq, ng = c.n_q, c.n_g
             nf = 0
             for a in range(nq):
-                if self.asm.qidx[self.asm.qptr[e] + a] not in pinned:
-                    self.sidx[self.sptr[e] + nf] = self.asm.qidx[self.asm.qptr[e] + a]
+                if self.asm.model.qidx[self.asm.model.qptr[e] + a] not in pinned:
+                    self.sidx[self.sptr[e] + nf] = self.asm.model.qidx[self.asm.model.qptr[e] + a]
                     self.sloc[self.sptr[e] + nf] = a
                     nf += 1
             self.snq[e] = nf
             self.sptr[e + 1] = self.sptr[e] + nf
             k = 0
             for r in range(ng):
-                if self.asm.gptr[e] + r not in fixed_set:
-                    self.srow[self.sgptr[e] + k] = self.asm.gptr[e] + r
+                if self.asm.model.gptr[e] + r not in fixed_set:
+                    self.srow[self.sgptr[e] + k] = self.asm.model.gptr[e] + r
                     self.srloc[self.sgptr[e] + k] = r
                     k += 1
             self.sng[e] = k
@@ -424,7 +425,7 @@ cdef class SparseBlocks(Engine):
         offsets, values, tols = [], [], []
         for row in fixed:
             e, r = where[row]
-            nq = self.asm.cls[e].n_q
+            nq = self.asm.model.cls[e].n_q
             at = self.bptr[e] + r * nq
             entries = blocks[0][at:at + nq]
             self.rnorm[row] = norms[row]
@@ -464,11 +465,11 @@ cdef class SparseBlocks(Engine):
         in_m = np.zeros(self.mptr[self.asm.n_el], dtype=bool)
         in_b = np.zeros(self.bptr[self.asm.n_el], dtype=bool)
         for e in range(self.asm.n_el):
-            nq = self.asm.cls[e].n_q
-            free = ~pinned[[self.asm.qidx[self.asm.qptr[e] + a] for a in range(nq)]]
+            nq = self.asm.model.cls[e].n_q
+            free = ~pinned[[self.asm.model.qidx[self.asm.model.qptr[e] + a] for a in range(nq)]]
             if self.mptr[e + 1] > self.mptr[e]:
                 in_m[self.mptr[e]:self.mptr[e + 1]] = np.outer(free, free).ravel()
-            rows = ~fixed[self.asm.gptr[e]:self.asm.gptr[e + 1]]
+            rows = ~fixed[self.asm.model.gptr[e]:self.asm.model.gptr[e + 1]]
             if self.bptr[e + 1] > self.bptr[e]:
                 in_b[self.bptr[e]:self.bptr[e + 1]] = np.outer(rows, free).ravel()
         return in_m, in_b
@@ -478,7 +479,7 @@ cdef class SparseBlocks(Engine):
         where each free one of the solve's view (set_pinned) sits in that list."""
         cdef int e
         n_el = self.asm.n_el
-        return (np.array([self.asm.cls[e].n_q for e in range(n_el)], dtype=np.intp),
+        return (np.array([self.asm.model.cls[e].n_q for e in range(n_el)], dtype=np.intp),
                 np.array([self.sptr[e] for e in range(n_el + 1)], dtype=np.intp),
                 np.array([self.sloc[e] for e in range(self.sptr[n_el])], dtype=np.intp))
 
@@ -510,7 +511,7 @@ cdef class SparseBlocks(Engine):
         if qs.shape[1] != self.n:
             raise ValueError(f"samples have {qs.shape[1]} coordinates, the model {self.n}")
         _, _, couples = element_structure(self.asm)
-        sizes = np.array([self.asm.cls[e].n_q ** 2 for e in range(self.asm.n_el)],
+        sizes = np.array([self.asm.model.cls[e].n_q ** 2 for e in range(self.asm.n_el)],
                          dtype=np.intp)
         ptr = np.concatenate([[0], np.cumsum(sizes * couples)]).astype(np.intp)
         mask = np.zeros(ptr[self.asm.n_el], dtype=bool)
@@ -527,8 +528,8 @@ cdef class SparseBlocks(Engine):
             for e in range(self.asm.n_el):
                 if ptr[e + 1] == ptr[e]:
                     continue
-                nq = self.asm.cls[e].n_q
-                ng = self.asm.cls[e].n_g
+                nq = self.asm.model.cls[e].n_q
+                ng = self.asm.model.cls[e].n_g
                 if self.mptr[e + 1] > self.mptr[e]:
                     mb = self.Mblk + self.mptr[e]
                     for a in range(nq * nq):
@@ -613,20 +614,20 @@ cdef class SparseBlocks(Engine):
         cdef const double *p
         cdef const double *src
         cdef double *dst
-        cdef double *o = self.asm.out
-        cdef double *lv = self.asm.lv
-        cdef double *hv = self.asm.h
-        cdef double *fv = self.asm.f
-        cdef double *cv = self.asm.c
+        cdef double *o = self.asm.a.out
+        cdef double *lv = self.asm.a.lv
+        cdef double *hv = self.asm.a.h
+        cdef double *fv = self.asm.a.f
+        cdef double *cv = self.asm.a.c
         cdef int vec = flags & (ASM_H | ASM_F | ASM_C)
         if flags & ASM_H: memset(hv, 0, <size_t>self.n * sizeof(double))
         if flags & ASM_F: memset(fv, 0, <size_t>self.n * sizeof(double))
         if flags & ASM_C: memset(cv, 0, <size_t>self.m * sizeof(double))
         for e in range(self.asm.n_el):
-            k = self.asm.cls[e]
+            k = self.asm.model.cls[e]
             nq = k.n_q
-            idx = self.asm.qidx + self.asm.qptr[e]
-            p = self.asm.params + self.asm.pptr[e]
+            idx = self.asm.model.qidx + self.asm.model.qptr[e]
+            p = self.asm.a.params + self.asm.model.pptr[e]
             if not ((flags & ASM_M and k.mass_matrix != NULL)
                     or (flags & ASM_B and k.constraint_jacobian != NULL) or vec):
                 continue
@@ -635,7 +636,7 @@ cdef class SparseBlocks(Engine):
             if vec:
                 for i in range(nq):
                     lv[i] = v[idx[i]]
-                element_vectors(k, self.lq, lv, p, idx, self.asm.gptr[e], vec, o, hv,
+                element_vectors(k, self.lq, lv, p, idx, self.asm.model.gptr[e], vec, o, hv,
                                 fv, cv)
             nf = self.snq[e]
             loc = self.sloc + self.sptr[e]
@@ -686,7 +687,7 @@ cdef class SparseBlocks(Engine):
         position tolerance (assembled g): its pinned coordinates would need to move."""
         cdef int i
         for i in range(self.n_fixed_rows):
-            if not fabs(self.asm.g[self.fixed_rows[i]]) <= self.fixed_g_tol[i]:
+            if not fabs(self.asm.a.g[self.fixed_rows[i]]) <= self.fixed_g_tol[i]:
                 self.tripped = True
 
     cdef void mult_m(self, const double *x, double *y, bint add) noexcept nogil:
@@ -701,7 +702,7 @@ cdef class SparseBlocks(Engine):
         that are not yet zero there, for the velocity projection)."""
         if not add:
             memset(y, 0, <size_t>self.n * sizeof(double))
-        mult_blocks(self.asm.n_el, self.asm.qptr, self.asm.qidx, self.mptr, self.Mblk,
+        mult_blocks(self.asm.n_el, self.asm.model.qptr, self.asm.model.qidx, self.mptr, self.Mblk,
                     x, y)
 
     cdef void mult_b(self, const double *x, double *y) noexcept nogil:
@@ -748,21 +749,21 @@ cdef class SparseBlocks(Engine):
         cdef int e, r, a, c, nq, row, n = self.n
         cdef const int *idx
         cdef const double *blk
-        cdef double *Md = self.asm.M
-        cdef double *Bd = self.asm.B
+        cdef double *Md = self.asm.a.M
+        cdef double *Bd = self.asm.a.B
         memset(Md, 0, <size_t>n * n * sizeof(double))
         memset(Bd, 0, <size_t>self.m * n * sizeof(double))
         for e in range(self.asm.n_el):
-            nq = self.asm.cls[e].n_q
-            idx = self.asm.qidx + self.asm.qptr[e]
+            nq = self.asm.model.cls[e].n_q
+            idx = self.asm.model.qidx + self.asm.model.qptr[e]
             if self.mptr[e + 1] > self.mptr[e]:
                 blk = self.Mblk + self.mptr[e]
                 for a in range(nq):
                     for c in range(nq):
                         Md[idx[a] * n + idx[c]] += blk[a * nq + c]
             blk = self.Bblk + self.bptr[e]
-            row = self.asm.gptr[e]
-            for r in range(self.asm.cls[e].n_g):
+            row = self.asm.model.gptr[e]
+            for r in range(self.asm.model.cls[e].n_g):
                 for a in range(nq):
                     Bd[(row + r) * n + idx[a]] += blk[r * nq + a]
 
@@ -794,7 +795,7 @@ cdef class SparseBlocks(Engine):
         cdef int k
         cdef double worst = 0.0, val
         for k in range(self.m):
-            val = fabs(self.asm.g[k])
+            val = fabs(self.asm.a.g[k])
             if self.rnorm[k] > 0.0:
                 val /= self.rnorm[k]
             if not val <= worst:
@@ -892,10 +893,10 @@ cdef class SparseBlocks(Engine):
         if q != NULL and not finite(q, n): return 1
         if v != NULL and not finite(v, n): return 2
         if flags & ASM_M and not finite(self.Mblk, self.mptr[self.asm.n_el]): return 3
-        if flags & ASM_H and not finite(self.asm.h, n): return 4
-        if flags & ASM_F and not finite(self.asm.f, n): return 5
+        if flags & ASM_H and not finite(self.asm.a.h, n): return 4
+        if flags & ASM_F and not finite(self.asm.a.f, n): return 5
         if flags & ASM_B and not finite(self.Bblk, self.bptr[self.asm.n_el]): return 6
-        if flags & ASM_C and not finite(self.asm.c, m): return 7
-        if flags & ASM_G and not finite(self.asm.g, m): return 8
+        if flags & ASM_C and not finite(self.asm.a.c, m): return 7
+        if flags & ASM_G and not finite(self.asm.a.g, m): return 8
         return 0
 
