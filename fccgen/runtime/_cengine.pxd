@@ -39,6 +39,35 @@ cdef extern from "fcc_base.h":
         FCC_RUN_ERROR
         FCC_RUN_UNDERFLOW
 
+    ctypedef struct fcc_lapack:
+        void (*dgeqp3)(int *m, int *n, double *a, int *lda, int *jpvt, double *tau,
+                       double *work, int *lwork, int *info) noexcept nogil
+        void (*dormqr)(char *side, char *trans, int *m, int *n, int *k, double *a,
+                       int *lda, double *tau, double *c, int *ldc, double *work,
+                       int *lwork, int *info) noexcept nogil
+        void (*dgesvd)(char *jobu, char *jobvt, int *m, int *n, double *a, int *lda,
+                       double *s, double *u, int *ldu, double *vt, int *ldvt,
+                       double *work, int *lwork, int *info) noexcept nogil
+        void (*dpotrf)(char *uplo, int *n, double *a, int *lda, int *info) noexcept nogil
+        void (*dpotrs)(char *uplo, int *n, int *nrhs, double *a, int *lda, double *b,
+                       int *ldb, int *info) noexcept nogil
+        void (*dgetrf)(int *m, int *n, double *a, int *lda, int *ipiv,
+                       int *info) noexcept nogil
+        void (*dgetrs)(char *trans, int *n, int *nrhs, double *a, int *lda, int *ipiv,
+                       double *b, int *ldb, int *info) noexcept nogil
+        void (*dgemm)(char *transa, char *transb, int *m, int *n, int *k, double *alpha,
+                      double *a, int *lda, double *b, int *ldb, double *beta, double *c,
+                      int *ldc) noexcept nogil
+
+    ctypedef struct fcc_settings:
+        double rank_tol
+        double position_tol
+        int max_newton
+        double grow_tol
+        double decide_tol
+        double ambiguous_low
+        double row_floor
+
     int fcc_finite(const double *x, long n) noexcept nogil
 
 
@@ -97,3 +126,29 @@ cdef extern from "fcc_assemble.h":
                              const double *lv, const double *p, const int *idx, int row,
                              int flags, double *o, double *h, double *f,
                              double *c) noexcept nogil
+
+
+cdef extern from "fcc_dense.h":
+    int FCC_DENSE_NO_LAPACK
+    ctypedef struct fcc_dense:
+        const fcc_lapack *lapack
+        int n, m, r, nr
+        double rank_tol
+        int rank_fixed
+        double grow_trigger
+        int check_growth
+        int grew
+        long n_factor, n_drop, n_svd
+        double kept_min, dropped_max
+        double *sigma
+        const int *group
+        double *A
+
+    int fcc_dense_init(fcc_dense *s, int n, int m, double rank_tol, double grow_tol,
+                       double row_floor, const fcc_lapack *lapack) nogil
+    void fcc_dense_free(fcc_dense *s) nogil
+    void fcc_dense_reset_stats(fcc_dense *s) noexcept nogil
+    int fcc_dense_svd_rank(fcc_dense *s, const double *B, double tol) noexcept nogil
+    int fcc_dense_factor(fcc_dense *s, const double *M, const double *B) noexcept nogil
+    void fcc_dense_apply(fcc_dense *s, const double *Q, const double *w, const double *b,
+                         double *x) noexcept nogil
