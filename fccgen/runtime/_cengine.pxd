@@ -152,3 +152,18 @@ cdef extern from "fcc_dense.h":
     int fcc_dense_factor(fcc_dense *s, const double *M, const double *B) noexcept nogil
     void fcc_dense_apply(fcc_dense *s, const double *Q, const double *w, const double *b,
                          double *x) noexcept nogil
+
+
+cdef extern from "fcc_ldl.h":
+    void fcc_ldl_symbolic(int n, const int *Ap, const int *Ai, int *Lp, int *parent,
+                          int *Lnz, int *flag) noexcept nogil
+    void fcc_ldl_rows(int n, const int *Ap, const int *Ai, const int *Lp,
+                      const int *parent, int *Lnz, int *Li, int *Rp, int *Rj, int *Rpos,
+                      int *pattern, int *flag) noexcept nogil
+    int fcc_ldl_numeric(int n, const int *Ap, const int *Ai, const double *Ax,
+                        const int *Lp, const int *Li, const int *Rp, const int *Rj,
+                        const int *Rpos, double *Lx, double *Dinv, double *Y,
+                        double pivot_tol) noexcept nogil
+    void fcc_ldl_solve(int n, const int *Lp, const int *Li, const double *Lx,
+                       const double *Dinv, double *x) noexcept nogil
+

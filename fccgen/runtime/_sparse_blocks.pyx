@@ -25,7 +25,8 @@ from ._assemble cimport ASM_B, ASM_C, ASM_F, ASM_G, ASM_H, ASM_M, Assembler
 from ._cengine cimport fcc_element_vectors as element_vectors
 from ._engine cimport (ERR_LAPACK, ERR_NONFINITE_INPUT, ERR_PATTERN, ERR_SINGULAR, Engine,
                        finite)
-from ._ldl cimport ldl_numeric, ldl_rows, ldl_solve, ldl_symbolic
+from ._cengine cimport (fcc_ldl_numeric as ldl_numeric, fcc_ldl_rows as ldl_rows,
+                        fcc_ldl_solve as ldl_solve, fcc_ldl_symbolic as ldl_symbolic)
 from ._model_table cimport fcc_element_class
 
 
