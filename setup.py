@@ -22,7 +22,7 @@ from Cython.Build import cythonize
 from setuptools import Extension, setup
 from setuptools.command.build_ext import build_ext
 
-CIMPORT_ORDER = ("_solve", "_assemble", "_engine", "_sparse_blocks", "_al_refine",
+CIMPORT_ORDER = ("_solve", "_assemble", "_engine",
                  "_events")
 
 

@@ -16,7 +16,8 @@ import numpy as np
 from fccgen import rank as _rank
 from fccgen.errors import SimulationError
 
-from ._cengine cimport FCC_DENSE_NO_LAPACK, FCC_OK
+from ._cengine cimport (FCC_OK, fcc_dense, fcc_dense_apply, fcc_dense_factor,
+                        fcc_dense_free, fcc_dense_init, fcc_dense_svd_rank)
 
 cdef fcc_lapack _LAPACK
 _LAPACK.dgeqp3 = dgeqp3
@@ -40,7 +41,7 @@ cdef const fcc_lapack *lapack_table() noexcept nogil:
     return &_LAPACK
 
 
-cdef int csolve_init(fcc_dense *s, int n, int m, double rank_tol) except -1:
+cdef int _init(fcc_dense *s, int n, int m, double rank_tol) except -1:
     """A dense solve of n coordinates and m rows with this build's LAPACK table and
     the rank rule's numbers."""
     if fcc_dense_init(s, n, m, rank_tol, GROW_TOL, ROW_FLOOR, &_LAPACK) != FCC_OK:
@@ -66,7 +67,7 @@ def constrained_solve(M, B, Q, b, double rank_tol=1e-10, int rank=-1):
     x = np.zeros(n)
     cdef double[::1] xv = x
     cdef fcc_dense s
-    csolve_init(&s, n, m, rank_tol)
+    _init(&s, n, m, rank_tol)
     s.rank_fixed = rank
     try:
         with nogil:
@@ -91,7 +92,7 @@ def singular_values(B):
     cdef double[:, ::1] Bv = np.ascontiguousarray(B, dtype=float)
     cdef int m = Bv.shape[0], n = Bv.shape[1] if Bv.ndim == 2 else 0, k
     cdef fcc_dense s
-    csolve_init(&s, n, m, 1e-10)
+    _init(&s, n, m, 1e-10)
     try:
         if n * m > 0:
             with nogil:
