@@ -19,7 +19,7 @@ from fccgen.errors import BuildError
 from ._cengine cimport (FCC_OK, fcc_assemble, fcc_assembly_free, fcc_assembly_init,
                         fcc_jacobian_size, fcc_jacobian_triplets, fcc_kernel_flags,
                         fcc_model_free, fcc_model_init, fcc_model_set_time_slots,
-                        fcc_put_time)
+                        fcc_model, fcc_put_time)
 from ._model_table cimport FCC_ABI_VERSION, fcc_element_class, fcc_model_table
 
 CAPSULE_NAME = "fccgen.model_table"
@@ -138,6 +138,27 @@ cdef class Assembler:
         if self.live:
             fcc_assembly_free(&self.a)
             fcc_model_free(&self.model)
+
+    def instance_arrays(self):
+        """The arguments of fcc_model_init and fcc_assembly_init this assembler was
+        built from (class_of, q_ptr, q_idx, param_ptr, params, n_q, body_elements,
+        time_slots), as fresh arrays: what another instance of the engine is built
+        from. params holds the time last written into the time slots."""
+        cdef int e, j, n_el = self.model.n_el
+        cdef const fcc_model *m = &self.model
+        return dict(
+            class_of=np.array([<int>(m.cls[e] - m.table.classes) for e in range(n_el)],
+                              dtype=np.intc),
+            q_ptr=np.array([m.qptr[e] for e in range(n_el + 1)], dtype=np.intc),
+            q_idx=np.array([m.qidx[j] for j in range(m.qptr[n_el])], dtype=np.intc),
+            param_ptr=np.array([m.pptr[e] for e in range(n_el + 1)], dtype=np.intc),
+            params=np.array([self.a.params[j] for j in range(m.n_p)], dtype=float),
+            n_q=m.n_q,
+            body_elements=np.array([e for e in range(n_el) if m.body_of[e] >= 0],
+                                   dtype=np.intc)[np.argsort(
+                                       [m.body_of[e] for e in range(n_el)
+                                        if m.body_of[e] >= 0], kind="stable")],
+            time_slots=np.array([m.time_slot[j] for j in range(m.n_time)], dtype=np.intc))
 
     # -- time ----------------------------------------------------------------------
     def set_time_slots(self, slots):

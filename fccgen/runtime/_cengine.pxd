@@ -193,11 +193,30 @@ cdef extern from "fcc_engine.h":
         int *srloc
         int *mcptr
         int *bcptr
+        double *efix
         int n_pinned
         int *pinned
+        int n_fixed
+        int *fixed_off
+        double *fixed_val
+        double *fixed_tol
         int n_fixed_rows
         int *fixed_rows
+        double *fixed_norm
+        double *fixed_g_tol
+        int n_zero_m, n_zero_b
+        int *zero_m
+        int *zero_b
+        double *zero_m_tol
+        double *zero_b_tol
         int ready, n_lead, nnz_a, nnz_l
+        int *perm
+        int *Ap
+        int *Ai
+        int *ent_ptr
+        int *ent_a
+        int *ent_b
+        int *ent_pos
 
     ctypedef struct fcc_sparse:
         const fcc_pattern *pat

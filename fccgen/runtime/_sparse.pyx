@@ -58,6 +58,16 @@ cdef const double *_dp(double[::1] x):
     return &x[0] if x.shape[0] else NULL
 
 
+cdef object ints(const int *p, int k):
+    """p[:k] as a fresh array."""
+    return np.array([p[i] for i in range(k)], dtype=np.intc)
+
+
+cdef object doubles(const double *p, int k):
+    """p[:k] as a fresh array."""
+    return np.array([p[i] for i in range(k)], dtype=float)
+
+
 cdef class SparseEngine(Engine):
     """An Engine whose solves use the sparse augmented-Lagrangian refinement. Call
     :meth:`set_structure` (fccgen.runtime.sparsity) before use."""
@@ -238,6 +248,38 @@ cdef class SparseEngine(Engine):
                          dtype=np.intp),
                 np.array([self.pat.fixed_rows[i] for i in range(self.pat.n_fixed_rows)],
                          dtype=np.intp))
+
+    def pattern_arrays(self):
+        """The pattern's constants as the set-up gave them: {"view": the arguments of
+        fcc_pattern_set_view (None without pinned coordinates), "guards": those of
+        fcc_pattern_set_guards, "structure": those of fcc_pattern_set_structure (None
+        before set_structure)}, each a dict of fresh arrays; what another instance of
+        the engine (a program that holds the C engine alone) is built from."""
+        cdef int n_el = self.asm.n_el
+        cdef const fcc_pattern *P = &self.pat
+        view = None
+        if P.compact:
+            view = dict(snq=ints(P.snq, n_el), sloc=ints(P.sloc, P.sptr[n_el]),
+                        sng=ints(P.sng, n_el), srloc=ints(P.srloc, P.sgptr[n_el]),
+                        efix=doubles(P.efix, n_el), pinned=ints(P.pinned, P.n_pinned),
+                        fixed_rows=ints(P.fixed_rows, P.n_fixed_rows),
+                        fixed_norm=doubles(P.fixed_norm, P.n_fixed_rows),
+                        fixed_g_tol=doubles(P.fixed_g_tol, P.n_fixed_rows),
+                        fixed_off=ints(P.fixed_off, P.n_fixed),
+                        fixed_val=doubles(P.fixed_val, P.n_fixed),
+                        fixed_tol=doubles(P.fixed_tol, P.n_fixed))
+        guards = dict(zero_m=ints(P.zero_m, P.n_zero_m),
+                      zero_m_tol=doubles(P.zero_m_tol, P.n_zero_m),
+                      zero_b=ints(P.zero_b, P.n_zero_b),
+                      zero_b_tol=doubles(P.zero_b_tol, P.n_zero_b))
+        structure = None
+        if P.ready:
+            structure = dict(perm=ints(P.perm, P.n), Ap=ints(P.Ap, P.n + 1),
+                             Ai=ints(P.Ai, P.nnz_a), ent_ptr=ints(P.ent_ptr, n_el + 1),
+                             ent_a=ints(P.ent_a, P.ent_ptr[n_el]),
+                             ent_b=ints(P.ent_b, P.ent_ptr[n_el]),
+                             ent_pos=ints(P.ent_pos, P.ent_ptr[n_el]))
+        return dict(view=view, guards=guards, structure=structure)
 
     @property
     def pattern_tripped(self):

@@ -7,8 +7,8 @@
  * in the norm sqrt(mean((err_i / (atol + rtol max(|y0_i|, |y1_i|)))^2)) over
  * y = (q, v), the step factor 0.9 err^(-1/5) kept within [0.2, 10] (no growth right
  * after a rejection), and the 4th-order continuous extension for outputs at requested
- * times. Rejections shrink the step by at least FACMIN each, until the step underflows
- * the rounding of t (FCC_RUN_UNDERFLOW): the bound on a step's work.
+ * times. Each rejection shrinks the step (to between FACMIN and 0.9 of it), until the
+ * step underflows the rounding of t (FCC_RUN_UNDERFLOW): the bound on a step's work.
  *
  * With projection, every accepted step is followed by the Newton position projection
  * and the M-orthogonal velocity projection; the first stage of the next step is then
