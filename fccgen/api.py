@@ -60,7 +60,7 @@ def load_numeric(path, **solver_options):
 def simulate(path, *, t_end=None, dt=None, method=None, output_dt=None, project=True,
              numeric=False, out=None, build_dir=DEFAULT_BUILD_DIR, force=False,
              keep_partial=False, progress: Progress = None, rtol=None, atol=None,
-             solver_options: dict | None = None, **method_options):
+             solver_options: dict | None = None, all_columns=False, **method_options):
     """Simulate a model from its consistent initial state; write ``out`` if given.
 
     rtol, atol: tolerances of adaptive methods; solver_options: rank_tol,
@@ -69,7 +69,9 @@ def simulate(path, *, t_end=None, dt=None, method=None, output_dt=None, project=
     before anything runs (suffix, writable folder). When the run stops early (Ctrl-C,
     SimulationError) nothing is written, unless ``keep_partial``: then the rows
     recorded so far, if the integrator hands them back, go to ``<stem>.partial<suffix>``
-    and the exception's ``partial_path`` says where. Returns ``(result, initial_state)``.
+    and the exception's ``partial_path`` says where. ``all_columns``: write the internal
+    columns too (:meth:`fccgen.results.Result.save`). Returns ``(result,
+    initial_state)``.
     """
     from .results import check_output, partial_path
     out = None if out is None else check_output(out)
@@ -84,10 +86,11 @@ def simulate(path, *, t_end=None, dt=None, method=None, output_dt=None, project=
     except BaseException as exc:
         partial = getattr(exc, "partial_result", None)
         if keep_partial and out is not None and partial is not None:
-            exc.partial_path = partial.save(partial_path(out), partial=True)
+            exc.partial_path = partial.save(partial_path(out), partial=True,
+                                            all_columns=all_columns)
         raise
     if out is not None:
-        result.save(out)
+        result.save(out, all_columns=all_columns)
     return result, init
 
 
@@ -154,9 +157,26 @@ def sweep(path, sets, out=None, *, scheduler=None, method=None, workers=None,
 def statics(path, *, numeric=False, build_dir=DEFAULT_BUILD_DIR, progress: Progress = None):
     """The static equilibrium of a model from its initial configuration
     (:func:`fccgen.analysis.statics`); returns an :class:`~fccgen.analysis.Equilibrium`."""
+    return equilibrium(path, numeric=numeric, build_dir=build_dir, progress=progress)[0]
+
+
+def equilibrium(path, *, out=None, numeric=False, build_dir=DEFAULT_BUILD_DIR,
+                progress: Progress = None):
+    """The static equilibrium and its one-row result (section 4's columns at t = 0,
+    the reactions named by joint and component, the drivers' forces, provenance and
+    the equilibrium's figures in ``info``: :mod:`fccgen.analysis.statics_result`),
+    written to ``out`` (.csv, .npz, .h5; checked before anything runs) if given.
+    Returns ``(equilibrium, result)``."""
     from .analysis import statics as solve_statics
+    from .analysis.statics_result import equilibrium_result
+    from .results import check_output
+    out = None if out is None else check_output(out)
     solver = load_numeric(path) if numeric else load(path, build_dir, progress=progress)
-    return solve_statics(solver)
+    eq = solve_statics(solver)
+    result = equilibrium_result(solver, eq)
+    if out is not None:
+        result.save(out)
+    return eq, result
 
 
 def inverse_dynamics(path, *, t_end=None, dt=None, out=None, numeric=False,
@@ -198,7 +218,13 @@ def modes(path, *, about="equilibrium", out=None, shapes=None, amplitude=None,
         lin = linearize(solver, init.q, init.v)
     result = solve_modes(lin)
     if out is not None:
-        result.write_csv(out)
+        from .provenance import provenance
+        info = provenance(solver.plan, getattr(solver, "settings", dict)())
+        info.update(kind="modes", about=about, dof=int(lin.null_basis.shape[1]))
+        if equilibrium is not None:
+            info.update(equilibrium_force_residual=equilibrium.force_residual,
+                        equilibrium_stability=equilibrium.stability)
+        result.write_csv(out, info)
     if shapes is not None:
         from .analysis.mode_shapes import mode_shapes, write_mode_shapes
         write_mode_shapes(mode_shapes(solver, lin, result, amplitude=amplitude,

@@ -1,4 +1,4 @@
-"""Command line (DESIGN section 5): a thin layer over :mod:`fccgen.api`.
+"""Command line (docs/design.md §5): a thin layer over :mod:`fccgen.api`.
 
     fccgen MODEL.yaml                 generate and compile (cached)
     fccgen simulate MODEL.yaml ...    simulate and write results
@@ -10,6 +10,7 @@
     fccgen statics MODEL.yaml         static equilibrium, reactions, stability
     fccgen modes MODEL.yaml           natural frequencies about the equilibrium
     fccgen inverse MODEL.yaml         driver forces and reactions along the drivers
+    fccgen examples [DIR]             copy the example models into DIR (./examples)
 """
 from __future__ import annotations
 
@@ -28,7 +29,7 @@ from .methods import names as method_names
 from .run_settings import LINEAR_SOLVERS
 
 COMMANDS = ("simulate", "bench", "check", "generate", "plot", "animate", "sweep",
-            "statics", "modes", "inverse")
+            "statics", "modes", "inverse", "examples")
 EXIT_INTERRUPTED = 130      # 128 + SIGINT, as shells report it
 
 
@@ -49,6 +50,13 @@ def _parser() -> argparse.ArgumentParser:
     def force(sp):
         sp.add_argument("--force", action="store_true",
                         help="rebuild the compiled module even if it is cached")
+
+    ex = sub.add_parser("examples", help="copy the example models shipped with fccgen "
+                        "into a folder, so that the README's lines run anywhere")
+    ex.add_argument("dir", nargs="?", default="examples",
+                    help="where to copy them (default: ./examples)")
+    ex.add_argument("--overwrite", action="store_true",
+                    help="replace files already there (default: keep them)")
 
     g = sub.add_parser("generate", help="generate and compile (the default command)")
     common(g)
@@ -82,6 +90,11 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--out", help="write results to FILE.csv, .npz or .h5 with how they "
                    "were made (CSV: in FILE.meta.json); checked before the run, "
                    "written atomically")
+    s.add_argument("--all-columns", action="store_true",
+                   help="also write the columns of the points and vectors fccgen made "
+                        "for joints and pose-form bodies (A_axis.x, rod_center.vy, ...; "
+                        "default: only what the model names; .npz and .h5 keep them "
+                        "apart for fccgen animate)")
     s.add_argument("--keep-partial", action="store_true",
                    help="if the run stops early (Ctrl-C, a failure), write the rows "
                         "recorded so far to FILE.partial.csv|.npz|.h5, marked as partial")
@@ -141,6 +154,9 @@ def _parser() -> argparse.ArgumentParser:
 
     st = sub.add_parser("statics", help="static equilibrium from the initial configuration")
     common(st)
+    st.add_argument("--out", help="write the equilibrium as one result row at t = 0 "
+                    "(.csv, .npz or .h5): section 4's columns, the reactions by joint "
+                    "and component, the drivers' forces, how it was made")
     mo = sub.add_parser("modes", help="natural frequencies (Hz) and damping ratios")
     common(mo)
     mo.add_argument("--about", choices=("equilibrium", "initial"), default="equilibrium",
@@ -181,7 +197,8 @@ def _viz_sweep_parsers(sub, common) -> None:
                     "result's name with .png)")
     pl.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
     an = sub.add_parser("animate", help="write an offline web page playing the motion "
-                        "in 3-D (bodies, mass centres, points; play button, time slider)")
+                        "in 3-D (bodies as their shapes or inertia boxes, joints, ground; "
+                        "play button, time slider)")
     an.add_argument("model", help="model file (YAML)")
     an.add_argument("--out", required=True, help="the page to write (.html)")
     an.add_argument("--result", help="a result of this model (.csv, .npz or .h5; default: "
@@ -265,6 +282,18 @@ def _run_summary(result) -> str:
                f"{info['event_energy_loss']:.6g})") + _dof_summary(info))
 
 
+def _internal_note(result, args) -> str:
+    """What became of the internal columns (result.internal) in the file written."""
+    hidden = len(result.internal)
+    if not hidden:
+        return ""
+    if args.all_columns:
+        return f" and {hidden} internal columns"
+    if args.out.lower().endswith(".csv"):
+        return f"; {hidden} internal columns left out, --all-columns writes them"
+    return f"; {hidden} internal columns kept apart"
+
+
 def _dof_summary(info) -> str:
     """The run's degrees of freedom by rank and what the rank decisions saw."""
     if "dof" not in info:
@@ -293,7 +322,7 @@ def main(argv=None) -> int:
     if args.command is None:
         _parser().print_help()
         return 2
-    progress = _Progress(args.quiet)
+    progress = _Progress(getattr(args, "quiet", False))
     with warnings.catch_warnings():
         warnings.simplefilter("always", CacheRepairWarning)
         warnings.simplefilter("always", PartialResultWarning)
@@ -344,6 +373,15 @@ def _guarded(args, progress) -> int:
 
 def _run(args, progress) -> int:
     from . import api
+    if args.command == "examples":
+        from .example_models import copy_examples, example_names
+        written = copy_examples(args.dir, overwrite=args.overwrite)
+        print(f"examples: {len(written)} files written to {args.dir}"
+              + ("" if written else " (all were there; --overwrite replaces them)")
+              + f"\nmodels: {', '.join(example_names())}"
+              f"\ntry: fccgen simulate {args.dir}/double_pendulum.yaml --out "
+              "double_pendulum.csv")
+        return 0
     if args.command == "generate":
         t0 = time.perf_counter()
         plan, built = api.generate(args.model, args.build_dir, force=args.force,
@@ -373,7 +411,7 @@ def _run(args, progress) -> int:
             args.model, t_end=args.t_end, dt=args.dt, method=args.method,
             output_dt=args.output_dt, project=not args.no_project, numeric=args.numeric,
             out=args.out, build_dir=args.build_dir, force=args.force,
-            keep_partial=args.keep_partial, progress=progress,
+            keep_partial=args.keep_partial, progress=progress, all_columns=args.all_columns,
             rtol=args.rtol, atol=args.atol, solver_options=_solver_options(args), **options)
         print(init.report())
         print(_run_summary(result))
@@ -385,7 +423,8 @@ def _run(args, progress) -> int:
             from .events.table import summary
             print(summary(result.events))
         if args.out:
-            print(f"results: {args.out} ({len(result.t)} rows, {len(result.names)} columns)")
+            print(f"results: {args.out} ({len(result.t)} rows, {len(result.names)} "
+                  f"columns{_internal_note(result, args)})")
         else:
             print("no --out given: results not written")
         return 0
@@ -427,7 +466,13 @@ def _run(args, progress) -> int:
 def _analysis(args, progress, api) -> int:
     """``fccgen statics`` and ``fccgen modes``: one call of the API each."""
     if args.command == "statics":
-        print(api.statics(args.model, build_dir=args.build_dir, progress=progress).text())
+        from .analysis.statics_result import reaction_lines
+        eq, result = api.equilibrium(args.model, out=args.out, build_dir=args.build_dir,
+                                     progress=progress)
+        print("\n".join([eq.text(multipliers=False), *reaction_lines(result)]))
+        if args.out:
+            print(f"equilibrium: {args.out} (one row at t = 0, {len(result.names)} "
+                  "columns; how it was made in its metadata)")
         return 0
     if args.command == "inverse":
         from .analysis.inverse import inverse_dynamics, summary

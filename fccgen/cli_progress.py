@@ -6,13 +6,15 @@
   (compiling) shows its message and a clock that keeps ticking. A bar is cleared when
   its stage ends, when anything is written to stdout, and when the command ends, so
   no progress line is left on the screen.
-- stderr is not a terminal (a log file, a pipe): plain lines ``fccgen: message``; a
-  stage message always, a progress report when it begins a stage or at least 5 s
-  after the last line.
+- stderr is not a terminal (a log file, a pipe), or a terminal that cannot draw a bar
+  (``TERM=dumb``, or one that reports 0 columns, as some CI consoles and editors'
+  terminals do): plain lines ``fccgen: message``; a stage message always, a progress
+  report when it begins a stage or at least 5 s after the last line.
 - ``--quiet``: nothing.
 """
 from __future__ import annotations
 
+import os
 import sys
 import threading
 import time
@@ -40,7 +42,7 @@ class ProgressDisplay:
     def __init__(self, quiet: bool, stream=None):
         self.quiet = quiet
         self.stream = stream or sys.stderr
-        self.bars = not quiet and _isatty(self.stream) and _tqdm() is not None
+        self.bars = not quiet and _can_draw(self.stream) and _tqdm() is not None
         self.last = 0.0             # when the last line was written (log mode)
         self.stage = None           # the stage of the last line (log mode)
         self.bar = None             # (stage, tqdm) on a terminal
@@ -140,6 +142,22 @@ class _ClearingStream:
 
     def __getattr__(self, name):
         return getattr(self._stream, name)
+
+
+def _can_draw(stream) -> bool:
+    """Whether ``stream`` is a terminal that can redraw a bar in place: not dumb, and
+    at least one column wide (a width of 0 means the terminal does not say)."""
+    if not _isatty(stream) or os.environ.get("TERM", "") == "dumb":
+        return False
+    return _columns(stream) != 0
+
+
+def _columns(stream) -> int | None:
+    """The terminal's width in columns, None when the stream has no terminal size."""
+    try:
+        return os.get_terminal_size(stream.fileno()).columns
+    except (AttributeError, ValueError, OSError):
+        return None
 
 
 def _isatty(stream) -> bool:

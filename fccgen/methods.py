@@ -69,7 +69,7 @@ RTOL = Option("rtol", 1e-6, "relative tolerance of the local error estimate",
               "fccgen's choice: on the examples, dopri5 at 1e-6 is within 2e-6 to 6e-6 "
               "(positions, over 1 s) of a converged solution, comparable to rk4 at "
               "dt = 1e-3 on the four-bar; SciPy's solve_ivp default 1e-3 is 1000x "
-              "looser (DESIGN section 7: compare at equal accuracy)",
+              "looser (docs/design.md §7: compare at equal accuracy)",
               low=10 * EPS, high=1.0, high_open=True,
               why="below 10 eps is rounding, 1 or more accepts any step")
 ATOL = Option("atol", 1e-9, "absolute tolerance of the local error estimate",

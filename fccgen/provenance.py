@@ -1,4 +1,4 @@
-"""How a result was made (DESIGN section 4): the metadata every run adds to
+"""How a result was made (docs/design.md §4): the metadata every run adds to
 ``result.info`` and every result file keeps.
 
     fccgen_version   the fccgen that ran it

@@ -1,6 +1,6 @@
 """The rank of the constraint Jacobian: decided once by an SVD gap test, then kept.
 
-Redundant constraint equations are normal in closed loops (DESIGN section 1), so the
+Redundant constraint equations are normal in closed loops (docs/design.md §1), so the
 solvers need the rank r of B to split the coordinates into n - r free directions and r
 constrained ones. Deciding r afresh at every factorisation from the QR pivots is
 fragile: rounding and the position error lift the zero singular values of redundant

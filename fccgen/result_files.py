@@ -1,5 +1,9 @@
-"""The file formats of a result (DESIGN section 4), each keeping ``result.info``, the
+"""The file formats of a result (docs/design.md §4), each keeping ``result.info``, the
 metadata of :mod:`fccgen.provenance`:
+
+The internal columns of a model with joints (the points and vectors fccgen made,
+``result.internal``) go into a CSV only when asked (``all_columns``); the HDF5 file
+keeps them in its group ``internal`` (at the root when asked).
 
 - ``.csv``: the header is the column names, ``t`` first, then one row per output
   time (numbers in their exact shortest form, ``%.17g``): pandas.read_csv and
@@ -8,12 +12,15 @@ metadata of :mod:`fccgen.provenance`:
   column names, the row count and the sha256 of the CSV it describes; a sidecar that
   does not match its CSV (a CSV rewritten by another program) is ignored with a
   :class:`~fccgen.errors.ResultMetadataWarning`.
-- ``.npz``: one array per column name, and ``info`` as JSON in the entry
+- ``.npz``: one array per column name, the internal ones included (their names as
+  JSON in the entry ``__fccgen_internal__``), and ``info`` as JSON in the entry
   ``__fccgen_info__``.
-- ``.h5`` / ``.hdf5`` (needs h5py: ``pip install 'fccgen[hdf5]'``): one dataset per
-  column name at the root, in order; root attributes ``fccgen_columns`` (the names,
-  JSON) and ``fccgen_info`` (``info``, JSON); when the run has events, a group
-  ``events`` with one dataset per field of the events table, for other tools.
+- ``.h5`` / ``.hdf5`` (h5py): one dataset per column name at the root, in order,
+  ``t`` a dimension scale that every other column is attached to (the netCDF-4
+  layout, so ``xarray.open_dataset(path, engine="h5netcdf")`` reads it as one
+  Dataset over ``t``); root attributes ``fccgen_columns`` (the names, JSON) and
+  ``fccgen_info`` (``info``, JSON); when the run has events, a group ``events`` with
+  one dataset per field of the events table, for other tools.
 
 Every file is written into a temporary file of the same folder and renamed over the
 target (:func:`atomic_write`), with the permissions the user's umask gives.
@@ -35,6 +42,8 @@ from .errors import HostError, ResultMetadataWarning
 SUFFIXES = (".csv", ".npz", ".h5", ".hdf5")
 HDF5 = (".h5", ".hdf5")
 INFO_ENTRY = "__fccgen_info__"          # NPZ entry holding result.info as JSON
+INTERNAL_ENTRY = "__fccgen_internal__"  # NPZ entry naming the internal columns (JSON)
+INTERNAL_GROUP = "internal"             # HDF5 group of the internal columns
 PARTIAL_LINE = "# fccgen: partial result"
 SIDECAR = ".meta.json"
 
@@ -121,48 +130,73 @@ def info_json(info: dict) -> str:
     return json.dumps(info, default=json_value, sort_keys=True)
 
 
-def write(result, path: Path, suffix: str) -> None:
-    """Write ``result`` to ``path`` in the format of ``suffix`` (atomically)."""
+def write(result, path: Path, suffix: str, all_columns: bool = False) -> None:
+    """Write ``result`` to ``path`` in the format of ``suffix`` (atomically); the
+    internal columns as :meth:`fccgen.results.Result.save` says."""
     if suffix == ".csv":
-        _write_csv(result, path)
+        _write_csv(result, path, all_columns)
     elif suffix == ".npz":
         atomic_write(path, lambda tmp: _write_npz(result, tmp))
     else:
-        atomic_write(path, lambda tmp: _write_h5(result, tmp))
+        atomic_write(path, lambda tmp: _write_h5(result, tmp, all_columns))
 
 
-def _write_csv(result, path: Path) -> None:
+def _write_csv(result, path: Path, all_columns: bool) -> None:
     """The CSV, then its sidecar (renamed in place just before the CSV is)."""
+    names = result.all_names() if all_columns else result.names
+
     def write_table(tmp):
         with open(tmp, "wb") as f:
-            np.savetxt(f, result.table(), delimiter=",", header=",".join(result.names),
-                       comments="", fmt="%.17g")
+            np.savetxt(f, result.table(all_columns), delimiter=",",
+                       header=",".join(names), comments="", fmt="%.17g")
             if result.partial:
                 f.write(f"{PARTIAL_LINE}: {result.info.get('stopped_by', 'unfinished')}\n"
                         .encode("utf-8"))
 
+    meta = {"fccgen_result": 1, "rows": len(result.t), "columns": names}
+    if all_columns and result.internal:
+        meta["internal_columns"] = list(result.internal)
+    write_csv_with_sidecar(path, write_table, meta, result.info)
+
+
+def write_csv_with_sidecar(path: Path, write_table, meta: dict, info: dict) -> None:
+    """``write_table(tmp)`` writes a CSV, then its sidecar ``<stem>.meta.json`` holds
+    ``meta``, the file's name and sha256, and ``info`` (how it was made); both written
+    atomically, the sidecar renamed in place just before the CSV is."""
     def write_sidecar(tmp_csv):
-        meta = {"fccgen_result": 1, "file": path.name, "sha256": _sha256(tmp_csv),
-                "rows": len(result.t), "columns": result.names,
-                "info": json.loads(info_json(result.info))}
-        text = json.dumps(meta, indent=1, sort_keys=True) + "\n"
+        full = {**meta, "file": path.name, "sha256": _sha256(tmp_csv),
+                "info": json.loads(info_json(info))}
+        text = json.dumps(full, indent=1, sort_keys=True) + "\n"
         atomic_write(sidecar_path(path), lambda tmp: tmp.write_text(text, "utf-8"))
     atomic_write(path, write_table, write_sidecar)
 
 
 def _write_npz(result, tmp: Path) -> None:
+    internal = {INTERNAL_ENTRY: np.array(json.dumps(list(result.internal)))} \
+        if result.internal else {}
     with open(tmp, "wb") as f:
-        np.savez(f, **{n: result[n] for n in result.names},
-                 **{INFO_ENTRY: np.array(info_json(result.info))})
+        np.savez(f, **{n: result[n] for n in result.all_names()},
+                 **{INFO_ENTRY: np.array(info_json(result.info))}, **internal)
 
 
-def _write_h5(result, tmp: Path) -> None:
+def _write_h5(result, tmp: Path, all_columns: bool) -> None:
     h5py = require_h5py()
+    names = result.all_names() if all_columns else result.names
     with h5py.File(tmp, "w", track_order=True) as f:
-        f.attrs["fccgen_columns"] = json.dumps(result.names)
+        f.attrs["fccgen_columns"] = json.dumps(names)
         f.attrs["fccgen_info"] = info_json(result.info)
-        for name in result.names:
+        if result.internal:
+            f.attrs["fccgen_internal"] = json.dumps(list(result.internal))
+        for name in names:
             f.create_dataset(name, data=np.asarray(result[name]))
+        f["t"].make_scale("t")          # every column is a function of t (netCDF-4 form)
+        for name in names[1:]:
+            f[name].dims[0].attach_scale(f["t"])
+        if result.internal and not all_columns:
+            group = f.create_group(INTERNAL_GROUP, track_order=True)
+            for name, values in result.internal.items():
+                group.create_dataset(name, data=np.asarray(values))
+                group[name].dims[0].attach_scale(f["t"])
         events = result.info.get("events")
         if isinstance(events, list) and events and all(isinstance(e, dict) for e in events):
             group = f.create_group("events", track_order=True)
@@ -183,19 +217,22 @@ def _sha256(path: Path) -> str:
 
 # -- reading ---------------------------------------------------------------------------
 
-def read(path: Path, suffix: str) -> tuple[dict, dict]:
-    """(arrays by name, ``t`` included; info) of a result file."""
+def read(path: Path, suffix: str) -> tuple[dict, dict, list]:
+    """(arrays by name, ``t`` and the internal columns included; info; the names of
+    the internal columns) of a result file."""
     if suffix == ".npz":
         with np.load(path) as data:
             arrays = {n: data[n] for n in data.files}
         info = json.loads(str(arrays.pop(INFO_ENTRY))) if INFO_ENTRY in arrays else {}
-        return arrays, info
+        hidden = (json.loads(str(arrays.pop(INTERNAL_ENTRY))) if INTERNAL_ENTRY in arrays
+                  else [])
+        return arrays, info, hidden
     if suffix == ".csv":
         return _read_csv(path)
     return _read_h5(path)
 
 
-def _read_csv(path: Path) -> tuple[dict, dict]:
+def _read_csv(path: Path) -> tuple[dict, dict, list]:
     """(arrays by name, info) of a CSV result and its sidecar; refuses a file whose
     last line is cut."""
     with open(path, "rb") as fh:
@@ -203,7 +240,7 @@ def _read_csv(path: Path) -> tuple[dict, dict]:
     if data and not data.endswith(b"\n"):
         raise ValueError(f"{path}: incomplete result file (its last line is cut)")
     lines = data.decode("utf-8").splitlines()
-    info = _read_sidecar(path, hashlib.sha256(data).hexdigest())
+    info, hidden = _read_sidecar(path, hashlib.sha256(data).hexdigest())
     if lines and lines[-1].startswith(PARTIAL_LINE):
         info.update(partial=True,
                     stopped_by=lines[-1][len(PARTIAL_LINE):].lstrip(": ").strip())
@@ -211,30 +248,31 @@ def _read_csv(path: Path) -> tuple[dict, dict]:
     table = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2, comments="#")
     if table.shape[1] != len(names):
         raise ValueError(f"{path}: {len(names)} column names but {table.shape[1]} columns")
-    return {n: table[:, k] for k, n in enumerate(names)}, info
+    return {n: table[:, k] for k, n in enumerate(names)}, info, hidden
 
 
-def _read_sidecar(path: Path, sha256: str) -> dict:
-    """The info of a CSV's sidecar, {} when there is none or it describes another file."""
+def _read_sidecar(path: Path, sha256: str) -> tuple[dict, list]:
+    """The info of a CSV's sidecar and the names of its internal columns; ({}, [])
+    when there is none or it describes another file."""
     meta_path = sidecar_path(path)
     try:
         meta = json.loads(meta_path.read_text("utf-8"))
     except FileNotFoundError:
-        return {}
+        return {}, []
     except (OSError, ValueError) as exc:
         warnings.warn(ResultMetadataWarning(
             f"{meta_path}: unreadable metadata of {path.name} ({exc}); loaded without "
             "them"), stacklevel=4)
-        return {}
+        return {}, []
     if not isinstance(meta, dict) or meta.get("sha256") != sha256:
         warnings.warn(ResultMetadataWarning(
             f"{meta_path} describes another version of {path.name} (the CSV was changed "
             "after it was written); loaded without its metadata"), stacklevel=4)
-        return {}
-    return dict(meta.get("info") or {})
+        return {}, []
+    return dict(meta.get("info") or {}), list(meta.get("internal_columns") or [])
 
 
-def _read_h5(path: Path) -> tuple[dict, dict]:
+def _read_h5(path: Path) -> tuple[dict, dict, list]:
     h5py = require_h5py()
     with h5py.File(path, "r") as f:
         if "fccgen_columns" not in f.attrs:
@@ -242,5 +280,9 @@ def _read_h5(path: Path) -> tuple[dict, dict]:
                              "no fccgen_columns attribute)")
         names = json.loads(f.attrs["fccgen_columns"])
         arrays = {n: np.asarray(f[n][()]) for n in names}
+        hidden = json.loads(f.attrs.get("fccgen_internal", "[]"))
+        group = f.get(INTERNAL_GROUP)
+        if isinstance(group, h5py.Group):
+            arrays.update({n: np.asarray(group[n][()]) for n in hidden if n in group})
         info = json.loads(f.attrs.get("fccgen_info", "{}"))
-    return arrays, info
+    return arrays, info, hidden

@@ -1,4 +1,4 @@
-"""Simulation results (DESIGN section 4): time ``t`` and named columns, with
+"""Simulation results (docs/design.md §4): time ``t`` and named columns, with
 ``info``, how the run was made (:mod:`fccgen.provenance`), written as CSV (with a JSON
 sidecar ``<stem>.meta.json``), NPZ or HDF5 (:mod:`fccgen.result_files`).
 
@@ -61,6 +61,10 @@ class Result:
     columns: dict[str, np.ndarray]              # name -> (n_out,), insertion order kept
     info: dict = field(default_factory=dict)    # run statistics: steps, method, timings...
     events: list = field(default_factory=list)  # event table rows (fccgen.events.table)
+    # Columns of the points and vectors that the lowering of joints and pose-form bodies
+    # made (``A_axis.x``, ``rod_center.vy``): kept in ``columns``, shown only on
+    # request (:attr:`internal`, ``all_columns=True``).
+    hidden: set = field(default_factory=set)
 
     def __getitem__(self, name: str) -> np.ndarray:
         if name == "t":
@@ -68,12 +72,25 @@ class Result:
         try:
             return self.columns[name]
         except KeyError:
-            raise KeyError(f"no column {name!r}; columns are: t, "
-                           + ", ".join(self.columns)) from None
+            raise KeyError(f"no column {name!r}; columns are: " + ", ".join(self.names)
+                           + (" (and those of result.internal)" if self.hidden else "")
+                           ) from None
 
     @property
     def names(self) -> list[str]:
-        return ["t", *self.columns]
+        """``t`` and the columns of what the user named: points, vectors, bodies,
+        joints, drivers, energy, constraint_error (docs/design.md §4)."""
+        return ["t", *(n for n in self.columns if n not in self.hidden)]
+
+    @property
+    def internal(self) -> dict[str, np.ndarray]:
+        """The columns of the points and vectors fccgen made when it lowered joints and
+        pose-form bodies (none for a model given by points)."""
+        return {n: v for n, v in self.columns.items() if n in self.hidden}
+
+    def all_names(self) -> list[str]:
+        """``t``, the user's columns, then the internal ones."""
+        return [*self.names, *self.internal]
 
     def __repr__(self) -> str:
         """Rows, t range, columns (the first few named), method, events, partial."""
@@ -85,9 +102,22 @@ class Result:
         from .summary import result_html
         return result_html(self)
 
-    def table(self) -> np.ndarray:
-        """All columns side by side, ``t`` first: shape (n_out, 1 + n_columns)."""
-        return np.column_stack([self.t, *self.columns.values()])
+    def to_pandas(self, all_columns: bool = False):
+        """The columns (:attr:`names`; ``all_columns``: the internal ones too) as a
+        pandas DataFrame indexed by ``t``; ``info`` (how the run was made) in
+        ``frame.attrs["fccgen"]``."""
+        import pandas as pd
+        names = (self.all_names() if all_columns else self.names)[1:]
+        frame = pd.DataFrame({n: np.asarray(self.columns[n]) for n in names},
+                             index=pd.Index(np.asarray(self.t), name="t"))
+        frame.attrs["fccgen"] = dict(self.info)
+        return frame
+
+    def table(self, all_columns: bool = False) -> np.ndarray:
+        """The columns side by side, ``t`` first: shape (n_out, 1 + n_columns); the
+        user's (:attr:`names`), or ``all_columns``."""
+        names = self.all_names() if all_columns else self.names
+        return np.column_stack([self[n] for n in names])
 
     def plot(self, columns=None, ax=None):
         """Time histories of ``columns`` (names, or one comma-separated string; default:
@@ -105,18 +135,21 @@ class Result:
         """Whether the run stopped before its end (Ctrl-C, a failure)."""
         return bool(self.info.get("partial", False))
 
-    def save(self, path, *, partial: bool | None = None) -> Path:
+    def save(self, path, *, partial: bool | None = None, all_columns: bool = False) -> Path:
         """Write CSV (and its sidecar ``<stem>.meta.json``), NPZ or HDF5 (.h5), chosen by
         the file's suffix, ``info`` included; written atomically, with the permissions
         of the user's umask. ``partial``: mark the file as the result of an unfinished
-        run (default: ``self.partial``)."""
+        run (default: ``self.partial``). The internal columns (:attr:`internal`) go
+        into a CSV only with ``all_columns``; NPZ keeps them (listed as internal), HDF5
+        in its group ``internal`` (``all_columns``: at the root with the others), so
+        that ``fccgen animate --result`` can draw from those files."""
         path = Path(path)
         suffix = files.check_suffix(path)
         if partial is not None:
             self.info["partial"] = bool(partial)
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
-            files.write(self, path, suffix)
+            files.write(self, path, suffix, all_columns)
         except OSError as exc:
             raise HostError.from_os_error(exc, "write the results to", path, "--out",
                                           name_file=False) from None
@@ -133,12 +166,12 @@ class Result:
             raise ValueError(f"{path}: not a result file (.csv, .npz or .h5)"
                              + ("; it is the temporary file of a save that did not end"
                                 if suffix == ".tmp" else ""))
-        arrays, info = files.read(path, suffix)
+        arrays, info, hidden = files.read(path, suffix)
         events = info.get("events") if isinstance(info.get("events"), list) else []
         if path.name.endswith(f".partial{path.suffix}"):
             info["partial"] = True
         t = arrays.pop("t")
-        result = cls(t, arrays, info, events)
+        result = cls(t, arrays, info, events, set(hidden))
         if result.partial:
             warnings.warn(PartialResultWarning(
                 f"{path} holds a partial result: the run stopped at t = {t[-1]:.6g} "
@@ -168,7 +201,7 @@ class InitialState:
 
 
 def result_from_arrays(plan, t, q, v, body_out, energy, constraint_error, info=None) -> Result:
-    """Name the columns of a run (DESIGN section 4).
+    """Name the columns of a run (docs/design.md §4).
 
     q, v: (n_out, n_q); body_out: (n_out, n_bodies, 6); energy, constraint_error: (n_out,).
     """
@@ -183,7 +216,17 @@ def result_from_arrays(plan, t, q, v, body_out, energy, constraint_error, info=N
             cols[f"{name}.{col}"] = np.array(body_out[:, b, c])
     cols["energy"] = np.array(energy)
     cols["constraint_error"] = np.array(constraint_error)
-    return Result(np.array(t), cols, dict(info or {}))
+    return Result(np.array(t), cols, dict(info or {}), hidden=internal_columns(plan, cols))
+
+
+def internal_columns(plan, cols) -> set[str]:
+    """The columns of the points and vectors the lowering made (none for a model
+    given by points): ``N.x`` ... ``N.vz`` of each."""
+    mechanism = getattr(plan.model, "mechanism", None)
+    if mechanism is None:
+        return set()
+    return {f"{n}.{c}" for n in mechanism.internal() for c in
+            ("x", "y", "z", "vx", "vy", "vz") if f"{n}.{c}" in cols}
 
 
 def timed_run(plan, method, sched, options, project, run, settings=None) -> Result:

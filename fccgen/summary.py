@@ -29,7 +29,7 @@ def solver_repr(solver, rank: int, path: str, build: str | None) -> str:
 def result_fields(result) -> list[tuple[str, str]]:
     """(label, value) pairs of a result's summary, in display order."""
     t = result.t
-    names = list(result.columns)
+    names = result.names[1:]          # the user's columns, not result.internal
     shown = ", ".join(names[:SHOWN_COLUMNS]) + (", ..." if len(names) > SHOWN_COLUMNS
                                                  else "")
     fields = [("rows", str(len(t))),

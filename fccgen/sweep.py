@@ -1,4 +1,4 @@
-"""Many runs of one compiled model with different numbers (DESIGN section 5,
+"""Many runs of one compiled model with different numbers (docs/design.md §5,
 ``fccgen sweep``), on Dask: a local cluster by default, a running scheduler when given.
 
 The model is compiled once, before anything is dispatched; every combination of the

@@ -1,5 +1,5 @@
 """Bricard's over-constrained linkage (IFToMM benchmark A04) written with the point and
-vector contract of DESIGN section 2 alone, in two encodings of its hinges.
+vector contract of docs/design.md §2 alone, in two encodings of its hinges.
 
 Hinges at P1..P6 = (0,0,0), (1,0,0), (1,-1,0), (1,-1,1), (0,-1,1), (0,0,1) with axes
 y, z, x, y, z, x; bar k joins P_k and P_k+1 (five bars of 1 m, 1 kg, 0.1 m square

@@ -63,7 +63,7 @@ def test_numeric_and_compiled_rows_measure_the_same_trajectory(ladder_report):
     for r in (r for r in report.rows if r.version == "numeric"):
         twin = next(c for c in report.rows if c.version == "compiled"
                     and c.project == r.project and c.value == r.value)
-        # The two versions agree to ~1e-12 per step (DESIGN section 6); over 20 steps
+        # The two versions agree to ~1e-12 per step (docs/design.md §6); over 20 steps
         # their errors against the same reference differ by far less than 1e-9 m.
         assert abs(r.error - twin.error) < 1e-9
         assert r.steps == twin.steps and r.rhs_evaluations == twin.rhs_evaluations

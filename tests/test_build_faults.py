@@ -32,7 +32,7 @@ from fccgen.errors import BuildError, CacheRepairWarning, HostError
 
 PENDULUM = EXAMPLES / "a01_pendulum.yaml"
 # Compiled and numeric versions of one model over a short run: rounding only, the two
-# evaluate the same equations in a different order (DESIGN section 6: ~1e-12).
+# evaluate the same equations in a different order (docs/design.md §6: ~1e-12).
 AGREE = 1e-10
 
 

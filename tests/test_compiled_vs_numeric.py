@@ -1,5 +1,5 @@
 """The compiled kernels against the independent NumPy version, on random consistent
-states of every example (DESIGN section 6: agreement to ~1e-12 relative)."""
+states of every example (docs/design.md §6: agreement to ~1e-12 relative)."""
 from __future__ import annotations
 
 import numpy as np

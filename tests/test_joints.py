@@ -1,4 +1,4 @@
-"""Joints and pose-form bodies (DESIGN section 2b): each joint type leaves exactly
+"""Joints and pose-form bodies (docs/design.md §2b): each joint type leaves exactly
 its freedoms, a finite motion of the allowed kind keeps g = 0 (and one of another
 kind does not), a hinged pendulum in joint form against its period and its
 minimal-coordinate solution, Bricard's linkage, and the lowering's errors."""

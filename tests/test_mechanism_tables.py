@@ -137,3 +137,89 @@ def test_missing_and_unreadable_files_are_refused(tmp_path):
     (tmp_path / "bin.csv").write_bytes(b"\xff\xfe\x00")
     with pytest.raises(ModelError, match="cannot be read as UTF-8"):
         load(tmp_path / "model.yaml", "bin.csv")
+
+
+# -- which files a table may read, and what its errors show ---------------------------
+SECRET = "SECRET-TEXT-OF-ANOTHER-FILE"
+
+
+def refused(model, path, rule):
+    with pytest.raises(ModelError) as info:
+        load(model, path)
+    assert rule in info.value.rule, str(info.value)
+    assert SECRET not in str(info.value)
+    assert (info.value.line, info.value.item) == (7, "drivers[0].angle")
+    return info.value
+
+
+@pytest.fixture
+def outside(tmp_path):
+    """(model file in tmp_path/model/, a CSV file of two numeric rows and one secret
+    row in tmp_path/other/)."""
+    (tmp_path / "model").mkdir()
+    (tmp_path / "other").mkdir()
+    secret = tmp_path / "other" / "secret.csv"
+    secret.write_text(f"0,1\n1,2\n{SECRET},{SECRET}\n")
+    return tmp_path / "model" / "model.yaml", secret
+
+
+def test_tables_outside_the_model_folder_are_refused(outside):
+    model, secret = outside
+    for path in (str(secret), "../other/secret.csv", "/etc/passwd"):
+        err = refused(model, path, "is outside the model file's folder")
+        assert "FCCGEN_TABLE_DIRS" in err.rule
+
+
+def test_a_symlink_is_resolved_before_the_check(outside):
+    model, secret = outside
+    (model.parent / "link.csv").symlink_to(secret)
+    refused(model, "link.csv", "is outside the model file's folder")
+    inside = model.parent / "data.csv"
+    inside.write_text("0,1\n1,2\n")
+    (model.parent / "alias.csv").symlink_to(inside)
+    assert float(load(model, "alias.csv").subs(T, 1.5)) == 2.0
+
+
+def test_folders_named_by_the_user_may_be_read(outside, monkeypatch):
+    """FCCGEN_TABLE_DIRS names further folders; the secret row of the file is then
+    read and refused by row and field, without its text."""
+    model, secret = outside
+    monkeypatch.setenv("FCCGEN_TABLE_DIRS", str(secret.parent))
+    err = refused(model, str(secret), "row 3: must be two finite numbers t, value "
+                                      "(field 1 is not a number)")
+    assert err.value == str(secret)
+    secret.write_text("0,1\n1,2\n")
+    assert float(load(model, str(secret)).subs(T, 1.5)) == 2.0
+
+
+def test_rows_are_named_by_number_never_by_their_text(tmp_path):
+    (tmp_path / "motion.csv").write_text(f"t,y\n0,1\n1,{SECRET}\n2,3,{SECRET}\n")
+    refused(tmp_path / "model.yaml", "motion.csv", "row 3: must be two finite numbers "
+                                                   "t, value (field 2 is not a number)")
+    (tmp_path / "motion.csv").write_text(f"t,y\n0,1\n1,2,{SECRET}\n")
+    refused(tmp_path / "model.yaml", "motion.csv", "(found 3 fields)")
+
+
+def test_a_huge_field_is_refused_cleanly(tmp_path):
+    """A field longer than the csv module's limit (131,072 characters) is a CSV error
+    of that row, not a traceback."""
+    (tmp_path / "motion.csv").write_text("t,y\n0,1\n1," + "9" * 300_000 + "\n")
+    refused(tmp_path / "model.yaml", "motion.csv", "motion.csv row 3: cannot be read as CSV")
+    (tmp_path / "motion.csv").write_text('t,y\n0,1\n1,"' + SECRET * 8000 + '\n')
+    refused(tmp_path / "model.yaml", "motion.csv", "cannot be read as CSV")
+
+
+def test_paths_that_name_no_regular_file_are_refused(tmp_path):
+    import os
+    model = tmp_path / "model.yaml"
+    (tmp_path / "folder.csv").mkdir()
+    refused(model, "folder.csv", "not a regular file")
+    os.mkfifo(tmp_path / "pipe.csv")                  # opened without blocking
+    refused(model, "pipe.csv", "not a regular file")
+    refused(model, "a" * 5000 + ".csv", "cannot be opened (File name too long)")
+    refused(model, "x\0y.csv", "must name a file")
+    refused(model, "", "must name a file")
+    (tmp_path / "loop.csv").symlink_to(tmp_path / "loop.csv")
+    refused(model, "loop.csv", "cannot be opened")
+    (tmp_path / "big.csv").write_bytes(b"0,1\n" * 300_000)
+    refused(model, "big.csv", "larger than 1000000 bytes")

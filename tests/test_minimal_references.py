@@ -278,7 +278,7 @@ def _check_pose_body(name, body):
     assert abs(x @ y) < 1e-9 * np.linalg.norm(x) * np.linalg.norm(y), f"{name}: axes"
 
 
-# The constraint equations of DESIGN section 1 and docs/elements.md, evaluated from the
+# The constraint equations of docs/design.md §1 and docs/elements.md, evaluated from the
 # plan's layouts with plain NumPy (complex-safe, for complex-step derivatives).
 
 def _element_triples(el, q):

@@ -13,7 +13,7 @@ from fccgen.plan import make_plan
 
 REPO = Path(__file__).resolve().parents[1]
 
-# Every key of the model file (DESIGN section 2), short and long forms.
+# Every key of the model file (docs/design.md §2), short and long forms.
 FULL = """\
 name: rig
 gravity: [0, 0, -9.81]
@@ -80,7 +80,7 @@ bodies:
   rod: {points: [O, P], vector: z, mass: 1, inertia: [0, 0, 0]}
 """
 
-# The heavy top of DESIGN section 2 with numbers: a disk, so I2 = I1 + I3 exactly.
+# The heavy top of docs/design.md §2 with numbers: a disk, so I2 = I1 + I3 exactly.
 HEAVY_TOP = """\
 name: heavy_top
 gravity: [0, 0, -9.81]

@@ -24,6 +24,12 @@ class Terminal(io.StringIO):
         return True
 
 
+@pytest.fixture(autouse=True)
+def drawing_terminal(monkeypatch):
+    """The fake terminal draws bars whatever TERM the tests run under."""
+    monkeypatch.setenv("TERM", "xterm")
+
+
 def test_an_event_is_its_message_and_carries_numbers():
     e = ProgressEvent("t = 1 of 4 (25%)", "simulate", 1.0, 4.0, 1.0, 0.5)
     assert e == "t = 1 of 4 (25%)" and e.startswith("t = ") and f"{e}" == e.message
@@ -108,6 +114,21 @@ def test_a_log_gets_lines_at_most_every_few_seconds(monkeypatch):
         display(e)
     assert log.getvalue().splitlines() == ["fccgen: compiling m", "fccgen: simulate 0",
                                            "fccgen: simulate 2"]
+
+
+@pytest.mark.parametrize("term, columns", [("dumb", 80), ("xterm", 0)])
+def test_a_terminal_that_cannot_draw_gets_plain_lines(monkeypatch, term, columns):
+    """TERM=dumb, or a terminal that reports 0 columns: the lines of a log, not
+    nothing and not a bar."""
+    monkeypatch.setenv("TERM", term)
+    monkeypatch.setattr("fccgen.cli_progress._columns", lambda stream: columns)
+    screen = Terminal()
+    display = ProgressDisplay(quiet=False, stream=screen)
+    assert not display.bars
+    display(ProgressEvent("compiling m", "compile"))
+    display(events("simulate", 10, 1)[0])
+    display.close()
+    assert screen.getvalue().splitlines() == ["fccgen: compiling m", "fccgen: simulate 0"]
 
 
 def test_quiet_shows_nothing():

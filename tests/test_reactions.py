@@ -1,4 +1,4 @@
-"""Joint reactions (DESIGN section 2b, fccgen.mechanism.reactions): the force and
+"""Joint reactions (docs/design.md §2b, fccgen.mechanism.reactions): the force and
 torque each joint applies on its second body, from a Newton-Euler balance per body,
 against analytic pendulum and slider solutions, the system's total momentum rate, and
 for every joint type the balance closing within its reaction subspace."""

@@ -1,4 +1,4 @@
-"""Results say how they were made (DESIGN section 4): fccgen version, model hash,
+"""Results say how they were made (docs/design.md §4): fccgen version, model hash,
 method and settings, run statistics, warnings and events travel with the numbers into
 CSV (a JSON sidecar), NPZ and HDF5, and come back with Result.load."""
 from __future__ import annotations

@@ -235,7 +235,7 @@ def test_initial_state_agrees(solvers):
 # -- interface -------------------------------------------------------------------------------
 
 def test_arrays_are_fresh(solvers):
-    """Every returned array is a new array (DESIGN section 7), inputs are not modified."""
+    """Every returned array is a new array (docs/design.md §7), inputs are not modified."""
     cs, ns = solvers("four_bar")
     q, v = random_state(ns, np.random.default_rng(5))
     for fn, args in ((cs.accelerations, (q, v)), (cs.mass_matrix, (q,)),

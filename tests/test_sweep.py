@@ -1,4 +1,4 @@
-"""Sweeps (DESIGN section 5, ``fccgen sweep``): one compiled model, many numbers, on
+"""Sweeps (docs/design.md §5, ``fccgen sweep``): one compiled model, many numbers, on
 Dask; each row is what a separate run with those numbers gives."""
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The 3-D animation page (DESIGN section 5, ``fccgen animate``): one self-contained
+"""The 3-D animation page (docs/design.md §5, ``fccgen animate``): one self-contained
 file (plotly.js inlined, nothing fetched), one frame per recorded row up to a limit,
 and, where a Chromium is installed, a page that draws different pictures at two
 positions of its time slider."""
@@ -51,17 +51,27 @@ def test_page_is_self_contained(page):
     assert "frame=" in html                                       # #frame=K jumps
 
 
+def _trace(frame_or_fig, name):
+    return next(t for t in frame_or_fig.data if t.name == name)
+
+
 def test_one_frame_per_row_when_few(short_result):
     from fccgen.results import Result
     result = Result.load(short_result)
     fig = animation_figure(load_model(DOUBLE), result)
     assert len(result.t) == 51 and len(fig.frames) == 51
     # the last frame is the last row: P2 where the result ends
-    last = fig.frames[-1].data[2]                    # moving points P1, P2
+    last = _trace(fig.frames[-1], "points")                 # moving points P1, P2
+    assert list(last.text) == ["P1", "P2"]
     assert last.x[1] == pytest.approx(result["P2.x"][-1], abs=0)
-    bodies = fig.frames[0].data[0]                   # O-P1, P1-P2 with a gap
-    assert list(bodies.x[:2]) == [0.0, pytest.approx(0.8, abs=1e-12)]
-    assert bodies.x[2] is None
+    segments = _trace(fig.frames[0], "body segments")       # O-P1, P1-P2 with a gap
+    assert list(segments.x[:2]) == [0.0, pytest.approx(0.8, abs=1e-12)]
+    assert segments.x[2] is None
+    centres = _trace(fig.frames[-1], "bodies (mass centres)")
+    assert list(centres.text) == ["rod1", "rod2"]
+    assert centres.x[1] == pytest.approx(result["rod2.cx"][-1], abs=1e-12)
+    ground = _trace(fig, "ground")
+    assert list(ground.text) == ["O"]
 
 
 def test_rows_are_decimated_evenly():

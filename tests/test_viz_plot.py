@@ -1,4 +1,4 @@
-"""Plots of result columns (DESIGN section 5, ``fccgen plot``): a figure is written,
+"""Plots of result columns (docs/design.md §5, ``fccgen plot``): a figure is written,
 what it shows depends on the columns asked for, and bad requests are one clear line."""
 from __future__ import annotations
 

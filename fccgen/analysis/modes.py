@@ -49,11 +49,23 @@ class Modes:
             lines.append(f"{k:4d}  {f:16.10g}  {z:14.6g}" + ("  rigid" if r else ""))
         return "\n".join(lines)
 
-    def write_csv(self, path) -> None:
-        with open(path, "w", encoding="utf-8") as out:
-            out.write("mode,frequency_hz,damping_ratio,rigid\n")
-            for k, f, z, r in self.rows():
-                out.write(f"{k},{f:.17g},{z:.17g},{int(r)}\n")
+    def write_csv(self, path, info: dict | None = None) -> None:
+        """The rows ``mode, frequency_hz, damping_ratio, rigid``, written atomically,
+        and how they were made (``info``: provenance, what was linearized) in the
+        sidecar ``<stem>.meta.json``, as for a result (fccgen.result_files)."""
+        from pathlib import Path
+
+        from ..result_files import write_csv_with_sidecar
+
+        def write_table(tmp):
+            with open(tmp, "w", encoding="utf-8") as out:
+                out.write("mode,frequency_hz,damping_ratio,rigid\n")
+                for k, f, z, r in self.rows():
+                    out.write(f"{k},{f:.17g},{z:.17g},{int(r)}\n")
+        meta = {"fccgen_modes": 1, "rows": len(self.frequency_hz),
+                "columns": ["mode", "frequency_hz", "damping_ratio", "rigid"]}
+        write_csv_with_sidecar(Path(path), write_table, meta,
+                               {"method": self.method, **(info or {})})
 
 
 def modes(lin: Linearization) -> Modes:

@@ -54,6 +54,7 @@ class Equilibrium:
     n_g: int
     names: list[str] = field(default_factory=list)    # coordinate names, P.x ...
     row_labels: list[str] = field(default_factory=list)   # model item of each row
+    internal: set = field(default_factory=set)   # coordinates the lowering made (A_axis.x)
 
     @property
     def dof(self) -> int:
@@ -81,13 +82,20 @@ class Equilibrium:
             return "stable"
         return "neutral" if eig[0] >= -tol else "unstable"
 
-    def text(self) -> str:
-        """The summary, the coordinates and the multipliers."""
+    def text(self, multipliers: bool = True) -> str:
+        """The summary, the coordinates and (``multipliers``) the Lagrange multiplier
+        of each constraint row with the model item that made the row. A multiplier's
+        unit is force times length over the unit of its row's equation; the reactions
+        by joint and component, in the model's units, are those of
+        :mod:`fccgen.analysis.statics_result` (``fccgen statics`` prints them)."""
         lines = [self.summary(), "coordinates:"]
-        lines += [f"  {n:<14s} {x: .12g}" for n, x in zip(self.names, self.q)]
+        lines += [f"  {n:<14s} {x: .12g}" for n, x in zip(self.names, self.q)
+                  if n not in self.internal]
+        if not multipliers:
+            return "\n".join(lines)
         note = (" (minimum-norm set: the constraints are redundant)" if self.redundant
                 else "")
-        lines.append(f"multipliers (reactions) lambda{note}:")
+        lines.append(f"Lagrange multipliers lambda of the constraint rows{note}:")
         labels = self.row_labels or [""] * len(self.multipliers)
         lines += [f"  [{k}] {x: .12g}  {label}" for k, (x, label) in
                   enumerate(zip(self.multipliers, labels))]
@@ -203,9 +211,12 @@ def _equilibrium(solver, q, iterations, steps) -> Equilibrium:
     N, _, rank = bases(solver, q)
     K_r = N.T @ (curvature(solver, q, lam) - solver.force_jacobian_q(q, zero)) @ N
     names = [f"{name}.{c}" for name, _ in solver.plan.triples for c in "xyz"]
+    mechanism = getattr(solver.plan.model, "mechanism", None)
+    made = set(mechanism.internal()) if mechanism is not None else set()
     return Equilibrium(q=q, multipliers=lam, iterations=iterations, load_steps=steps,
                        force_residual=amax(N.T @ f), force_scale=amax(f) or 1.0,
                        constraint_residual=amax(solver.constraints(q)),
                        reduced_stiffness=K_r, null_basis=N, rank=rank, n_g=solver.n_g,
                        names=names, row_labels=[solver.plan.elements[e].label
-                                                for e in solver.row_groups])
+                                                for e in solver.row_groups],
+                       internal={n for n in names if n.rsplit(".", 1)[0] in made})

@@ -1,7 +1,7 @@
 """The numbers of a model that its event kernels take as runtime parameters.
 
 The event kernels (fccgen.events.symbolic) depend on numbers of the initial
-configuration: each body's constants l, alpha, beta (DESIGN section 1), the fixed
+configuration: each body's constants l, alpha, beta (docs/design.md §1), the fixed
 points and vectors, and per joint angle the directions that define its zero: the
 joint axis a_A and a perpendicular n1 in body A's initial frame, a_A x n1, and
 w = C_0^T n1 with C_0 = R_A0^T R_B0 the initial relative rotation. Printed as numbers

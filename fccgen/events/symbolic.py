@@ -135,7 +135,7 @@ class _Frames:
 
     def rotation(self, body: str) -> sympy.Matrix:
         """R = [e1 e2 e3] of a body from its i, j, u (ground: the identity), with the
-        body constants l = |r_ij|, beta = cos(r_ij, u), alpha = sin(r_ij, u) (DESIGN
+        body constants l = |r_ij|, beta = cos(r_ij, u), alpha = sin(r_ij, u) (docs/design.md
         section 1): e1 = r_ij / l, e2 = (u - beta e1) / alpha, e3 = r_ij x u / (alpha
         l). Polynomial in q (exact on the constraint manifold, which the runs keep to
         their position tolerance), so that derivatives stay small."""

@@ -9,7 +9,7 @@ import numpy as np
 from ..errors import RunWarning
 from ..rank import AMBIGUOUS_LOW, GROW_TOL
 
-# Columns of result.events (DESIGN section 4): time, event name, action, impulse (the
+# Columns of result.events (docs/design.md §4): time, event name, action, impulse (the
 # multiplier of the impact: along ds/dq for a bounce, the norm over the locked rows for
 # a lock), kinetic energy before and after, max |g| (and locked rows) after, the
 # degrees of freedom after, and the event function's rate just before (bounces).

@@ -1,4 +1,4 @@
-"""A pose-form body as a typical body (DESIGN sections 1 and 2b): the choice of its
+"""A pose-form body as a typical body (docs/design.md sections 1 and 2b): the choice of its
 points i, j and vector u among the triples its joints give it, and its mass terms in
 the FCC body frame that choice defines.
 
@@ -11,11 +11,12 @@ the FCC body frame that choice defines.
   body's u needs no attachment rows to that body); else the body axis (x, y, z) most
   nearly perpendicular to r_ij.
 * inertia: I_fcc = R^T F I F^T R with F the pose frame and R = [e1 e2 e3] at the
-  initial configuration; the centre: rho_G = R^T (c - r_i).
+  initial configuration; the centre: rho_G = R^T (c - r_i); a shape's axes (rows,
+  pose frame) a_fcc = R^T F a.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -90,5 +91,9 @@ def typical_body(body: PoseBody, ri, rj, u, choice: Choice) -> tuple[Body, np.nd
     FR = body.frame.T @ R
     inertia = FR.T @ body.inertia @ FR
     inertia = 0.5 * (inertia + inertia.T)
+    shape = body.shape
+    if shape is not None:          # its axes from the pose frame to the FCC frame
+        axes = np.asarray(shape.axes, float) @ FR
+        shape = replace(shape, axes=tuple(tuple(float(x) for x in row) for row in axes))
     return Body(body.name, choice.i, choice.j, choice.u, body.mass, center, inertia,
-                body.where), R
+                body.where, shape), R

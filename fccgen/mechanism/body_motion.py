@@ -1,7 +1,7 @@
 """The rigid motion of every moving body over the rows of a result, from the recorded
 coordinates q, speeds q' and the accelerations q'' (NumPy, vectorised over rows).
 
-A typical body's frame (DESIGN section 1) is e1 = r_ij / l, e3 = w / |w| with
+A typical body's frame (docs/design.md §1) is e1 = r_ij / l, e3 = w / |w| with
 w = r_ij x u, e2 = e3 x e1. On the constraint manifold l and |w| are constant, so
 
     e1'' = a_ij / l,   w'' = a_ij x u + 2 v_ij x u' + r_ij x u'',   e3'' = w'' / |w|,

@@ -1,6 +1,11 @@
-"""The restricted expression grammar of drivers, loads and events (DESIGN section 2b).
+"""The restricted expression grammar of drivers, loads and events (docs/design.md §2b).
 
-An expression is text such as ``"0.5*sin(3*t) + A.angle"``. It is read with
+An expression is text such as ``"0.5*sin(3*t) + A.angle"``. Its characters and then
+its tokens (:mod:`tokenize`) are checked first: only numbers, names, the operators
+``+ - * / **``, parentheses, commas, dots and comparisons, separated by spaces, so that
+the text holds nothing the grammar does not print itself -- no comment (``#``, which
+Python's parser would drop silently), string, backslash, line break, control or
+non-ASCII character (:func:`check_tokens`). The text is then read with
 ``ast.parse(text, mode="eval")`` -- parsing only, nothing is evaluated -- and the tree
 is walked against a whitelist; everything else is refused with a :class:`ModelError`
 that names the file, line, item, rule and the text seen. The grammar::
@@ -25,8 +30,10 @@ from __future__ import annotations
 
 import ast
 import difflib
+import io
 import math
 import re
+import tokenize
 from typing import Callable, Mapping
 
 import sympy
@@ -81,6 +88,69 @@ REFUSED = {
     ast.YieldFrom: "'yield' is not allowed", ast.Slice: "slices are not allowed",
 }
 OPERATOR_RULE = "operators are only + - * / ** and unary minus"
+
+# -- characters and tokens ---------------------------------------------------------------
+# Operator tokens the grammar reads (== and != are refused later, with their reason).
+TOKEN_OPERATORS = frozenset({"+", "-", "*", "/", "**", "(", ")", ",", ".",
+                             ">=", ">", "<=", "<", "==", "!="})
+# Characters refused outright, with the rule that says why.
+REFUSED_CHARACTERS = {
+    "#": "a '#' comment is not allowed (the text after '#' would be ignored, not read)",
+    "'": "strings are not allowed (no quotes)",
+    '"': "strings are not allowed (no quotes)",
+    "\\": "backslashes are not allowed",
+    "\n": "line breaks are not allowed (an expression is one line)",
+    "\r": "line breaks are not allowed (an expression is one line)",
+    "\t": "tabs are not allowed (separate tokens with spaces)",
+}
+# Operator tokens refused, with the rule that says why.
+REFUSED_TOKENS = {
+    "[": "brackets [ ] are not allowed (no subscripts, lists or comprehensions)",
+    "]": "brackets [ ] are not allowed (no subscripts, lists or comprehensions)",
+    "{": "braces { } are not allowed (no sets or dictionaries)",
+    "}": "braces { } are not allowed (no sets or dictionaries)",
+    ":": "':' is not allowed (no lambdas, slices or annotations)",
+    ":=": "assignments (:=) are not allowed",
+    ";": "';' is not allowed (one expression only)",
+    "=": "'=' is not allowed (no assignments or keyword arguments)",
+    "->": "'->' is not allowed",
+    "...": "'...' is not allowed",
+}
+
+
+def check_tokens(text: str, fail) -> None:
+    """Refuse (``raise fail(rule)``) text holding a character or token the grammar does
+    not print itself: anything but printable ASCII, '#', quotes, backslashes; tokens
+    other than numbers written as NUMBER, names and :data:`TOKEN_OPERATORS`. A text
+    whose brackets do not close is left to the parser, which says so."""
+    for k, ch in enumerate(text):
+        if ch in REFUSED_CHARACTERS:
+            raise fail(REFUSED_CHARACTERS[ch])
+        if not " " <= ch <= "~":
+            what = ("a control character" if ord(ch) < 32 or ord(ch) == 127 else
+                    "a non-ASCII character")
+            raise fail(f"only ASCII letters, digits, spaces and the operators of the "
+                       f"grammar are allowed; character {k + 1} is {what} "
+                       f"(U+{ord(ch):04X})")
+    try:
+        for tok in tokenize.generate_tokens(io.StringIO(text).readline):
+            if tok.type in (tokenize.NEWLINE, tokenize.NL, tokenize.ENDMARKER,
+                            tokenize.INDENT, tokenize.DEDENT, tokenize.NAME):
+                continue
+            if tok.type == tokenize.NUMBER:
+                if not NUMBER.fullmatch(tok.string):
+                    raise fail(f"numbers are written as 12, 1.5 or 2.5e-3, not "
+                               f"{tok.string}")
+                continue
+            if tok.type == tokenize.OP and tok.string in TOKEN_OPERATORS:
+                continue
+            if tok.type == tokenize.OP:
+                raise fail(REFUSED_TOKENS.get(tok.string, OPERATOR_RULE
+                                              + f" ('{tok.string}' is not one)"))
+            raise fail(f"'{tok.string}' is not part of the grammar (only numbers, names, "
+                       "+ - * / **, parentheses, commas, dots and comparisons)")
+    except (tokenize.TokenError, IndentationError, SyntaxError):
+        return             # unclosed brackets and the like: the parser's message
 
 
 class _Walker:
@@ -247,6 +317,7 @@ def _parse(text, symbols, source, line, item, mode_rule: str):
                          f"{text[:40]}... ({len(text)} characters)")
     if not text.strip():
         raise fail(f"must be {mode_rule}, not empty text")
+    check_tokens(text.strip(), fail)
     try:
         tree = ast.parse(text.strip(), mode="eval")
     except (SyntaxError, ValueError, RecursionError, MemoryError) as exc:

@@ -2,7 +2,7 @@
 {A: {angle: 0.3}}``, ``{S: {position: 0.05}}``): the mechanism is assembled at them.
 
 Joint angles are measured from the configuration the model file writes, slide
-positions from the coincidence of the joint's two points (both 0 there; DESIGN
+positions from the coincidence of the joint's two points (both 0 there; docs/design.md
 section 2b). Starting from the written configuration assembled onto g = 0, the given
 values c_J(q) = d_J are reached by continuation in steps of at most STEP_ANGLE rad and
 STEP_LENGTH body lengths, each closed by Newton on

@@ -1,4 +1,4 @@
-"""What each joint type becomes (DESIGN section 2b, docs/joints.md).
+"""What each joint type becomes (docs/design.md §2b, docs/joints.md).
 
 A joint between bodies A and B (``bodies: [A, B]``) is lowered onto *carried triples*
 -- points and unit vectors, each rigidly carried by one or both bodies -- and onto
@@ -27,7 +27,7 @@ angle             J_axis1 (A), J_axis2 (B); J_axis1 . J_axis2 = cos(angle)    (5
 
 Freedoms are those of B relative to A. Every equation is linear or quadratic in q:
 the plane and dot rows are products of two triples, and attachments (see
-:mod:`fccgen.mechanism.lowering`) are those of DESIGN section 1.
+:mod:`fccgen.mechanism.lowering`) are those of docs/design.md §1.
 """
 from __future__ import annotations
 
@@ -45,7 +45,7 @@ SLIDE_TYPES = ("prismatic", "cylindrical")
 
 
 def output_columns(joint: Joint) -> list[str]:
-    """The result columns of a joint (DESIGN section 2b), in the order they are added."""
+    """The result columns of a joint (docs/design.md §2b), in the order they are added."""
     cols = []
     if joint.type in ANGLE_TYPES:
         cols += [f"{joint.name}.angle", f"{joint.name}.rate"]

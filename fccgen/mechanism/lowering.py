@@ -1,5 +1,5 @@
 """Lowering a model with joints and pose-form bodies onto section 2's points, vectors
-and constraints (DESIGN section 2b).
+and constraints (docs/design.md §2b).
 
 1. Every joint gives carried triples and relations (:mod:`fccgen.mechanism.joints`).
 2. Every pose-form body picks i, j, u among the triples it carries
@@ -8,13 +8,13 @@ and constraints (DESIGN section 2b).
 3. Every other triple a moving body carries is *attached* to it:
    a point  r_k - [r_i + b1 r_ij + b2 u + b3 (r_ij x u)/(alpha l)] = 0,
    a vector w - (nu1 e1 + nu2 e2 + nu3 e3) = 0 (3 rows each; b from the body-frame
-   coordinates rho as in DESIGN section 1, rho and nu from the initial configuration).
+   coordinates rho as in docs/design.md §1, rho and nu from the initial configuration).
    An attached vector gets no u.u - 1 row: its body frame makes it a unit vector.
    A triple carried by ground is fixed and needs no rows for ground.
 
 A shared vector tied to two frames gives three rows but only two conditions once the
 first frame fixes it (both sides are unit vectors): such a row is redundant, which
-the solvers handle (DESIGN section 1) and ``fccgen check`` reports by joint. The
+the solvers handle (docs/design.md §1) and ``fccgen check`` reports by joint. The
 choice of u prefers shared vectors so that this happens only where it must.
 """
 from __future__ import annotations
@@ -56,6 +56,13 @@ class Lowering:
     frames: dict[str, tuple[str, str, str]]           # body -> (i, j, u)
     labels: dict[str, list[str]] = field(default_factory=dict)   # joint -> labels
     drivers: list = field(default_factory=list)       # fccgen.model.types.Driver
+    made: list = field(default_factory=list)          # points and vectors it named
+
+    def internal(self) -> list[str]:
+        """The points and vectors the lowering made that a user did not name: all it
+        made but a joint's own point ``J`` (the joint's place, named by the user)."""
+        joints = {jl.joint.name for jl in self.joints}
+        return [n for n in self.made if n not in joints]
 
     def columns(self) -> list[str]:
         """The joint result columns (J.angle, J.rate, J.position, J.speed), the
@@ -159,8 +166,10 @@ class _Lowerer:
                       constraints=[*_converted(m.constraints, pose), *self.constraints],
                       loads=_converted(loads, pose),
                       initial=_initial(m.initial, m.pose_bodies), pose_bodies={}, joints=[])
+        made = [n for n in [*self.points, *self.vectors]
+                if n not in m.points and n not in m.vectors]
         out.mechanism = Lowering(self.lowered, self.frames, self.labels,
-                                 list(m.drivers))
+                                 list(m.drivers), made)
         return out
 
     def driver_vectors(self, d) -> tuple[str, str, str]:

@@ -1,4 +1,4 @@
-"""Joint quantities as result columns (DESIGN sections 2b and 4), computed after a
+"""Joint quantities as result columns (docs/design.md sections 2b and 4), computed after a
 run from the recorded coordinates and speeds, vectorised over the output samples.
 
 * ``J.angle`` (revolute, cylindrical): the rotation of body B relative to body A

@@ -1,4 +1,4 @@
-"""Joint reactions (DESIGN section 2b): per joint, the force F and the torque T about
+"""Joint reactions (docs/design.md §2b): per joint, the force F and the torque T about
 its point that it applies on its second body, global frame, result columns
 ``J.fx J.fy J.fz J.tx J.ty J.tz``.
 
@@ -74,7 +74,7 @@ def check_attributable(plan) -> None:
             _driven_body(plan, held, c, k)
         elif getattr(c, "label", None) not in joint_labels:
             raise _refuse(c.where, f"constraints[{k}]", "its force belongs to no joint; "
-                          "write it as a joint (DESIGN section 2b)", c.type)
+                          "write it as a joint (docs/design.md §2b)", c.type)
     joint_shared = {t.name for jl in lowering.joints for t in jl.triples
                     if len(t.carriers) > 1}
     for name, bodies in held.items():

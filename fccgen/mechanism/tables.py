@@ -22,6 +22,12 @@ The file: UTF-8 text, one ``t, value`` row per line, comma separated; blank line
 lines starting with ``#`` are skipped, and a first row that is not two numbers is
 taken as a header. At least 2 and at most :data:`MAX_ROWS` rows, finite numbers, t
 strictly increasing. A relative path is taken relative to the model file.
+
+Which files: a table is read only from a regular file under the model file's folder,
+or under a folder the user names in the environment variable ``FCCGEN_TABLE_DIRS``
+(:data:`FOLDERS_VARIABLE`), symlinks resolved before the check; at most
+:data:`MAX_BYTES` bytes are read. Errors say which row and field is wrong, never
+what it holds: a model file shared with others cannot make fccgen show a file's text.
 """
 from __future__ import annotations
 
@@ -29,6 +35,8 @@ import csv
 import hashlib
 import io
 import math
+import os
+import stat
 from pathlib import Path
 
 import numpy as np
@@ -42,10 +50,25 @@ from ..errors import ModelError
 # and 1.1 GB (measured): longer tables would need data arrays and a lookup kernel.
 MAX_ROWS = 1_000
 MAX_BYTES = 1_000_000
+# Folders besides the model file's own that tables may be read from (os.pathsep
+# separated): the user names them; a model file cannot.
+FOLDERS_VARIABLE = "FCCGEN_TABLE_DIRS"
 
 
 def _fail(source, line, item, rule, value):
     return ModelError(source, line, item, rule, value)
+
+
+def table_folders(source: str) -> list[Path]:
+    """The folders a model's tables may be read from, symlinks resolved: the model
+    file's own folder, then each folder of the environment variable
+    :data:`FOLDERS_VARIABLE` (separated by ``os.pathsep``; relative ones from the
+    current folder)."""
+    folders = [Path(source).resolve().parent]
+    for entry in os.environ.get(FOLDERS_VARIABLE, "").split(os.pathsep):
+        if entry.strip():
+            folders.append(Path(entry).resolve())
+    return folders
 
 
 def table_path(path: str, source: str) -> Path:
@@ -54,43 +77,107 @@ def table_path(path: str, source: str) -> Path:
     return p if p.is_absolute() else Path(source).resolve().parent / p
 
 
+def _open_table(path: str, source: str, fail) -> bytes:
+    """The bytes of the table file ``path`` (relative to the model file ``source``),
+    at most MAX_BYTES of them, from a regular file under one of
+    :func:`table_folders`; ``raise fail(rule)`` for anything else. No rule quotes the
+    file's contents."""
+    if not isinstance(path, str) or not path.strip() or "\0" in path:
+        raise fail("table must name a file (a path relative to the model file)")
+    folders = table_folders(source)
+    try:
+        file = table_path(path, source).resolve(strict=True)     # symlinks resolved
+    except FileNotFoundError:
+        raise fail(f"table file does not exist ({table_path(path, source)})") from None
+    except (OSError, RuntimeError) as exc:                      # a symlink loop, ...
+        raise fail(f"table file cannot be opened ({getattr(exc, 'strerror', None) or exc})"
+                   ) from None
+    if not any(file.is_relative_to(folder) for folder in folders):
+        raise fail(f"table file {file} is outside the model file's folder {folders[0]}: "
+                   f"a table may read only files under that folder, or under a folder "
+                   f"named in the environment variable {FOLDERS_VARIABLE}")
+    try:
+        fd = os.open(file, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0)
+                     | getattr(os, "O_NOFOLLOW", 0))
+    except OSError as exc:
+        raise fail(f"table file cannot be opened ({exc.strerror or exc})") from None
+    try:
+        info = os.fstat(fd)
+        if not stat.S_ISREG(info.st_mode):
+            raise fail("table file is not a regular file (a folder, a device or a pipe)")
+        if info.st_size > MAX_BYTES:
+            raise fail(f"table file is larger than {MAX_BYTES} bytes")
+        with os.fdopen(fd, "rb", closefd=False) as f:
+            data = f.read(MAX_BYTES + 1)
+    except OSError as exc:
+        raise fail(f"table file cannot be read ({exc.strerror or exc})") from None
+    finally:
+        os.close(fd)
+    if len(data) > MAX_BYTES:
+        raise fail(f"table file is larger than {MAX_BYTES} bytes")
+    return data
+
+
 def read_table(path: str, *, source: str, line: int | None, item: str
                ) -> tuple[np.ndarray, np.ndarray]:
     """(t, values) of a table file, checked as the module docstring says."""
-    file = table_path(path, source)
-    if not file.is_file():
-        raise _fail(source, line, item, f"table file does not exist ({file})", path)
-    if file.stat().st_size > MAX_BYTES:
-        raise _fail(source, line, item, f"table file is larger than {MAX_BYTES} bytes",
-                    path)
+    def fail(rule: str) -> ModelError:
+        return _fail(source, line, item, rule, path)
+
+    data = _open_table(path, source, fail)
     try:
-        text = file.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise _fail(source, line, item, f"table file cannot be read as UTF-8 text ({exc})",
-                    path) from None
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise fail(f"table file cannot be read as UTF-8 text (byte {exc.start + 1} is "
+                   "not UTF-8)") from None
     rows: list[tuple[float, float]] = []
     first = True                            # the first row may be a header
-    for number, fields in enumerate(csv.reader(io.StringIO(text)), start=1):
+    reader = csv.reader(io.StringIO(text))
+    number = 0
+    while True:
+        try:
+            fields = next(reader)
+        except StopIteration:
+            break
+        except csv.Error as exc:            # a field over csv's limit, a NUL, ...
+            raise fail(f"{path} row {reader.line_num}: cannot be read as CSV ({exc})"
+                       ) from None
+        number = reader.line_num
         if not fields or not "".join(fields).strip() or fields[0].lstrip().startswith("#"):
             continue
         values = _row(fields)
         if values is None and not (first and _is_header(fields)):
-            raise _fail(source, line, item, f"{path} row {number}: must be two finite "
-                        f"numbers t, value", ",".join(fields))
+            raise fail(f"{path} row {number}: must be two finite numbers t, value "
+                       f"({_row_problem(fields)})")
         first = False
         if values is not None:
             rows.append(values)
         if len(rows) > MAX_ROWS:
-            raise _fail(source, line, item, f"table has more than {MAX_ROWS} rows", path)
+            raise fail(f"table has more than {MAX_ROWS} rows")
     if len(rows) < 2:
-        raise _fail(source, line, item, "table must have at least 2 rows", path)
+        raise fail("table must have at least 2 rows")
     t, y = np.array(rows).T
     bad = np.flatnonzero(np.diff(t) <= 0)
     if bad.size:
         k = int(bad[0])
-        raise _fail(source, line, item, f"{path}: t must increase strictly from row to "
-                    f"row (t = {float(t[k])!r} is followed by t = {float(t[k + 1])!r})", path)
+        raise fail(f"{path}: t must increase strictly from row to row (t = "
+                   f"{float(t[k])!r} is followed by t = {float(t[k + 1])!r})")
     return t, y
+
+
+def _row_problem(fields: list[str]) -> str:
+    """What is wrong with a row, in words that quote none of its text (the file may
+    be one the model should not show)."""
+    if len(fields) != 2:
+        return f"found {len(fields)} fields"
+    for k, text in enumerate(fields, 1):
+        try:
+            x = float(text)
+        except ValueError:
+            return f"field {k} is not a number"
+        if not math.isfinite(x):
+            return f"field {k} is not finite"
+    return "not two numbers"
 
 
 def _is_header(fields: list[str]) -> bool:

@@ -11,7 +11,7 @@ import numpy as np
 
 from .fields import MIN_POSITIVE
 
-# |v| of a unit vector must be 1 within this (DESIGN section 2).
+# |v| of a unit vector must be 1 within this (docs/design.md §2).
 UNIT_TOLERANCE = 1e-9
 # Points i, j of a body coincide when |r_ij| <= this * max(1, |r_i|, |r_j|): a few
 # thousand roundings of the positions, far below any real body's size.

@@ -1,4 +1,4 @@
-"""Reading the ``drivers:`` list of a model file (DESIGN section 2b, docs/joints.md):
+"""Reading the ``drivers:`` list of a model file (docs/design.md §2b, docs/joints.md):
 a joint quantity prescribed as an expression of the time t.
 
     drivers:

@@ -1,4 +1,4 @@
-"""Reading ``events:`` and joint ``limits:`` (DESIGN section 2b) into :class:`Event`.
+"""Reading ``events:`` and joint ``limits:`` (docs/design.md §2b) into :class:`Event`.
 
 An event is a scalar event function s(q, v, t) crossing zero in a direction, and an
 action::

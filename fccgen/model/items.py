@@ -321,7 +321,7 @@ class ItemReader(Reader):
     # -- simulation defaults ---------------------------------------------------------------
     def simulate(self, node: YNode | None, methods: tuple[str, ...],
                  values_per_output: int = 0) -> SimulateDefaults:
-        """Defaults of ``fccgen simulate`` (DESIGN section 5); ``node`` None: all
+        """Defaults of ``fccgen simulate`` (docs/design.md §5); ``node`` None: all
         defaults. Checked as ``fccgen simulate`` checks them, with the method's default
         options (fccgen.run_settings.schedule), so that ``fccgen check`` refuses them
         too."""

@@ -1,4 +1,4 @@
-"""Reading the mechanism level of a model file (DESIGN section 2b): bodies in pose
+"""Reading the mechanism level of a model file (docs/design.md §2b): bodies in pose
 form and the ``joints:`` list. Both are lowered onto points, vectors and constraints
 by :mod:`fccgen.mechanism`; here they are only validated.
 """
@@ -8,12 +8,13 @@ import math
 
 import numpy as np
 
-from . import checks
+from . import checks, shapes
 from .fields import Reader, child
 from .types import GROUND, Joint, PoseBody, Where
-from .yamlnodes import YNode
+from .yamlnodes import YMap, YNode
 
-POSE_BODY_KEYS = (("mass", "inertia", "center"), ("frame",))
+POSE_BODY_KEYS = (("mass", "inertia", "center"), ("frame", "shape"))
+SHAPED_BODY_KEYS = (("center", "shape"), ("mass", "density", "inertia", "frame"))
 FRAME_KEYS = (("x", "y"), ())
 # Per joint type: (required keys besides name, type, bodies; optional keys).
 JOINT_KEYS = {
@@ -45,16 +46,22 @@ class MechanismReader(Reader):
 
     # -- pose-form bodies ----------------------------------------------------------------
     def pose_body(self, name: str, line: int, node: YNode, item: str) -> PoseBody:
-        e = self.mapping(node, item, *POSE_BODY_KEYS).entries
-        mass = self.positive(e["mass"], child(item, "mass"))
+        if isinstance(node, YMap) and "shape" in node.entries:    # fccgen.model.shapes
+            e = self.mapping(node, item, *SHAPED_BODY_KEYS).entries
+            mass, inertia, shape = shapes.mass_terms(self, e, item)
+        else:
+            e = self.mapping(node, item, *POSE_BODY_KEYS).entries
+            mass, shape = self.positive(e["mass"], child(item, "mass")), None
+            inertia = checks.inertia_tensor(self.numbers(e["inertia"],
+                                                         child(item, "inertia"), (3, 6)))
         center = self.vec3(e["center"], child(item, "center"))
-        inertia = checks.inertia_tensor(self.numbers(e["inertia"], child(item, "inertia"),
-                                                     (3, 6)))
         problem = checks.inertia_problem(inertia)
         if problem:
-            raise self.bad(e["inertia"], child(item, "inertia"), problem)
+            key = "inertia" if shape is None else "shape"
+            raise self.bad(e[key], child(item, key), problem)
         frame = self.frame(e["frame"], child(item, "frame")) if "frame" in e else np.eye(3)
-        return PoseBody(name, mass, center, frame, inertia, Where(self.source, line))
+        return PoseBody(name, mass, center, frame, inertia, Where(self.source, line),
+                        shape)
 
     def frame(self, node: YNode, item: str) -> np.ndarray:
         """Columns x, y, z = x × y of the body axes given as ``{x: [..], y: [..]}``."""

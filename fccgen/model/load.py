@@ -1,4 +1,4 @@
-"""Load a model file (DESIGN section 2) into a validated :class:`Model`.
+"""Load a model file (docs/design.md §2) into a validated :class:`Model`.
 
 The file is read with a safe YAML loader into line-aware nodes; each section is then
 read by one method of :class:`_ModelReader`. The first rule broken raises
@@ -123,7 +123,7 @@ class _ModelReader(Reader):
                      events=events)
 
     def values_per_output(self) -> int:
-        """Numbers one output row of a run records (DESIGN section 4): t, 6 per moving
+        """Numbers one output row of a run records (docs/design.md §4): t, 6 per moving
         point and vector, 6 per body (an upper bound: ground bodies have none),
         energy and constraint_error."""
         moving = sum(not x.fixed for table in (self.points, self.vectors)

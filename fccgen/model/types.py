@@ -43,6 +43,19 @@ class BodyPoint:
 PointRef = Union[str, BodyPoint]   # a point name, or a point on a body
 
 
+@dataclass(frozen=True)
+class Solid:
+    """The solid a body is drawn as (``shape:`` of a pose-form body): ``kind`` "box"
+    (size: edges a, b, c along its x, y, z), "cylinder" or "rod" (radius, length along
+    its x), "sphere" (radius); ``axes``: its x, y, z (rows) in the body's frame --
+    the pose frame in a PoseBody, the FCC body frame once lowered. Centred at the
+    body's mass centre (fccgen.mechanism.shapes)."""
+    kind: str
+    size: tuple[float, ...]
+    axes: tuple[tuple[float, float, float], ...] = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0),
+                                                    (0.0, 0.0, 1.0))
+
+
 @dataclass
 class Body:
     name: str
@@ -53,6 +66,7 @@ class Body:
     center: np.ndarray        # (3,) body frame, from point i
     inertia: np.ndarray       # (3, 3) symmetric tensor about the mass centre, body frame
     where: Where
+    shape: Solid | None = None   # what it is drawn as (pose-form bodies with shape:)
 
 
 @dataclass
@@ -205,7 +219,7 @@ class Initial:
     joint_positions: dict[str, tuple[str, float, Where]] = field(default_factory=dict)
 
 
-# -- mechanism level (DESIGN section 2b; lowered by fccgen.mechanism) ---------------
+# -- mechanism level (docs/design.md §2b; lowered by fccgen.mechanism) ---------------
 
 GROUND = "ground"             # the fixed body that joints may name without declaring it
 
@@ -220,6 +234,7 @@ class PoseBody:
     frame: np.ndarray         # (3, 3) rotation, columns x, y, z
     inertia: np.ndarray       # (3, 3) about the mass centre, in ``frame``
     where: Where
+    shape: Solid | None = None   # given by shape: (mass terms computed from it)
 
 
 @dataclass

@@ -1,4 +1,4 @@
-"""NumericSolver: the NumPy version of the solver (DESIGN section 3), with the same
+"""NumericSolver: the NumPy version of the solver (docs/design.md §3), with the same
 interface as the compiled one. It is the cross-check in tests and the baseline in
 benchmarks, so it favours plain, readable NumPy over speed.
 

@@ -58,10 +58,17 @@ class Plan:
         return np.repeat(np.arange(len(self.elements)),
                          [e.cls.n_g for e in self.elements])
 
-    def columns(self) -> list[str]:
-        """Result column names (DESIGN section 4), without ``t``."""
+    def columns(self, all_columns: bool = False) -> list[str]:
+        """Result column names (docs/design.md §4), without ``t``: those of
+        ``result.names``, or with ``all_columns`` the internal ones of the points and
+        vectors the lowering made too (``result.internal``)."""
+        mechanism = self.model.mechanism
+        made = set(mechanism.internal()) if mechanism is not None and not all_columns \
+            else set()
         cols = []
         for name, _ in self.triples:
+            if name in made:
+                continue
             cols += [f"{name}.{c}" for c in ("x", "y", "z", "vx", "vy", "vz")]
         for name, _ in self.bodies:
             cols += [f"{name}.{c}" for c in ("cx", "cy", "cz", "wx", "wy", "wz")]

@@ -1,4 +1,4 @@
-"""Body-frame numbers of a typical body (DESIGN section 1): l, alpha, beta and the
+"""Body-frame numbers of a typical body (docs/design.md §1): l, alpha, beta and the
 coefficients that place a body point, computed from the initial positions."""
 from __future__ import annotations
 

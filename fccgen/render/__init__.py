@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 
 from .. import __version__
 from ..plan.kernels import KERNEL_NAMES, KERNELS
+from .escape import c_identifier
 
 if TYPE_CHECKING:
     from importlib.abc import Traversable
@@ -51,29 +52,31 @@ def template_texts() -> dict[str, str]:
 
 
 def environment():
-    """A Jinja2 environment over the templates: strict, with the ``py`` filter
-    (a Python literal of the value, for the generated Python and Cython)."""
+    """A Jinja2 environment over the templates: strict, with the escaping filters of
+    :mod:`fccgen.render.escape` (``c_comment``, ``c_string``, ``c_identifier``, ``py``,
+    ``py_doc``): every value a template writes passes through one of them."""
     import jinja2
+
+    from .escape import FILTERS
 
     texts = template_texts()
     env = jinja2.Environment(loader=jinja2.DictLoader(texts),
                              undefined=jinja2.StrictUndefined, autoescape=False,
                              trim_blocks=True, lstrip_blocks=True,
                              keep_trailing_newline=True)
-    env.filters["py"] = repr
+    env.filters.update(FILTERS)
     return env
 
 
 def table_symbol(model_name: str) -> str:
     """C name of the model's kernel table."""
-    return f"fccgen_table_{model_name}"
+    return f"fccgen_table_{c_identifier(model_name)}"
 
 
 def render_context(model_name: str, structure_hash: str, classes: list,
                    compile_args: list[str], link_args: list[str]) -> dict:
     """Template variables for a model made of printed classes (``PrintedClass``)."""
-    if not model_name.isidentifier():
-        raise ValueError(f"model name {model_name!r} is not an identifier")
+    c_identifier(model_name)
     return {
         "fccgen_version": __version__,
         "model_name": model_name,

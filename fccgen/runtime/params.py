@@ -1,6 +1,6 @@
 """Other numbers for a compiled model, and compiled solvers that cross processes.
 
-A compiled module serves every model with the same *structure* (DESIGN section 3):
+A compiled module serves every model with the same *structure* (docs/design.md §3):
 masses, lengths, inertias, loads and initial positions are runtime parameters of the
 element classes. :func:`with_parameters` sets such numbers in a copy of the in-memory
 model, checks them with the model file's own rules, lays out the plan again and binds

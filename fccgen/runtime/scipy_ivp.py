@@ -5,7 +5,7 @@ The first-order system is y = (q, v), y' = (v, a(q, v)), with a the constrained
 accelerations; nothing projects the state back onto the constraints, so the reported
 constraint violation is what a SciPy user gets. The right-hand side returns a fresh
 array on every call: SciPy's solvers keep references to earlier values, and a reused
-output buffer silently corrupts their results (DESIGN section 7).
+output buffer silently corrupts their results (docs/design.md §7).
 
 The loop is solve_ivp's own (an ``OdeSolver`` stepped until t_end, outputs from each
 step's dense output, as solve_ivp does for ``t_eval``), written out so that a run can

@@ -1,7 +1,7 @@
 """CompiledSolver: the Python face of the compiled engine for one model.
 
 The same interface as :class:`fccgen.numeric.NumericSolver`; every array it returns is
-a fresh array owned by the caller (DESIGN section 7). Python runs once per call: a
+a fresh array owned by the caller (docs/design.md §7). Python runs once per call: a
 simulation is one call into the engine, which keeps the per-step loop in C.
 """
 from __future__ import annotations

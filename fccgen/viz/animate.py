@@ -1,11 +1,15 @@
-"""A self-contained web page that plays a model's motion in 3-D (DESIGN section 5,
+"""A self-contained web page that plays a model's motion in 3-D (docs/design.md §5,
 ``fccgen animate``), drawn with plotly and with plotly.js inlined, so the page works
 offline and can be mailed as one file.
 
-What it shows, per recorded frame:
-- each body as the segment from its point i to its point j (fixed points included),
-- the mass centres of the moving bodies (result columns ``B.cx B.cy B.cz``),
-- the moving points, named, and the fixed points (static).
+It draws the model as the solvers see it -- joints and pose-form bodies lowered
+(:mod:`fccgen.mechanism`) -- so a model written with joints is drawn like one
+written with points. Per recorded frame (:mod:`fccgen.viz.scene`):
+- each body as its solid: its ``shape:``, else its inertia box (the uniform box of
+  its mass and principal moments); and its segments (i to j, the mass centre to
+  each joint point it carries), its name at its mass centre;
+- each joint at its point, named; the points a user named in a model given by
+  points; the ground's points (static).
 
 Frames are the result's rows, decimated evenly to at most ``max_frames`` (first and
 last rows always kept). The axes keep one range for the whole motion, with equal
@@ -17,6 +21,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+
+from . import scene
 
 DEFAULT_MAX_FRAMES = 300
 JUMP_SCRIPT = """
@@ -41,66 +47,126 @@ def frame_rows(n_rows: int, max_frames: int = DEFAULT_MAX_FRAMES) -> np.ndarray:
     return np.unique(np.round(np.linspace(0, n_rows - 1, max_frames)).astype(int))
 
 
-def point_tracks(model, result) -> dict[str, np.ndarray]:
-    """(n_rows, 3) positions of every point of the model: moving ones from the result,
-    fixed ones repeated. A moving point missing from the result is a ValueError."""
-    n = len(result.t)
-    tracks = {}
-    for p in model.points.values():
-        if p.fixed:
-            tracks[p.name] = np.tile(np.asarray(p.at, float), (n, 1))
-            continue
-        names = [f"{p.name}.{c}" for c in "xyz"]
-        missing = [c for c in names if c not in result.columns]
-        if missing:
-            raise ValueError(f"the result has no column {missing[0]}: it is not a result "
-                             f"of the model {model.name} ({model.source})")
-        tracks[p.name] = np.column_stack([result.columns[c] for c in names])
-    return tracks
+def lowered(model):
+    """The model as the solvers see it: joints and pose-form bodies lowered
+    (:func:`fccgen.mechanism.lower`; a model given by points is itself)."""
+    from ..mechanism import lower
+    return lower(model) if (model.pose_bodies or model.joints or model.drivers) else model
 
 
-def _segments(bodies, tracks, k) -> tuple[list, list, list]:
-    """x, y, z lists of the bodies' i-j segments at row k, None between bodies."""
+def named_points(model) -> list[str]:
+    """The points of the lowered ``model`` a user named: all of a model given by
+    points; none of those the lowering made for joints and body frames."""
+    mech = getattr(model, "mechanism", None)
+    if mech is None:
+        return list(model.points)
+    made = {t.name for jl in mech.joints for t in jl.triples}
+    made |= {n for i, j, _ in mech.frames.values() for n in (i, j)}
+    return [p for p in model.points if p not in made]
+
+
+def _xyz(points: list[np.ndarray]) -> tuple[list, list, list]:
+    """x, y, z lists of (3,) points."""
+    return tuple([float(p[c]) for p in points] for c in range(3))
+
+
+def _lines(segments: list[np.ndarray], k: int) -> tuple[list, list, list]:
+    """x, y, z lists of segments (each (n, 2, 3)) at row k, None between them."""
     xyz = ([], [], [])
-    for b in bodies:
-        for name in (b.i, b.j):
-            for c in range(3):
-                xyz[c].append(float(tracks[name][k, c]))
+    for seg in segments:
         for c in range(3):
-            xyz[c].append(None)
+            xyz[c].extend([float(seg[k, 0, c]), float(seg[k, 1, c]), None])
     return xyz
 
 
-def _moving_traces(model, result, tracks, k, go):
-    """The traces that move: bodies, mass centres, moving points (in that order)."""
-    bodies = list(model.bodies.values())
-    x, y, z = _segments(bodies, tracks, k)
-    names = [b.name for b in bodies for _ in range(3)]
-    traces = [go.Scatter3d(x=x, y=y, z=z, mode="lines", name="bodies", text=names,
-                           hoverinfo="text", line=dict(width=6, color="#1f77b4"))]
-    centres = [b.name for b in bodies if f"{b.name}.cx" in result.columns]
-    traces.append(go.Scatter3d(
-        x=[float(result.columns[f"{b}.cx"][k]) for b in centres],
-        y=[float(result.columns[f"{b}.cy"][k]) for b in centres],
-        z=[float(result.columns[f"{b}.cz"][k]) for b in centres],
-        mode="markers", name="mass centres", text=centres, hoverinfo="text",
-        marker=dict(size=4, symbol="diamond", color="#ff7f0e")))
-    moving = [p.name for p in model.moving_points]
-    traces.append(go.Scatter3d(
-        x=[float(tracks[p][k, 0]) for p in moving], y=[float(tracks[p][k, 1]) for p in moving],
-        z=[float(tracks[p][k, 2]) for p in moving], mode="markers+text", text=moving,
-        name="moving points", textposition="top center",
-        marker=dict(size=4, color="#d62728")))
-    return traces
+class _Scene:
+    """The drawn things of a model and its result (:mod:`fccgen.viz.scene`)."""
+
+    def __init__(self, model, result):
+        self.model = model
+        self.tracks = scene.triple_tracks(model, result)
+        self.frames = scene.body_frames(model, self.tracks)
+        self.solids = scene.body_solids(model, self.frames)
+        self.skeletons = scene.skeletons(model, self.frames, self.tracks)
+        self.joints = scene.joint_points(model)
+        named = named_points(model)
+        self.moving = [p for p in named if not model.points[p].fixed]
+        self.ground = [p.name for p in model.points.values() if p.fixed]
+        self.ground_labels = [p if p in named else "" for p in self.ground]
+        self.centres = {b: ri + np.einsum("nij,j->ni", R, np.asarray(
+            model.bodies[b].center, float)) for b, (ri, R) in self.frames.items()}
+
+    def points(self) -> np.ndarray:
+        """The positions of the points and mass centres over the whole motion, (m, 3)."""
+        return np.concatenate([*(self.tracks[p] for p in self.model.points),
+                               *self.centres.values()])
+
+    def extent(self) -> np.ndarray:
+        """Every drawn position over the whole motion, (m, 3)."""
+        return np.concatenate([self.points(),
+                               *(s.vertices.reshape(-1, 3) for s in self.solids)])
+
+    def meshes(self, go, k: int, full: bool) -> list:
+        """One Mesh3d per kind of solid (shapes, inertia boxes) at row k."""
+        traces = []
+        for kind, colour, opacity in (("shape", "#4c78a8", 0.85),
+                                      ("inertia box", "#9ecae9", 0.5)):
+            solids = [s for s in self.solids if s.kind == kind]
+            if not solids:
+                continue
+            v = np.concatenate([s.vertices[k] for s in solids])
+            args = dict(x=v[:, 0], y=v[:, 1], z=v[:, 2])
+            if full:
+                offsets = np.cumsum([0] + [len(s.vertices[k]) for s in solids])
+                f = np.concatenate([s.faces + o for s, o in zip(solids, offsets)])
+                text = [s.body for s in solids for _ in range(s.vertices.shape[1])]
+                args.update(i=f[:, 0], j=f[:, 1], k=f[:, 2], color=colour,
+                            opacity=opacity, flatshading=True, hovertext=text,
+                            hoverinfo="text", showlegend=True,
+                            name="bodies (shapes)" if kind == "shape" else
+                            "bodies (inertia boxes)")
+            traces.append(go.Mesh3d(**args))
+        return traces
+
+    def moving_traces(self, go, k: int, full: bool = False) -> list:
+        """The traces that move, at row k: solids, skeletons, body names at the mass
+        centres, joints, named moving points."""
+        segments = [s for b in self.skeletons.values() for s in b]
+        x, y, z = _lines(segments, k)
+        hover = [b for b, segs in self.skeletons.items() for _ in segs for _ in range(3)]
+        bodies = list(self.centres)
+        cx, cy, cz = _xyz([self.centres[b][k] for b in bodies])
+        jx, jy, jz = _xyz([self.tracks[p][k] for _, p in self.joints])
+        px, py, pz = _xyz([self.tracks[p][k] for p in self.moving])
+        return [*self.meshes(go, k, full),
+                go.Scatter3d(x=x, y=y, z=z, mode="lines", name="body segments",
+                             text=hover, hoverinfo="text",
+                             line=dict(width=5, color="#1f4e79")),
+                go.Scatter3d(x=cx, y=cy, z=cz, mode="markers+text", text=bodies,
+                             name="bodies (mass centres)", textposition="middle right",
+                             hoverinfo="text",
+                             marker=dict(size=3, symbol="diamond", color="#ff7f0e")),
+                go.Scatter3d(x=jx, y=jy, z=jz, mode="markers+text",
+                             text=[j for j, _ in self.joints], name="joints",
+                             textposition="top center", hoverinfo="text",
+                             marker=dict(size=5, symbol="circle-open", color="#2ca02c")),
+                go.Scatter3d(x=px, y=py, z=pz, mode="markers+text", text=self.moving,
+                             name="points", textposition="top center", hoverinfo="text",
+                             marker=dict(size=4, color="#d62728"))]
+
+    def ground_trace(self, go):
+        gx, gy, gz = _xyz([self.tracks[p][0] for p in self.ground])
+        return go.Scatter3d(x=gx, y=gy, z=gz, mode="markers+text", text=self.ground_labels,
+                            hovertext=["ground" + (f" ({n})" if n else "")
+                                       for n in self.ground_labels], hoverinfo="text",
+                            name="ground", textposition="bottom center",
+                            marker=dict(size=7, symbol="square", color="#555555"))
 
 
-def _scene(tracks, result) -> dict:
-    """Axis ranges covering the whole motion (points and mass centres), equal scales
-    on the three axes; a planar motion (one coordinate constant to 1e-6 of the
-    largest extent) is seen along its normal, without perspective."""
-    centres = [np.column_stack([result.columns[f"{n[:-3]}.c{c}"] for c in "xyz"])
-               for n in result.columns if n.endswith(".cx")]
-    every = np.concatenate([*tracks.values(), *centres])
+def _scene_layout(every: np.ndarray, points: np.ndarray) -> dict:
+    """Axis ranges covering the whole motion (``every`` drawn position), equal scales
+    on the three axes; a planar motion (one coordinate of the ``points`` constant to
+    1e-6 of the largest extent) is seen along its normal, without perspective."""
     lo, hi = every.min(axis=0), every.max(axis=0)
     pad = 0.05 * max(float((hi - lo).max()), 1e-9)
     lo, hi = lo - pad, hi + pad
@@ -108,33 +174,31 @@ def _scene(tracks, result) -> dict:
     ratio = span / span.max()
     axes = {f"{c}axis": dict(range=[float(lo[k]), float(hi[k])], title=c, autorange=False)
             for k, c in enumerate("xyz")}
-    scene = dict(**axes, aspectmode="manual",
-                 aspectratio=dict(x=float(ratio[0]), y=float(ratio[1]), z=float(ratio[2])))
-    flat = int(np.argmin(span))
-    if span[flat] - 2 * pad <= 1e-6 * span.max():
+    layout = dict(**axes, aspectmode="manual",
+                  aspectratio=dict(x=float(ratio[0]), y=float(ratio[1]), z=float(ratio[2])))
+    flat_span = points.max(axis=0) - points.min(axis=0)
+    flat = int(np.argmin(flat_span))
+    if flat_span[flat] <= 1e-6 * (span.max() - 2 * pad):
         eye, up = [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]
         eye[flat] = 1.0
         up[(flat + 2) % 3] = 1.0
-        scene["camera"] = dict(eye=dict(zip("xyz", eye)), up=dict(zip("xyz", up)),
-                               projection=dict(type="orthographic"))
-        scene["aspectratio"] = {c: 2.0 * v for c, v in scene["aspectratio"].items()}
-    return scene
+        layout["camera"] = dict(eye=dict(zip("xyz", eye)), up=dict(zip("xyz", up)),
+                                projection=dict(type="orthographic"))
+        layout["aspectratio"] = {c: 2.0 * v for c, v in layout["aspectratio"].items()}
+    return layout
 
 
 def animation_figure(model, result, max_frames: int = DEFAULT_MAX_FRAMES):
-    """The plotly Figure of the motion: traces at the first frame, one plotly frame
-    per row of :func:`frame_rows`, a play button and a time slider."""
+    """The plotly Figure of the motion of ``model`` (as loaded, or lowered) in
+    ``result``: traces at the first frame, one plotly frame per row of
+    :func:`frame_rows`, a play button and a time slider."""
     import plotly.graph_objects as go
-    tracks = point_tracks(model, result)
+    drawn = _Scene(lowered(model), result)
     rows = frame_rows(len(result.t), max_frames)
-    fixed = [p.name for p in model.points.values() if p.fixed]
-    static = go.Scatter3d(
-        x=[float(tracks[p][0, 0]) for p in fixed], y=[float(tracks[p][0, 1]) for p in fixed],
-        z=[float(tracks[p][0, 2]) for p in fixed], mode="markers+text", text=fixed,
-        name="fixed points", textposition="bottom center",
-        marker=dict(size=5, symbol="square", color="#555555"))
-    frames = [go.Frame(name=str(n), data=_moving_traces(model, result, tracks, k, go),
-                       traces=[0, 1, 2]) for n, k in enumerate(rows)]
+    first = drawn.moving_traces(go, rows[0], full=True)
+    moving = list(range(len(first)))
+    frames = [go.Frame(name=str(n), data=drawn.moving_traces(go, k), traces=moving)
+              for n, k in enumerate(rows)]
     t = result.t[rows]
     step_ms = 1000.0 * float(np.median(np.diff(t))) if len(t) > 1 else 50.0
     duration = int(min(max(step_ms, 20.0), 200.0))          # real time, within limits
@@ -147,10 +211,11 @@ def animation_figure(model, result, max_frames: int = DEFAULT_MAX_FRAMES):
                          for n in range(len(rows))])
     buttons = [dict(label="play", method="animate", args=[None, play]),
                dict(label="pause", method="animate", args=[[None], still])]
-    fig = go.Figure(data=[*frames[0].data, static], frames=frames)
+    fig = go.Figure(data=[*first, drawn.ground_trace(go)], frames=frames)
     fig.update_layout(
-        title=_title(model, result, len(rows)),
-        scene=_scene(tracks, result), sliders=[slider], margin=dict(l=0, r=0, t=50, b=0),
+        title=_title(drawn.model, result, len(rows)),
+        scene=_scene_layout(drawn.extent(), drawn.points()), sliders=[slider],
+        margin=dict(l=0, r=0, t=50, b=0),
         updatemenus=[dict(type="buttons", buttons=buttons, x=0.02, y=0.02,
                           xanchor="left", yanchor="bottom", direction="left")],
         legend=dict(x=0.01, y=0.98))
@@ -158,14 +223,16 @@ def animation_figure(model, result, max_frames: int = DEFAULT_MAX_FRAMES):
 
 
 def _title(model, result, n_frames: int) -> str:
-    """The page's title: the model and frames, or which mode shape it plays."""
+    """The page's title: the model, its bodies and frames, or which mode shape it
+    plays."""
     info = result.info
     if info.get("kind") == "mode shape":
         what = ("a rigid-body mode" if info.get("rigid") else
                 f"{info.get('frequency_hz', float('nan')):.6g} Hz, one period")
         return (f"{model.name}: mode {info.get('mode')} ({what}), amplitude "
                 f"{info.get('amplitude', float('nan')):.3g}")
-    return f"{model.name}: {n_frames} frames of {len(result.t)} recorded rows"
+    return (f"{model.name}: {len(model.bodies)} bodies, {n_frames} frames of "
+            f"{len(result.t)} recorded rows")
 
 
 def mode_file(result, mode: int) -> Path:

@@ -1,4 +1,4 @@
-"""Time histories of named result columns (DESIGN section 4), drawn with matplotlib.
+"""Time histories of named result columns (docs/design.md §4), drawn with matplotlib.
 
 Columns are grouped by the quantity their name's suffix says (``P.x`` a position,
 ``P.vx`` a speed, ``arm.wz`` an angular velocity, ...), one panel per quantity with a
