@@ -30,6 +30,7 @@ from conftest import EXAMPLES
 
 import fccgen
 from fccgen import rank as rank_rule
+from fccgen.render import table_symbol
 
 RUNTIME = Path(fccgen.__file__).resolve().parent / "runtime"
 ENGINE = RUNTIME / "engine"
@@ -55,7 +56,7 @@ def model_header(solver, q0, v0) -> str:
     inst = solver._asm.instance_arrays()
     engine = solver._engine
     pat = engine.pattern_arrays()
-    out = [f"#define TABLE fccgen_table_{solver.plan.model.name}\n",
+    out = [f"#define TABLE {table_symbol(solver.plan.model.name)}\n",
            f"#define N_Q {inst['n_q']}\n#define N_EL {len(inst['class_of'])}\n",
            f"#define N_BODIES {len(inst['body_elements'])}\n",
            f"#define N_TIME {len(inst['time_slots'])}\n"]
