@@ -73,8 +73,10 @@ def simulate(path, *, t_end=None, dt=None, method=None, output_dt=None, project=
     columns too (:meth:`fccgen.results.Result.save`). Returns ``(result,
     initial_state)``.
     """
+    from .method_limits import refuse
     from .results import check_output, partial_path
     out = None if out is None else check_output(out)
+    refuse(lower(load_model(path)), method)          # before anything is built
     solver_options = solver_options or {}
     solver = (load_numeric(path, **solver_options) if numeric else
               load(path, build_dir, force=force, progress=progress, **solver_options))
@@ -138,22 +140,35 @@ def animate(path, out, *, result=None, mode=None, t_end=None, max_frames=None,
 
 
 def sweep(path, sets, out=None, *, scheduler=None, method=None, workers=None,
-          build_dir=DEFAULT_BUILD_DIR, progress: Progress = None):
+          outputs=None, run_timeout=None, resume=False, build_dir=DEFAULT_BUILD_DIR,
+          progress: Progress = None):
     """Run the model once per combination of ``sets`` ({key: [values]}, or
-    ``["KEY=V1,V2", ...]``) on Dask, compiled once; write the table to ``out`` (.csv)
-    if given. Keys: :mod:`fccgen.runtime.params`; figures: :mod:`fccgen.sweep`.
+    ``["KEY=V1,V2", ...]``) on Dask, compiled once; write the table to ``out`` (.csv
+    or .parquet) if given, each row to ``<stem>.partial.csv`` beside it as its run
+    finishes. ``outputs``: what the table carries besides its figures, e.g.
+    ``"motor.torque:max,latch:time"``; ``run_timeout``: seconds of wall time a run may
+    take; ``resume``: keep the rows of the partial file a stopped sweep left and run
+    only the others. Dask, ``out``, ``sets`` and ``outputs`` are checked before
+    anything is built.
+    Keys: :mod:`fccgen.runtime.params`; figures: :mod:`fccgen.sweep`; docs/sweeps.md.
     Returns a :class:`fccgen.sweep.SweepTable`."""
-    from .sweep import check_table_path, parse_sets
+    from .sweep import check_table_path, parse_sets, require_dask
     from .sweep import sweep as run_sweep
-    out = None if out is None else check_table_path(out)
+    from .sweep_outputs import parse_outputs
+    require_dask()
+    out = None if out is None else check_table_path(out, resume=resume)
     if not isinstance(sets, dict):
         sets = parse_sets(sets)
+    outputs = parse_outputs(outputs)
+    if run_timeout is not None and not run_timeout > 0:
+        raise ValueError(f"--run-timeout must be a positive number of seconds "
+                         f"(got {run_timeout!r})")
     solver = load(path, build_dir, progress=progress)
-    table = run_sweep(solver, sets, scheduler=scheduler, method=method, workers=workers,
-                      progress=progress)
-    if out is not None:
-        table.save(out)
-    return table
+    return run_sweep(solver, sets, scheduler=scheduler, method=method, workers=workers,
+                     progress=progress, outputs=outputs, run_timeout=run_timeout, out=out,
+                     resume=resume)
+
+
 def statics(path, *, numeric=False, build_dir=DEFAULT_BUILD_DIR, progress: Progress = None):
     """The static equilibrium of a model from its initial configuration
     (:func:`fccgen.analysis.statics`); returns an :class:`~fccgen.analysis.Equilibrium`."""

@@ -28,6 +28,8 @@ from .mechanism.report import DEPENDENT_TOL, dependency_text, dependent_rows, ro
 from . import rank as rank_rule
 from . import rank_sparse
 from .errors import SimulationError
+from .method_limits import check_notes
+from .methods import names as method_names
 from .progress import Reporter
 from .threads import single_threaded_blas
 
@@ -154,6 +156,7 @@ def _report(solver, report) -> CheckReport:
     decision = rank_rule.decide(B, B.shape[1], plan.row_groups)
     rank = max(decision.rank, 0)
     notes = list(plan.notes)
+    notes += check_notes(model, method_names())
     joints = model.mechanism is not None         # the dependencies are named by joint
     if large:
         redundant, dependent = _large_rows(B, labels, rank, plan.row_groups, notes, say,

@@ -229,6 +229,16 @@ def _viz_sweep_parsers(sub, common) -> None:
                     "e.g. tcp://host:8786 (default: a local cluster)")
     sw.add_argument("--method", help="integration method (default: the model's)")
     sw.add_argument("--workers", type=int, help="threads of the local cluster")
+    sw.add_argument("--outputs", metavar="NAME:STAT,...", help="more table columns: a "
+                    "result column's final, initial, max, min, absmax, tmax or tmin, an "
+                    "event's time, last or count, a run statistic run:NAME, e.g. "
+                    "motor.torque:max,latch:time,run:steps (docs/sweeps.md)")
+    sw.add_argument("--run-timeout", type=float, metavar="SECONDS", help="stop a run "
+                    "after this much wall time; its row gets status timeout (default: "
+                    "no limit)")
+    sw.add_argument("--resume", action="store_true", help="keep the rows of the partial "
+                    "file a stopped sweep left beside --out and run only the others (runs "
+                    "stopped by --run-timeout run again)")
 
 
 def _method_options(items: list[str]) -> dict[str, float]:
@@ -448,10 +458,22 @@ def _run(args, progress) -> int:
         print(f"animation: {page} ({n_frames} frames of {len(result.t)} rows)")
         return 0
     if args.command == "sweep":
-        table = api.sweep(args.model, args.set, args.out, scheduler=args.scheduler,
-                          method=args.method, workers=args.workers,
-                          build_dir=args.build_dir, progress=progress)
-        print(f"sweep: {len(table.rows)} runs ({table.failed} failed) on {table.where} "
+        from .sweep import SweepInterrupted, quiet_dask
+        try:
+            quiet_dask()                       # its logged tracebacks: one paragraph
+            table = api.sweep(args.model, args.set, args.out, scheduler=args.scheduler,
+                              method=args.method, workers=args.workers,
+                              outputs=args.outputs, run_timeout=args.run_timeout,
+                              resume=args.resume, build_dir=args.build_dir,
+                              progress=progress)
+        except SweepInterrupted as exc:              # rows saved: say how many, where
+            return _error(progress, str(exc), EXIT_INTERRUPTED)
+        except ModelError:
+            raise
+        except (FccgenError, ValueError) as exc:     # the message says what was saved
+            return _error(progress, f"error: {exc}", 1)
+        late = f", {table.timed_out} of them timed out" if table.timed_out else ""
+        print(f"sweep: {len(table.rows)} runs ({table.failed} failed{late}) on {table.where} "
               f"in {table.wall_time:.3g} s\ntable: {args.out}")
         return 0
     if args.command == "check":

@@ -1,33 +1,69 @@
-"""Many runs of one compiled model with different numbers (docs/design.md §5,
-``fccgen sweep``), on Dask: a local cluster by default, a running scheduler when given.
+"""Many runs of one compiled model with different numbers (``fccgen sweep``,
+docs/sweeps.md, docs/design.md §5), on Dask: a local cluster by default, a running
+scheduler when given.
 
 The model is compiled once, before anything is dispatched; every combination of the
 ``--set`` values (their Cartesian product, in the order given) is checked then, so a
-bad key or value stops the sweep before it starts. Each task receives the compiled
-solver (in another process: pickled as its plan and module folder, see
-:mod:`fccgen.runtime.params`) and its numbers, makes a new solver with
+bad key or value stops the sweep before it starts, and so are the ``--outputs``
+(:mod:`fccgen.sweep_outputs`). Each task receives the compiled solver (in another
+process: pickled as its plan and module folder, see :mod:`fccgen.runtime.params`) and
+its numbers, makes a new solver with
 :meth:`~fccgen.runtime.CompiledSolver.with_parameters` and runs the model's own
 simulate settings (which ``simulate.t_end`` and the like may change). A run that fails
-gives a row with status ``failed`` and the error's text; the others go on.
+gives a row with status ``failed`` and the error's text; a run longer than the time
+limit (``run_timeout`` seconds of wall time, checked whenever the integrator pauses,
+about every 0.5 s) is stopped and gives a row with status ``timeout``; the others go on.
 
-One row per run: the parameters, ``status``, ``error``, ``wall_time`` (seconds, the
-task's own), ``steps``, ``t_final``, ``energy_drift`` (max |E - E0|),
-``max_constraint_error`` and ``final.P.x final.P.y final.P.z`` of each moving point.
+One row per run: ``run`` (its place in the sweep, from 1), the parameters, ``status``,
+``error``, ``wall_time`` (seconds, the task's own), ``steps``, ``t_final``,
+``energy_drift`` (max |E - E0|, losses of events added back), ``max_constraint_error``,
+``model_hash`` (the numbers of the run), then the ``--outputs`` and
+``final.P.x final.P.y final.P.z`` of each moving point the user named (and, with
+joints, ``final.B.cx final.B.cy final.B.cz`` of each body: fccgen.sweep_run.final_columns).
+
+Finished work is never lost (:mod:`fccgen.sweep_table`): rows go to a partial file as
+they finish; Ctrl-C ends in :class:`SweepInterrupted` and a lost scheduler or cluster in
+:class:`SweepStopped`, each saying how many rows were saved and where.
 """
 from __future__ import annotations
 
-import csv
 import itertools
 import os
 import time
-from dataclasses import dataclass, field
+import warnings
 from pathlib import Path
 
 from .errors import FccgenError, HostError
 from .progress import Reporter
+from .sweep_cluster import (client_for, close, dispatch, quiet_dask, require_dask,
+                            why_stopped)
+from .sweep_outputs import check_outputs, parse_outputs
+from .sweep_run import CANCELLED, RunTimedOut, final_columns, run_one
+from .sweep_table import (PartialWriter, SweepTable, check_table_path, partial_path,
+                          read_partial)
+
+__all__ = ["RunTimedOut", "SweepInterrupted", "SweepStopped", "SweepTable",
+           "check_table_path", "combinations", "parse_sets", "quiet_dask", "require_dask",
+           "run_one", "sweep"]
 
 FIGURES = ("status", "error", "wall_time", "steps", "t_final", "energy_drift",
-           "max_constraint_error")
+           "max_constraint_error", "model_hash")
+class SweepStopped(HostError):
+    """The sweep could not go on (the scheduler or cluster was lost); ``saved`` rows
+    are in ``partial_path`` (``rows``: the finished rows)."""
+
+    def __init__(self, message: str, saved: int = 0, partial_path=None, rows=()):
+        super().__init__(message)
+        self.saved, self.partial_path, self.rows = saved, partial_path, list(rows)
+
+
+class SweepInterrupted(KeyboardInterrupt):
+    """Ctrl-C during a sweep; the message says how many rows were saved and where
+    (``rows``: the finished rows, also when no file was given)."""
+
+    def __init__(self, message: str, saved: int = 0, partial_path=None, rows=()):
+        super().__init__(message)
+        self.saved, self.partial_path, self.rows = saved, partial_path, list(rows)
 
 
 def parse_sets(items) -> dict[str, list[float]]:
@@ -57,158 +93,163 @@ def combinations(sets: dict[str, list[float]]) -> list[dict[str, float]]:
     return [dict(zip(keys, values)) for values in itertools.product(*sets.values())]
 
 
-def run_one(solver, params: dict, method=None) -> dict:
-    """One run of the sweep (executed by a Dask worker): a row of summary figures."""
-    start = time.perf_counter()
-    row = dict(params)
+def _check_outputs(solver, runs, outputs, method) -> None:
+    """The outputs' names against a short run of the first combination: the columns
+    a result of the model has, its events and the statistics a run of the method
+    reports (sweep_outputs.check_outputs)."""
+    from . import methods as registry
+    model = solver.plan.model
+    first = solver.with_parameters(runs[0])
+    d = first.plan.model.simulate
+    m = registry.get(d.method if method is None else method)
+    sched = registry.schedule(m, d, None, None, None, registry.options_for(m, None, None, {}))
+    t_probe = min(sched.output_dt, sched.t_end)
     try:
-        result = solver.with_parameters(params).simulate(method=method)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            result = first.simulate(method=method, t_end=t_probe, output_dt=t_probe)
     except (FccgenError, ArithmeticError, ValueError) as exc:
-        row.update(status="failed", error=str(exc).splitlines()[0],
-                   wall_time=time.perf_counter() - start)
-        return row
-    info = result.info
-    row.update(status="ok", error="", wall_time=time.perf_counter() - start,
-               steps=info.get("steps"), t_final=float(result.t[-1]),
-               energy_drift=info.get("energy_drift"),
-               max_constraint_error=info.get("max_constraint_error"))
-    for p in solver.plan.model.moving_points:
-        for c in "xyz":
-            row[f"final.{p.name}.{c}"] = float(result[f"{p.name}.{c}"][-1])
-    return row
+        raise ValueError(f"{model.source}: --outputs cannot be checked: a run of the "
+                         f"first combination to t = {t_probe:g} failed: "
+                         f"{str(exc).splitlines()[0]}") from None
+    check_outputs(outputs, result.names, [e.name for e in model.events], result.info,
+                  model.source)
 
 
-@dataclass
-class SweepTable:
-    """The rows of a sweep, in the order of :func:`combinations`."""
-    keys: list[str]
-    rows: list[dict]
-    wall_time: float
-    where: str                              # the cluster that ran it
-    columns: list[str] = field(default_factory=list)
-
-    @property
-    def failed(self) -> int:
-        return sum(r["status"] != "ok" for r in self.rows)
-
-    def save(self, path) -> Path:
-        """Write the table as CSV (header first, numbers in their shortest exact form)
-        or Parquet (``.parquet``: one typed column per name, through pyarrow, the
-        optional extra ``parquet``), atomically."""
-        path = check_table_path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-        try:
-            if path.suffix.lower() == ".parquet":
-                _write_parquet(tmp, self.columns, self.rows)
-            else:
-                with open(tmp, "w", newline="", encoding="utf-8") as fh:
-                    w = csv.writer(fh)
-                    w.writerow(self.columns)
-                    for row in self.rows:
-                        w.writerow([_cell(row.get(c)) for c in self.columns])
-            os.replace(tmp, path)
-        finally:
-            if tmp.exists():
-                tmp.unlink()
-        return path
-
-
-def _pyarrow():
-    try:
-        import pyarrow
-        import pyarrow.parquet
-    except ImportError:
-        raise ValueError("a .parquet sweep table needs pyarrow: pip install "
-                         "'fccgen[parquet]' (or write .csv)") from None
-    return pyarrow
-
-
-def _write_parquet(path: Path, columns: list[str], rows: list[dict]) -> None:
-    pa = _pyarrow()
-    data = {}
-    for c in columns:
-        values = [row.get(c) for row in rows]
-        if any(isinstance(x, float) for x in values) and all(
-                x is None or isinstance(x, (int, float)) for x in values):
-            values = [None if x is None else float(x) for x in values]   # one type
-        data[c] = values
-    pa.parquet.write_table(pa.Table.from_pydict(data), str(path))
-
-
-def _cell(value) -> str:
-    if value is None:
-        return ""
-    return repr(value) if isinstance(value, float) else str(value)   # floats round-trip
-
-
-def check_table_path(path) -> Path:
-    path = Path(path)
-    if path.suffix.lower() not in (".csv", ".parquet"):
-        raise ValueError(f"{path}: a sweep table is written as .csv or .parquet (got "
-                         f"{path.suffix or 'no suffix'!r})")
-    if path.suffix.lower() == ".parquet":
-        _pyarrow()                        # missing: say so before any run
-    if path.is_dir():
-        raise ValueError(f"{path} is a folder; give a file name, e.g. {path / 'sweep.csv'}")
-    return path
-
-
-def _client(scheduler: str | None, workers: int, timeout: float):
-    """A Dask client: of the running scheduler at ``scheduler``, else of a new local
-    cluster of threads in this process (the compiled loops release the GIL)."""
-    try:
-        from dask.distributed import Client, LocalCluster
-    except ImportError:
-        raise HostError("fccgen sweep needs Dask: pip install 'fccgen[sweep]' "
-                        "(dask[distributed])") from None
-    if scheduler:
-        try:
-            return Client(scheduler, timeout=timeout), None
-        except OSError as exc:
-            raise HostError(f"no Dask scheduler answers at {scheduler} ({exc}). To fix "
-                            "it, start one (dask scheduler) or leave --scheduler out for "
-                            "a local cluster") from None
-    cluster = LocalCluster(n_workers=1, threads_per_worker=workers, processes=False,
-                           dashboard_address=None)
-    return Client(cluster), cluster
+def _settings(solver, method) -> dict:
+    """The method and its settings, as the model's simulate section gives them."""
+    from . import methods as registry
+    d = solver.plan.model.simulate
+    m = registry.get(d.method if method is None else method)
+    opts = registry.options_for(m, None, None, {})
+    sched = registry.schedule(m, d, None, None, None, opts)
+    return {"method": m.name, "kind": m.kind, "dt": sched.dt, "output_dt": sched.output_dt,
+            "t_end": sched.t_end, "project": m.projects, "options": opts}
 
 
 def sweep(solver, sets: dict[str, list[float]], *, scheduler=None, method=None,
-          workers=None, progress=None, connect_timeout=10.0) -> SweepTable:
+          workers=None, progress=None, connect_timeout=10.0, outputs=None,
+          run_timeout: float | None = None, out=None, resume: bool = False) -> SweepTable:
     """Run every combination of ``sets`` with a compiled ``solver``; see the module
     docstring. ``workers``: threads of the local cluster (default: the cores, at most
-    4); ``connect_timeout``: seconds to wait for the scheduler. ``progress``: called
-    with a :class:`~fccgen.progress.ProgressEvent` (stage "sweep", done of total runs)
-    as the runs end."""
+    4); ``connect_timeout``: seconds to wait for the scheduler; ``outputs``: what the
+    table carries besides its figures (``"motor.torque:max,latch:time"``, see
+    :mod:`fccgen.sweep_outputs`); ``run_timeout``: seconds of wall time a run may take
+    (None: no limit); ``out``: the table file (.csv or .parquet), its rows written to
+    the partial file beside it as they finish; ``resume``: keep the rows of that file,
+    left by a sweep that stopped, and run only the others (see :func:`_resumed`).
+    ``progress``: called with a :class:`~fccgen.progress.ProgressEvent` (stage
+    "sweep", done of total runs) as the runs end."""
+    from .provenance import provenance
     runs = combinations(sets)
-    say = Reporter(progress, "sweep", total=len(runs))
-    for params in runs:                       # bad keys and values stop it here
-        solver.with_parameters(params)
+    outputs = parse_outputs(outputs) if not isinstance(outputs, list) else outputs
+    if out is not None:
+        out = check_table_path(out, resume=resume)
     if method is not None:
         from .methods import get as method_named
         from .runtime.solver import METHODS
         method_named(method, METHODS)
     if workers is not None and workers < 1:
         raise ValueError(f"--workers must be at least 1 (got {workers})")
+    if run_timeout is not None and not run_timeout > 0:
+        raise ValueError(f"--run-timeout must be a positive number of seconds "
+                         f"(got {run_timeout!r})")
+    from .method_limits import refuse
+    refuse(solver.plan.model, method)
+    for params in runs:                       # bad keys and values stop it here
+        solver.with_parameters(params)
+    if outputs:
+        _check_outputs(solver, runs, outputs, method)
+    keys = list(sets)
+    finals = [label for label, _ in final_columns(solver.plan)]
+    columns = ["run", *keys, *FIGURES, *(o.label for o in outputs), *finals]
+    info = provenance(solver.plan, solver.settings())
+    info.update(_settings(solver, method), sets=sets, outputs=[o.label for o in outputs],
+                run_timeout=run_timeout)
     workers = workers or min(os.cpu_count() or 1, 4)
     start = time.perf_counter()
-    client, cluster = _client(scheduler, workers, connect_timeout)
+    rows: list[dict | None] = [None] * len(runs)
+    kept = partial_path(out) if resume and out is not None else None
+    if kept is not None and kept.exists():          # before the cluster starts
+        rows = _resumed(solver, runs, kept, columns)
+        info["resumed_rows"] = _done(rows)
+    resuming = kept is not None and kept.exists()
+    say = Reporter(progress, "sweep", total=len(runs))
+    client, cluster = client_for(scheduler, workers, connect_timeout)   # then the file
     try:
-        from dask.distributed import as_completed
-        where = scheduler or f"a local cluster of {workers} thread(s)"
-        say(f"sweep: {len(runs)} runs on {where}", done=0)
-        shared = client.scatter(solver, broadcast=True)
-        futures = [client.submit(run_one, shared, params, method, pure=False)
-                   for params in runs]
-        for done, _ in enumerate(as_completed(futures), 1):
-            say(f"sweep: {done} of {len(runs)} runs done", done=done)
-        rows = client.gather(futures)
+        writer = (PartialWriter(partial_path(out), columns, append=resuming)
+                  if out is not None else None)
+    except BaseException:
+        close(client, cluster)
+        raise
+    where = scheduler or f"a local cluster of {workers} thread(s)"
+    sweep_id = f"{os.getpid()}-{id(client)}-{time.monotonic_ns()}"
+    try:
+        say(f"sweep: {len(runs)} runs on {where}"
+            + (f", {_done(rows)} kept from {kept}" if _done(rows) else ""), done=_done(rows))
+        dispatch(client, solver, runs, method, outputs, run_timeout, sweep_id, rows,
+                  writer, say, where)
+    except KeyboardInterrupt:
+        CANCELLED.add(sweep_id)
+        raise SweepInterrupted(_stopped_text("interrupted (Ctrl-C)", rows, writer, out),
+                               _done(rows), writer and writer.path,
+                               [r for r in rows if r]) from None
+    except Exception as exc:       # whatever ends the dispatch: scheduler, cluster, comm
+        CANCELLED.add(sweep_id)
+        why = why_stopped(exc, where)
+        raise SweepStopped(_stopped_text(why, rows, writer, out), _done(rows),
+                           writer and writer.path, [r for r in rows if r]) from None
     finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
-    keys = list(sets)
-    finals = [f"final.{p.name}.{c}" for p in solver.plan.model.moving_points for c in "xyz"]
-    return SweepTable(keys, rows, time.perf_counter() - start, where,
-                      [*keys, *FIGURES, *finals])
+        if writer is not None:
+            writer.close()
+        close(client, cluster)
+        CANCELLED.discard(sweep_id)
+    info["where"] = where
+    table = SweepTable(keys, rows, time.perf_counter() - start, where, columns, info)
+    if out is not None:
+        table.save(out)
+        writer.remove()
+    return table
+
+
+def _resumed(solver, runs, path, columns) -> list[dict | None]:
+    """The rows of the partial file ``path`` in the places of their runs (None where
+    a run is still to do). A row is kept when its run number, its swept values and
+    its ``model_hash`` are those of this sweep's run (ValueError otherwise: another
+    sweep's or another model's rows); rows of runs stopped by the time limit run
+    again."""
+    from .provenance import model_hash
+    rows: list[dict | None] = [None] * len(runs)
+    for k, row in read_partial(path, columns).items():
+        params = runs[k - 1] if 1 <= k <= len(runs) else None
+        if params is None or any(row.get(key) != value for key, value in params.items()):
+            raise ValueError(f"{path}: its row of run {k} is not a run of this sweep "
+                             f"(another --set?): move the file elsewhere or delete it")
+        if "model_hash" in row and row["model_hash"] != model_hash(
+                solver.with_parameters(params).plan):
+            raise ValueError(f"{path}: its row of run {k} was computed with other numbers "
+                             f"(the model file changed?): move the file elsewhere or "
+                             f"delete it")
+        if row.get("status") != "timeout":
+            rows[k - 1] = row
+    return rows
+
+
+def _done(rows) -> int:
+    return sum(r is not None for r in rows)
+
+
+def _stopped_text(why: str, rows, writer, out) -> str:
+    """One paragraph: why the sweep stopped, how many rows were saved and where."""
+    done, total = _done(rows), len(rows)
+    text = f"sweep stopped after {done} of {total} runs: {why}. "
+    if writer is None:
+        return text + ("No table file was given, so the finished rows are not saved; "
+                       "give out= (--out) to keep rows as they finish.")
+    if done == 0:
+        writer.remove()                      # only its header: nothing to keep
+        return text + "No run had finished, so nothing was written."
+    return text + (f"The {done} finished row{'s are' if done != 1 else ' is'} saved in "
+                   f"{writer.path} (CSV, in the order the runs ended; column run gives "
+                   f"each row's place in the sweep); {Path(out).name} was not written. "
+                   f"Run the same sweep with --resume to keep them and run the rest.")

@@ -117,12 +117,13 @@ def test_bad_sweeps_stop_before_running(build_dir, tmp_path, capsys, args, words
     assert not list(tmp_path.iterdir())
 
 
-def test_no_scheduler_at_the_address(build_dir):
+def test_no_scheduler_at_the_address(build_dir, tmp_path):
     from fccgen.errors import HostError
     solver = fccgen.load(DOUBLE, build_dir)
     with pytest.raises(HostError, match="no Dask scheduler answers at tcp://127.0.0.1:9"):
         run_sweep(solver, {"bodies.rod2.mass": [1.0]}, scheduler="tcp://127.0.0.1:9",
-                  connect_timeout=1.0)
+                  connect_timeout=1.0, out=tmp_path / "t.csv")
+    assert not list(tmp_path.iterdir())        # no partial file to block the next sweep
     assert np.isfinite(solver.simulate(t_end=0.01)["P2.x"][-1])   # the solver still runs
 
 
@@ -143,3 +144,16 @@ def test_a_sweep_table_written_as_parquet_keeps_every_row(build_dir, tmp_path):
     rows = read_table(table.save(tmp_path / "t.csv"))
     assert [float(r["final.x"] or "nan") for r in rows][0] == back["final.x"][0]
     assert not list(tmp_path.glob(".*.tmp"))          # written atomically
+
+
+def test_rows_of_a_model_with_joints_name_its_bodies_not_the_lowering(build_dir):
+    """Sweep rows carry the user's names only (result.names): a joint-form model's
+    finals are its bodies' mass centres, never the points its joints were lowered to."""
+    solver = fccgen.load(EXAMPLES / "four_bar_driven.yaml", build_dir)
+    table = run_sweep(solver, {"simulate.t_end": [0.05]}, workers=1)
+    r = solver.simulate(t_end=0.05)
+    row = table.rows[0]
+    finals = [k for k in table.columns if k.startswith("final.")]
+    assert finals and all(k[len("final."):] in r.names for k in finals)
+    for k in finals:
+        assert row[k] == r[k[len("final."):]][-1]

@@ -30,6 +30,16 @@ regular runs at this tolerance: on the A01 pendulum (2000 s, h = 1e-3) the posit
 error is 6.9e-3 m at 1e9 and 2.7e-2 m at 1e12 (and 0.33 m at 1e13); with
 newton_tol = 1e-13 both 1e9 and 1e12 give 6.8-7.0e-3 m, so the difference comes from
 the iterates accepted at the 1e-10 L tolerance, not from the penalty itself.
+
+Long scissor chains have a small last kept singular value s_r of the row-scaled B at
+every position, not only near singular ones (12-unit boom 3.0e-3, 50-bay mast
+3.1e-4): with 1e9 their steps stalled from t = 0.013 and 0.031 s on. So the default
+penalty is raised at the start of a run to PENALTY_RATIO 4 / (h^2 s_r^2) where that is
+larger (ali3p_setup.conditioned_penalty: 1.1e12 for the boom, 1e14 for the mast; the
+pendulum, the four-bars and Bricard keep 1e9), and a step that still stalls is taken
+again with a tenfold penalty (FCC_ALI3P_PENALTY_RAISE, engine/fcc_ali3p.c). The boom
+then runs its 4 s in at most 4 iterations per step, 1.1e-5 m from dopri5 at rtol 1e-10
+(2.8e-6 m at h = 5e-4: second order), and the mast its 2 s in 2.
 """
 from cpython.exc cimport PyErr_CheckSignals
 
@@ -39,8 +49,9 @@ from fccgen.errors import SimulationError
 
 from fccgen.results import keep_rows
 
-from ._cengine cimport (FCC_RUN_DONE, FCC_RUN_ERROR, fcc_ali3p, fcc_ali3p_advance,
-                        fcc_ali3p_record, fcc_ali3p_start, fcc_run_finish)
+from ._cengine cimport (FCC_ALI3P_PENALTY_RAISE, FCC_RUN_DONE, FCC_RUN_ERROR, fcc_ali3p,
+                        fcc_ali3p_advance, fcc_ali3p_record, fcc_ali3p_start,
+                        fcc_run_finish)
 from ._engine cimport Engine
 from ._runloop cimport array_data, now, past_deadline
 
@@ -68,8 +79,8 @@ def simulate_ali3p(Engine engine, q0, v0, double t_end, double dt, long n_steps,
     iterations with converged corrections but max_k |g_k| / ||B_k|| still above the
     tolerance), slow_newton_steps (steps accepted after max_newton iterations with
     the residual within the tolerance and corrections shrinking but above it, at most
-    SLOW_FACTOR of engine/fcc_ali3p.c times it), max_constraint_error, lu_factorizations, penalty,
-    newton_tol. Raises SimulationError (with the time and what failed) when Newton
+    SLOW_FACTOR times it: engine/fcc_ali3p.c), max_constraint_error, lu_factorizations,
+    penalty (the last, after raises), penalty_start, penalty_raises, newton_tol. Raises SimulationError (with the time and what failed) when Newton
     does not converge, the tangent is not positive definite or a value is not finite.
     """
     if engine.c.running:
@@ -87,14 +98,17 @@ def simulate_ali3p(Engine engine, q0, v0, double t_end, double dt, long n_steps,
         raise ValueError("q0 and v0 must be finite")
     if not length_scale > 0:
         raise ValueError("length_scale must be positive")
+    given = getattr(options, "given", None)
+    auto = "penalty" not in (given if given is not None else (options or {}))
     opts = run_options(options, length_scale)
     engine.set_time(0.0)
-    a0, lam, alpha, hint = initial_state(engine, q0, v0, opts["penalty"])
+    a0, lam, alpha, hint, penalty = initial_state(engine, q0, v0, opts["penalty"],
+                                                  dt if auto else None)
     n_out = 1 + n_steps // output_every + (1 if n_steps % output_every else 0)
     arrays = dict(t=np.zeros(n_out), q=np.zeros((n_out, n)), v=np.zeros((n_out, n)),
                   body=np.zeros((n_out, engine.asm.n_bodies, 6)), energy=np.zeros(n_out),
                   constraint_error=np.zeros(n_out))
-    state = np.zeros(7 * n + 3 * m + 2 * n * n + 1)    # FCC_ALI3P_STATE, kept for the run
+    state = np.zeros(7 * n + 4 * m + 2 * n * n + 1)    # FCC_ALI3P_STATE, kept for the run
     state[:n], state[n:2 * n], state[2 * n:3 * n] = q0, v0, a0
     state[6 * n:6 * n + m], state[6 * n + m:6 * n + 2 * m] = lam, alpha
     pivots = np.zeros(n, dtype=np.intc)
@@ -103,6 +117,10 @@ def simulate_ali3p(Engine engine, q0, v0, double t_end, double dt, long n_steps,
     cdef fcc_ali3p r
     r.n_steps, r.every, r.dt, r.t_end = n_steps, output_every, dt, t_end
     r.tol, r.max_newton = opts["tolerance"], opts["max_newton"]
+    # no raise where a stiff spring, not the constraints, stalls Newton (hint given):
+    # measured on the rod of tests/test_ali3p.py with k/m = 1e10, raising to 1e11 ran
+    # on with its energy down to 9% of the start, and at 1e12 diverged
+    r.max_raises = 0 if hint else opts["max_penalty_raises"]
     r.state, r.ipiv = array_data(state), &piv[0]
     r.out.t, r.out.q, r.out.v = (array_data(arrays["t"]), array_data(arrays["q"]),
                                  array_data(arrays["v"]))
@@ -135,7 +153,8 @@ def simulate_ali3p(Engine engine, q0, v0, double t_end, double dt, long n_steps,
                  max_newton_iterations=r.newton_max, projection_failures=r.failures,
                  slow_newton_steps=r.slow_steps,
                  max_constraint_error=r.max_cerr, lu_factorizations=r.lu_steps,
-                 penalty=opts["penalty"],
-                 newton_tol=opts["newton_tol"])
+                 penalty=float(penalty) * FCC_ALI3P_PENALTY_RAISE ** r.raises,
+                 penalty_start=float(penalty),
+                 penalty_raises=r.raises, newton_tol=opts["newton_tol"])
     return arrays, stats
 

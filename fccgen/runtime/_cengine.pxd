@@ -452,10 +452,14 @@ cdef extern from "fcc_dopri5.h":
 
 
 cdef extern from "fcc_ali3p.h":
+    double FCC_ALI3P_PENALTY_RAISE
+
     ctypedef struct fcc_ali3p:
         long n_steps, every
         double dt, t_end, tol
         int max_newton
+        int max_raises
+        int raises
         double *state
         int *ipiv
         fcc_records out

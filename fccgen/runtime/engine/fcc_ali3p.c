@@ -37,8 +37,16 @@
  *
  * The penalty is one number per constraint row: alpha_k = penalty * m_ref / ||B_k||^2,
  * with m_ref the largest diagonal entry of M and B_k the row of B, both at the initial
- * state (set by the caller: fccgen/runtime/ali3p_setup.py, which also says why the
- * default penalty is 1e9 and when a larger one is needed).
+ * state (set by the caller: fccgen/runtime/ali3p_setup.py and _ali3p.pyx say why the
+ * default penalty is 1e9, when a larger one is needed and how the start raises it).
+ * A step whose Newton iteration does not converge is taken again from its start with
+ * every row's penalty FCC_ALI3P_PENALTY_RAISE times larger, at most max_raises times in
+ * a run (the raised penalty is kept for the rest of the run; counted in raises). The
+ * multiplier update shrinks g along a singular direction s of the row-scaled B by
+ * about 1 / (1 + (h^2/4) penalty s^2): as a scissor structure deploys its smallest s
+ * falls, and what the start's penalty made fast stalls. Models whose stiffest spring
+ * outweighs the penalty get no raise (the caller sets max_raises 0): their stall comes
+ * from the spring.
  */
 #include <math.h>
 #include <string.h>
@@ -278,6 +286,22 @@ void fcc_ali3p_record(fcc_engine *e, fcc_ali3p *r, double t)
     r->n_out++;
 }
 
+/* Back to the start of the step (q, q', q'', multipliers) with every row's penalty
+ * FCC_ALI3P_PENALTY_RAISE times larger; the failed step's iterations are counted. */
+static void raise_penalty(fcc_ali3p *r)
+{
+    int i, n = r->n;
+    memcpy(r->q, r->q0, (size_t)n * sizeof(double));
+    memcpy(r->v, r->v0, (size_t)n * sizeof(double));
+    memcpy(r->a, r->a0, (size_t)n * sizeof(double));
+    memcpy(r->lam, r->lam0, (size_t)r->m * sizeof(double));
+    for (i = 0; i < r->m; i++)
+        r->alpha[i] *= FCC_ALI3P_PENALTY_RAISE;
+    r->newton_total += r->max_newton;
+    r->raises++;
+    r->fail = r->fail_info = r->fail_detail = 0;
+}
+
 int fcc_ali3p_advance(fcc_engine *e, fcc_ali3p *r)
 {
     double t, h;
@@ -292,9 +316,14 @@ int fcc_ali3p_advance(fcc_engine *e, fcc_ali3p *r)
         memcpy(r->q0, r->q, (size_t)n * sizeof(double));
         memcpy(r->v0, r->v, (size_t)n * sizeof(double));
         memcpy(r->a0, r->a, (size_t)n * sizeof(double));
+        memcpy(r->lam0, r->lam, (size_t)r->m * sizeof(double));
         fcc_put_time(e->asmb, t + h);
-        if (newton(e, r, h, &it) < 0 || project(e, r, h) < 0)
-            return FCC_RUN_ERROR;
+        if (newton(e, r, h, &it) < 0 || project(e, r, h) < 0) {
+            if (r->fail != FCC_ALI3P_NEWTON || r->raises >= r->max_raises)
+                return FCC_RUN_ERROR;
+            raise_penalty(r);               /* and take the step again from its start */
+            continue;
+        }
         r->newton_total += it;
         if (it > r->newton_max)
             r->newton_max = it;
@@ -330,6 +359,8 @@ void fcc_ali3p_start(fcc_ali3p *r, fcc_engine *e)
     r->T2 = r->T + (long)n * n;
     r->r = r->T2 + (long)n * n;
     r->w = r->r + n;
+    r->lam0 = r->w + m;
+    r->raises = 0;
     r->lu = 0;
     r->lu_steps = 0;
     e->running = 1;

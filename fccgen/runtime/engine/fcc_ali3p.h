@@ -14,9 +14,12 @@ enum {
     FCC_ALI3P_NO_LAPACK = 4   /* the engine has no LAPACK table */
 };
 
-/* State numbers of a run: q, q', q'', q_n, q'_n, q''_n, r (n each), lambda, alpha, w
- * (m each) and the tangent and its copy (n x n each). */
-#define FCC_ALI3P_STATE(n, m) (7 * (long)(n) + 3 * (long)(m) + 2 * (long)(n) * (n))
+/* State numbers of a run: q, q', q'', q_n, q'_n, q''_n, r (n each), lambda, alpha, w,
+ * lambda_n (m each) and the tangent and its copy (n x n each). */
+#define FCC_ALI3P_STATE(n, m) (7 * (long)(n) + 4 * (long)(m) + 2 * (long)(n) * (n))
+/* A step whose Newton iteration does not converge is taken again from its start with
+ * every row's penalty this many times larger (fcc_ali3p.c). */
+#define FCC_ALI3P_PENALTY_RAISE 10.0
 
 typedef struct fcc_ali3p {
     /* settings (the caller's) */
@@ -24,6 +27,7 @@ typedef struct fcc_ali3p {
     double dt, t_end;
     double tol;               /* Newton tolerance (absolute) */
     int max_newton;
+    int max_raises;           /* penalty raises a run may make (0: none) */
     double *state;            /* FCC_ALI3P_STATE(n, m) numbers: q, v, a (the initial
                                  state), lambda, alpha set by the caller (see below) */
     int *ipiv;                /* n LU pivots */
@@ -41,7 +45,8 @@ typedef struct fcc_ali3p {
     double max_cerr;
     int fail, fail_info, fail_detail;
     double fail_t, fail_h, fail_dq;
-    double *q, *v, *a, *lam, *alpha, *q0, *v0, *a0, *T, *T2, *r, *w;
+    int raises;               /* times the penalty was raised */
+    double *q, *v, *a, *lam, *alpha, *q0, *v0, *a0, *T, *T2, *r, *w, *lam0;
     int lu;                   /* T holds an LU (not a Cholesky) factorisation */
     long lu_steps;
 } fcc_ali3p;
