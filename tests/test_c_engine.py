@@ -13,6 +13,7 @@ them: one alone, then two at once in two threads. Shown here:
   flags differ, and a compiler may fuse a multiply and an add on some processors);
 * no heap allocation while a run steps: the program wraps malloc, calloc, realloc and
   free at link time and counts each thread's calls from the run's start to its end;
+* an engine without LAPACK asked for the dense path returns an error, not a crash;
 * the engine's sources compile clean as C99 (-std=c99 -Wall -Wextra -pedantic -Werror)
   and every external symbol they define starts with fcc_ (a build can rename them).
 """
@@ -127,6 +128,8 @@ def runs(build_dir, tmp_path_factory):
         words = line.split()
         if words[0] == "setup":
             instances["setup"] = [0, int(words[2]), [], []]
+        elif words[0] == "dense_without_lapack":
+            instances["dense"] = [int(words[1]), int(words[2]), " ".join(words[3:]), None]
         elif words[0] == "instance":
             instances[words[1]] = [int(words[3]), int(words[5]), [], []]
         elif words[0] == "record":
@@ -134,13 +137,13 @@ def runs(build_dir, tmp_path_factory):
             numbers = [float.fromhex(w) for w in words[3:]]
             instances[words[1]][2].append(numbers[:n])
             instances[words[1]][3].append(numbers[n:])
-    return {k: (s, a, np.array(q), np.array(v)) for k, (s, a, q, v) in instances.items()}, \
-        arrays
+    return {k: (s, a, q if k == "dense" else np.array(q), np.array(v))
+            for k, (s, a, q, v) in instances.items()}, arrays
 
 
 def test_two_threads_give_the_bits_of_a_run_alone(runs):
     program, _ = runs
-    assert set(program) == {"setup", "alone", "thread1", "thread2"}
+    assert set(program) == {"setup", "dense", "alone", "thread1", "thread2"}
     status, _, q, v = program["alone"]
     assert status == 0 and q.shape == (1 + N_STEPS // EVERY, 6)
     for name in ("thread1", "thread2"):
@@ -166,6 +169,15 @@ def test_no_heap_allocation_while_stepping(runs):
     program, _ = runs
     assert [program[k][1] for k in ("alone", "thread1", "thread2")] == [0, 0, 0]
     assert program["setup"][1] > 3 * 20
+
+
+def test_the_dense_path_without_lapack_is_an_error_not_a_crash(runs):
+    """An engine made without a LAPACK table, asked for the dense path's accelerations:
+    -1 and FCC_ERR_NO_LAPACK (8), with its sentence in the instance."""
+    program, _ = runs
+    rc, code, message, _ = program["dense"]
+    assert (rc, code) == (-1, 8)
+    assert "without a LAPACK table" in message
 
 
 def test_the_engine_is_c99_and_prefixed(tmp_path):

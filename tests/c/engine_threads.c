@@ -6,8 +6,9 @@
  * threads that start together. Each instance counts the heap allocations its thread
  * makes from the run's start to its end (malloc, calloc, realloc and free are wrapped
  * at link time: -Wl,--wrap=...), and the main thread those of the instances' set-up
- * (which allocates: the counter works). Prints that count, then per instance its
- * status, its count, and every record's q and v as hexadecimal floats. */
+ * (which allocates: the counter works). Prints that count, what an engine without
+ * LAPACK says when asked for the dense path, then per instance its status, its count,
+ * and every record's q and v as hexadecimal floats. */
 #include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -157,11 +158,29 @@ int main(void)
             die("no thread");
     for (i = 0; i < 2; i++)
         pthread_join(threads[i], NULL);
+    /* an engine without LAPACK on the dense path: the documented error */
+    {
+        fcc_assembly a;
+        fcc_engine dense;
+        double acc[N_Q];
+        fcc_settings s = in[0].e.set;
+        int rc;
+        if (fcc_assembly_init(&a, &model, PARAMS) != FCC_OK
+                || fcc_engine_init(&dense, &a, NULL, &s) != FCC_OK)
+            die("dense set-up failed");
+        rc = fcc_accelerations(&dense, Q0, V0, acc, 0);
+        printf("dense_without_lapack %d %d %s\n", rc, dense.err,
+               fcc_engine_message(&dense));
+        fcc_engine_free(&dense);
+        fcc_assembly_free(&a);
+    }
     report("alone", &in[0]);
     report("thread1", &in[1]);
     report("thread2", &in[2]);
-    for (i = 0; i < 3; i++)
+    for (i = 0; i < 3; i++) {
         fcc_engine_free(&in[i].e);
+        fcc_assembly_free(&in[i].a);
+    }
     fcc_pattern_free(&pattern);
     fcc_model_free(&model);
     return 0;
