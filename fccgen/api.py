@@ -60,7 +60,8 @@ def load_numeric(path, **solver_options):
 def simulate(path, *, t_end=None, dt=None, method=None, output_dt=None, project=True,
              numeric=False, out=None, build_dir=DEFAULT_BUILD_DIR, force=False,
              keep_partial=False, progress: Progress = None, rtol=None, atol=None,
-             solver_options: dict | None = None, all_columns=False, **method_options):
+             solver_options: dict | None = None, all_columns=False, error=None,
+             error_on=None, **method_options):
     """Simulate a model from its consistent initial state; write ``out`` if given.
 
     rtol, atol: tolerances of adaptive methods; solver_options: rank_tol,
@@ -70,10 +71,13 @@ def simulate(path, *, t_end=None, dt=None, method=None, output_dt=None, project=
     SimulationError) nothing is written, unless ``keep_partial``: then the rows
     recorded so far, if the integrator hands them back, go to ``<stem>.partial<suffix>``
     and the exception's ``partial_path`` says where. ``all_columns``: write the internal
-    columns too (:meth:`fccgen.results.Result.save`). Returns ``(result,
-    initial_state)``.
+    columns too (:meth:`fccgen.results.Result.save`). error, error_on: an error target
+    (the method and its setting chosen by a pilot; docs/accuracy.md). Returns
+    ``(result, initial_state)``.
     """
     from .method_limits import refuse
+    if error is not None:
+        method_options.update(error=error, error_on=error_on)
     from .results import check_output, partial_path
     out = None if out is None else check_output(out)
     refuse(lower(load_model(path)), method)          # before anything is built

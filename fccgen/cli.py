@@ -82,6 +82,14 @@ def _parser() -> argparse.ArgumentParser:
                    help="Baumgarte stiffness, 1/time (default 5)")
     s.add_argument("--method-option", action="append", default=[], metavar="NAME=VALUE",
                    help="any option of the method (repeatable), e.g. penalty=1e8")
+    s.add_argument("--error", type=float, metavar="E",
+                   help="the largest position error accepted over the run, in the "
+                        "model's length unit: fccgen chooses the method (--method "
+                        "restricts it) and its step or tolerance from a short pilot and "
+                        "reports the run's estimated error (docs/accuracy.md)")
+    s.add_argument("--error-on", metavar="COLUMNS",
+                   help="with --error: the points, vectors or columns the error is "
+                        "measured on, comma-separated (default: every moving point)")
     s.add_argument("--output-dt", type=float,
                    help="output interval, a multiple of dt (default: every step)")
     s.add_argument("--no-reactions", action="store_true",
@@ -275,6 +283,31 @@ def _solver_options(args) -> dict:
     return out
 
 
+def _error_options(args) -> dict:
+    """error=, error_on= of --error and --error-on, checked."""
+    if args.error is None:
+        if args.error_on:
+            raise ValueError("--error-on measures the error of --error: give --error E")
+        return {}
+    chosen = [f"--{k}" for k in ("dt", "rtol", "atol") if getattr(args, k) is not None]
+    if chosen or args.no_project:
+        raise ValueError(f"--error chooses the step or tolerance itself: leave out "
+                         f"{', '.join(chosen + (['--no-project'] if args.no_project else []))}")
+    on = [c.strip() for c in (args.error_on or "").split(",") if c.strip()]
+    return dict(error=args.error, error_on=on or None)
+
+
+def _error_summary(info) -> str:
+    """The choice of an error target and the error the run reached."""
+    acc = info["accuracy"]
+    cost = acc["cost"]
+    return (f"error target {info['error_target']:g}: chose {acc['choice']}\n"
+            f"estimated error {info['error_estimate']:.3g} (largest at t = "
+            f"{info['error_estimate_time']:.6g}; {acc['estimate']}); cost in evaluations: "
+            f"pilot {cost['pilot']:.3g}, run {cost['run']:.3g}, estimate "
+            f"{cost['estimate']:.3g}")
+
+
 def _run_summary(result) -> str:
     """One paragraph of a run's statistics (result.info)."""
     info = result.info
@@ -417,6 +450,7 @@ def _run(args, progress) -> int:
                                           ("beta", args.baumgarte_beta)) if v is not None})
         if args.no_reactions:
             options["reactions"] = False
+        options.update(_error_options(args))
         result, init = api.simulate(
             args.model, t_end=args.t_end, dt=args.dt, method=args.method,
             output_dt=args.output_dt, project=not args.no_project, numeric=args.numeric,
@@ -425,6 +459,8 @@ def _run(args, progress) -> int:
             rtol=args.rtol, atol=args.atol, solver_options=_solver_options(args), **options)
         print(init.report())
         print(_run_summary(result))
+        if "error_target" in result.info:
+            print(_error_summary(result.info))
         reaction = result.info.get("reactions", {})
         if reaction.get("note") or reaction.get("reason"):
             print(f"fccgen: warning: {reaction.get('note') or reaction['reason']}",

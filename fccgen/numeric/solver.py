@@ -264,12 +264,21 @@ class NumericSolver:
 
     def simulate(self, t_end=None, dt=None, method=None, output_dt=None, project=True,
                  q0=None, v0=None, progress=None, rtol=None, atol=None,
-                 reactions=True, **method_options) -> Result:
+                 reactions=True, error=None, error_on=None, **method_options) -> Result:
         """Integrate from (q0, v0), used as given; when q0 is None the consistent
         initial state is used, and when only v0 is None plan.v_target is projected at
         q0. The arguments mean what they mean for
         :meth:`fccgen.runtime.CompiledSolver.simulate`; defaults of t_end, dt, method
-        and output_dt come from the model file."""
+        and output_dt come from the model file; error, error_on: an error target
+        (fccgen.target_error)."""
+        if error is not None:
+            from ..target_error import simulate_to_error
+            return simulate_to_error(self, error, error_on, t_end=t_end, output_dt=output_dt,
+                                     method=method, q0=q0, v0=v0, progress=progress,
+                                     reactions=reactions,
+                                     **({} if project else {"project": project}),
+                                     dt=dt, rtol=rtol, atol=atol,
+                                     **method_options)
         d = self.plan.model.simulate
         m = registry.get(d.method if method is None else method, tuple(INTEGRATORS))
         opts = registry.options_for(m, rtol, atol, method_options)

@@ -286,8 +286,8 @@ class CompiledSolver:
 
     def simulate(self, t_end=None, dt=None, method=None, output_dt=None, project=True,
                  q0=None, v0=None, progress=None, rtol=None, atol=None,
-                 reactions=True, event_tol=1e-12, rest_speed=1e-6,
-                 **method_options) -> Result:
+                 reactions=True, event_tol=1e-12, rest_speed=1e-6, error=None,
+                 error_on=None, **method_options) -> Result:
         """Integrate from (q0, v0), used as given, to t_end. q0 None: the consistent
         :meth:`initial_state`; only v0 None: the model's initial speeds projected at q0.
 
@@ -308,7 +308,20 @@ class CompiledSolver:
         slower than this rests on its limit (docs/events.md). ``result.events``: the
         event table (fccgen.events.table), also kept in ``result.info["events"]`` so
         that every file format carries it.
+        error: the largest position error accepted over the run (model length units;
+        error_on: the points or columns it is measured on): the method and its setting
+        are chosen by a measured pilot and the run reports ``info["error_estimate"]``
+        (fccgen.target_error, docs/accuracy.md).
         """
+        if error is not None:
+            from ..target_error import simulate_to_error
+            return simulate_to_error(self, error, error_on, t_end=t_end, output_dt=output_dt,
+                                     method=method, q0=q0, v0=v0, progress=progress,
+                                     reactions=reactions,
+                                     **({} if project else {"project": project}),
+                                     event_tol=event_tol, rest_speed=rest_speed, dt=dt,
+                                     rtol=rtol, atol=atol,
+                                     **method_options)
         args = dict(t_end=t_end, dt=dt, method=method, output_dt=output_dt,
                     project=project, q0=q0, v0=v0, progress=progress, rtol=rtol,
                     atol=atol, reactions=reactions, event_tol=event_tol,
