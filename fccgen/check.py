@@ -6,6 +6,14 @@ Loading the model runs every rule of the model file, including the run settings 
 so a model that check passes is one that simulate accepts with its own settings. A
 number of the report that is not finite is an error, never a line of the report.
 
+Generation too: unless told not to (``generate=False``, ``--no-generate``; the report
+then says so), check derives every element class's kernels, prints them to C and
+renders the sources, and does the same for the event kernels, as a build does before
+it compiles: a model whose kernels cannot be generated fails check as it would fail
+simulate (:class:`BuildError`, naming the file and the class). Only the compiler is
+not run. Printed classes are kept per class key for the process, so that checking
+models of the same structure again costs no derivation.
+
 A model of more than fccgen.rank_sparse.DENSE_COMPONENT coordinates is checked a
 connected component of its constraint Jacobian at a time (the rows of one component
 depend only on each other), from B assembled sparse: a small component as a small
@@ -27,7 +35,7 @@ import scipy.sparse as sp
 from .mechanism.report import DEPENDENT_TOL, dependency_text, dependent_rows, rows_text
 from . import rank as rank_rule
 from . import rank_sparse
-from .errors import SimulationError
+from .errors import BuildError, FccgenError, SimulationError
 from .method_limits import check_notes
 from .methods import names as method_names
 from .progress import Reporter
@@ -40,6 +48,11 @@ from .threads import single_threaded_blas
 # 1.5 s at 1000 rows, 90 s at 5000), up to DEPENDENCY_ROWS_MAX rows.
 DEPENDENCY_REDUNDANT_MAX = 3000
 DEPENDENCY_ROWS_MAX = 1500
+# Printed element classes by class key (see the module docstring), at most this many.
+_PRINTED: dict = {}
+PRINTED_KEPT = 1000
+NOT_GENERATED = ("kernels not generated (check was told not to): simulate may still "
+                 "refuse the model when it derives and prints its kernels")
 
 
 
@@ -62,6 +75,7 @@ class CheckReport:
     dependent: str = ""          # joints (and other rows) that take part in dependencies
     rank_gap: tuple[float, float] = (1.0, 0.0)    # sigma_r / sigma_1, sigma_{r+1} / sigma_1
     uncertain: list[float] = field(default_factory=list)   # sigma / sigma_1 in the band
+    generation: str = ""         # what check generated (kernels, events), or that it did not
 
     @property
     def dof_counted(self) -> int:
@@ -95,6 +109,8 @@ class CheckReport:
             lines += [f"    {j}" for j in self.joints]
         lines.append(f"  element classes: {len(self.classes)}")
         lines += [f"    {c}" for c in self.classes]
+        if self.generation:
+            lines.append(f"  {self.generation}")
         lines.append("  initial state:")
         lines += ["    " + s for s in self.init_report.splitlines()]
         lines += [f"  note: {n}" for n in self.notes]
@@ -121,20 +137,74 @@ def redundant_indices(B: np.ndarray, rank: int, groups=None) -> list[int]:
     return sorted(int(k) for k in piv[rank:])
 
 
-def check_model(path, progress=None) -> CheckReport:
+def check_model(path, progress=None, *, generate: bool = True) -> CheckReport:
     """Validate a model and report its structure (needs no compiler). Errors name the
     model file. progress: a callback of fccgen.progress events ("check" stage), told
-    of each step of a large model."""
+    of each step of a large model. generate: derive, print and render the kernels as a
+    build does, without compiling them (module docstring); False: the report says
+    they were not."""
     from .api import load_numeric
     solver = load_numeric(path)
     source = str(solver.plan.model.source)
+    say = Reporter(progress, "check")
     try:
         with single_threaded_blas():     # a spinning OpenBLAS doubled the CPU time of
-            return _report(solver, Reporter(progress, "check"))   # the 1000-bar check
+            report = _report(solver, say)    # the 1000-bar check
     except SimulationError as exc:
         if str(exc).startswith(f"{source}:"):
             raise
         raise SimulationError(f"{source}: {exc}") from None
+    except FccgenError:                  # ModelError (a ValueError too) names its item
+        raise
+    except (ArithmeticError, ValueError) as exc:      # an expression at the start, ...
+        raise SimulationError(f"{source}: the initial state cannot be evaluated "
+                              f"({type(exc).__name__}: {exc})") from None
+    report.generation = generate_kernels(solver.plan, say) if generate else NOT_GENERATED
+    return report
+
+
+def generate_kernels(plan, say=None) -> str:
+    """Derive, print and render the kernels of ``plan`` (and its event kernels) as a
+    build does before compiling; a line for the report. BuildError naming the model
+    file and the class when a class cannot be generated."""
+    from .build.cache import structure_hash
+    from .derive import derive_class
+    from .printing import print_class
+    from .render import render_sources
+    say = say or (lambda *args, **kwargs: None)
+    source = plan.model.source
+    classes = list(plan.classes)
+    printed = []
+    for k, cls in enumerate(classes, 1):
+        if cls.key not in _PRINTED:
+            say(f"check: deriving and printing class {k}/{len(classes)}", done=k - 1,
+                total=len(classes))
+            try:
+                done = print_class(derive_class(cls))
+            except Exception as exc:          # noqa: BLE001 -- any failure is the answer
+                raise BuildError(f"{source}: the kernels of element class {cls.name} "
+                                 f"({cls.describe()}) cannot be generated: "
+                                 f"{type(exc).__name__}: {exc}") from None
+            if len(_PRINTED) >= PRINTED_KEPT:
+                _PRINTED.clear()
+            _PRINTED[cls.key] = done
+        printed.append(_PRINTED[cls.key])
+    render_sources(plan.model.name, structure_hash(classes), printed, ["-O2"], [])
+    line = (f"kernels: {len(classes)} element class{'es' if len(classes) != 1 else ''} "
+            "derived, printed to C and rendered (not compiled)")
+    if plan.model.events:
+        from .events.build import event_hash, print_kernels, render
+        from .events.symbolic import event_system
+        try:
+            system = event_system(plan)
+            render(plan.model.name, f"{plan.model.name}_events", system,
+                   [e.name for e in plan.model.events], print_kernels(system),
+                   event_hash(system), ["-O2"])
+        except Exception as exc:              # noqa: BLE001
+            raise BuildError(f"{source}: the event kernels cannot be generated: "
+                             f"{type(exc).__name__}: {exc}") from None
+        line += f"; event kernels of {len(plan.model.events)} events too"
+    return line
 
 
 def _report(solver, report) -> CheckReport:
@@ -142,7 +212,7 @@ def _report(solver, report) -> CheckReport:
     large = plan.n_q > rank_rule.dense_columns_max()
     say = report if large else (lambda *args, **kwargs: None)
     say(f"check: initial state ({plan.n_q} coordinates, {plan.n_g} equations)")
-    init = solver.initial_state()
+    init = _initial_state(solver)
     labels = constraint_row_labels(plan)
     B = solver.constraint_jacobian_sparse(init.q) if large else \
         solver.constraint_jacobian(init.q)
@@ -152,6 +222,11 @@ def _report(solver, report) -> CheckReport:
         "the constraint Jacobian B": B.data if large else B,
         "the residuals": [init.position_residual_given, init.position_residual,
                           init.velocity_change, init.velocity_residual]})
+    with np.errstate(all="ignore"):               # a nan is the answer, not a warning
+        forces = solver.applied_forces(init.q, init.v)
+    _require_finite(model.source, {"the applied forces (loads and springs)": forces},
+                    "; a load or spring is singular at the start (a torsion spring whose "
+                    "body has no direction perpendicular to its axis?)")
     say("check: rank decision")
     decision = rank_rule.decide(B, B.shape[1], plan.row_groups)
     rank = max(decision.rank, 0)
@@ -174,6 +249,23 @@ def _report(solver, report) -> CheckReport:
         joints=model.mechanism.describe() if model.mechanism is not None else [],
         dependent=dependent,
         rank_gap=tuple(decision.gap), uncertain=list(decision.uncertain))
+
+
+def _initial_state(solver):
+    """The solver's initial state; a division by zero or an invalid value met on the
+    way (a warning of NumPy, which would only be printed) is a SimulationError naming
+    the file, as simulate stops on the nan it makes."""
+    import warnings
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", RuntimeWarning)
+            return solver.initial_state()
+    except (RuntimeWarning, ArithmeticError) as exc:
+        raise SimulationError(
+            f"{solver.plan.model.source}: the initial state cannot be evaluated ({exc}): "
+            "a load or spring is singular at the start (one that reads the angle of a "
+            "hinge whose bodies' frame points lie on its axis has no reference "
+            "direction?)") from None
 
 
 def _large_rows(B, labels, rank, groups, notes, say,
@@ -260,12 +352,12 @@ def _large_component(Bc, r: int, groups, say, dependencies: bool = True):
     return found, np.flatnonzero(weights > DEPENDENT_TOL)
 
 
-def _require_finite(source: str, arrays: dict):
+def _require_finite(source: str, arrays: dict, why: str = "; the model's numbers are "
+                    "too far apart in size for double precision"):
     """SimulationError naming the first of ``arrays`` holding a nan or an infinity."""
     for what, values in arrays.items():
         values = np.asarray(values, dtype=float)
         if not np.all(np.isfinite(values)):
             bad = next(float(x) for x in values.ravel() if not math.isfinite(x))
             raise SimulationError(f"{source}: {what} of the initial state are not finite "
-                                  f"(found {bad!r}); the model's numbers are too far "
-                                  "apart in size for double precision")
+                                  f"(found {bad!r}){why}")

@@ -158,6 +158,9 @@ def _parser() -> argparse.ArgumentParser:
 
     c = sub.add_parser("check", help="validate and report coordinates, constraints, DOF")
     common(c)
+    c.add_argument("--no-generate", action="store_true",
+                   help="do not derive, print and render the kernels (faster; the "
+                        "report then says that simulate may still refuse the model)")
     _viz_sweep_parsers(sub, common)
 
     st = sub.add_parser("statics", help="static equilibrium from the initial configuration")
@@ -514,7 +517,8 @@ def _run(args, progress) -> int:
         return 0
     if args.command == "check":
         from .check import check_model
-        print(check_model(args.model, progress=progress).text())
+        print(check_model(args.model, progress=progress,
+                          generate=not args.no_generate).text())
         return 0
     if args.command in ("statics", "modes", "inverse"):
         return _analysis(args, progress, api)

@@ -11,7 +11,7 @@ run), with the same sentence.
 """
 from __future__ import annotations
 
-EVENT_METHODS = ("rk4", "dopri5")
+from .methods import EVENT_METHODS
 
 
 def reason(model, method: str) -> str:

@@ -14,6 +14,12 @@ from dataclasses import dataclass, field
 from .run_settings import EPS, RunSettingError, Schedule, interval, options_for, schedule
 
 
+# The methods whose compiled loops locate and apply events (events: and joint limits:);
+# fccgen.method_limits says why the others cannot, the model loader refuses a model
+# file that names another.
+EVENT_METHODS = ("rk4", "dopri5")
+
+
 @dataclass(frozen=True)
 class Option:
     """A method option: its name (a keyword of ``simulate``), default and source, and

@@ -104,3 +104,18 @@ def test_bad_initial_joint_positions(tmp_path, initial, item, rule):
     with pytest.raises(ModelError) as info:
         fccgen.load_numeric(write(tmp_path, text, "rsup_bad.yaml"))
     assert "rsup_bad.yaml:" in str(info.value) and f"{item}: {rule}" in str(info.value)
+
+
+def test_a_far_angle_is_reached_the_short_way(tmp_path):
+    """1e6 rad is 10 million steps of 0.1 rad the long way round (the walk once went
+    on without bound); whole turns give the same configuration, so the walk takes the
+    short way: the mass centre is the written one turned by 1e6 rad, to 1e-9 m (the
+    double 1e6 reduced by whole turns keeps ~1e-10 rad)."""
+    text = pendulum() + "initial:\n  joints: {A: {angle: 1.0e6}}\n"
+    r = fccgen.load_numeric(write(tmp_path, text)).simulate(t_end=0.001, dt=1e-3)
+    written = fccgen.load_numeric(write(tmp_path, pendulum(), "w.yaml")).simulate(
+        t_end=0.001, dt=1e-3)
+    c0 = np.array([written[f"bar.c{k}"][0] for k in "xyz"])
+    c, s = np.cos(1.0e6), np.sin(1.0e6)
+    turned = np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]]) @ c0
+    assert np.abs(np.array([r[f"bar.c{k}"][0] for k in "xyz"]) - turned).max() < 1e-9

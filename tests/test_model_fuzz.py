@@ -17,9 +17,21 @@ Oracles:
   (element classes are keyed by structure: no compile per case); the run fails with an
   exception of fccgen.errors shorter than 10 kB, or all its results are finite.
 
-The long version: ``FCCGEN_FUZZ_EXAMPLES=100000 FCCGEN_FUZZ_RUNS=2000 pytest -q
-tests/test_model_fuzz.py`` (about an hour on one core); FCCGEN_FUZZ_SEED=N draws other
-cases (seeded by N instead of derandomized).
+* the mechanism sections, load + check with generation (FCCGEN_FUZZ_SECTIONS cases,
+  100 by default): models with joints, drivers (expressions, rates, a table), loads of
+  expressions and joint quantities, torsion and linear springs, events and limits,
+  under the mutations above and text mutations of their expressions, names and paths
+  (an odd token put in, a random expression, another name, a path out of the
+  folder). The same oracle, and a ModelError must name an item, no error quotes a
+  table's text; a model that passes has had its kernels derived, printed and
+  rendered (check's generation), so it is one simulate can build.
+
+FCCGEN_FUZZ_REPORT=FILE appends each test's counts to FILE.
+
+The long version: ``FCCGEN_FUZZ_EXAMPLES=100000 FCCGEN_FUZZ_RUNS=2000
+FCCGEN_FUZZ_SECTIONS=20000 pytest -q tests/test_model_fuzz.py`` (hours on one core;
+docs/reliability.md has the counts of a run); FCCGEN_FUZZ_SEED=N draws other cases
+(seeded by N instead of derandomized).
 """
 from __future__ import annotations
 
@@ -47,6 +59,15 @@ CHECK_EXAMPLES = ("a01_pendulum", "double_pendulum", "four_bar", "free_body",
 RUN_EXAMPLES = ("double_pendulum", "four_bar")      # compiled by other tests as well
 N_CHECK = int(os.environ.get("FCCGEN_FUZZ_EXAMPLES", "2000"))
 N_RUN = int(os.environ.get("FCCGEN_FUZZ_RUNS", "60"))
+N_SECTIONS = int(os.environ.get("FCCGEN_FUZZ_SECTIONS", "100"))
+# A file that each fuzz test appends its counts to (for the long runs' records).
+REPORT = os.environ.get("FCCGEN_FUZZ_REPORT")
+
+
+def record(test: str, n: int, outcomes: Counter) -> None:
+    if REPORT:
+        with open(REPORT, "a", encoding="utf-8") as f:
+            f.write(f"{test}: {n} cases, {dict(sorted(outcomes.items()))}\n")
 SEED = os.environ.get("FCCGEN_FUZZ_SEED")
 MAX_MESSAGE = 10_000
 
@@ -208,7 +229,7 @@ def test_fuzz_load_and_check(tmp_path_factory):
     def case(text):
         path.write_text(text)
         try:
-            report = check_model(path)
+            report = check_model(path, generate=False)
         except FccgenError as exc:
             clean_error(exc, path)
             outcomes["error"] += 1
@@ -217,6 +238,7 @@ def test_fuzz_load_and_check(tmp_path_factory):
         outcomes["passed"] += 1
 
     case()
+    record("load and check", N_CHECK, outcomes)
     # The mutations reach both sides: most cases break a rule, some still pass.
     assert outcomes["error"] >= N_CHECK // 2 and outcomes["passed"] >= N_CHECK // 50, \
         outcomes
@@ -263,4 +285,127 @@ def test_fuzz_simulate(build_dir, compiled, tmp_path_factory):
         outcomes["passed"] += 1
 
     case()
+    record("compiled simulate", N_RUN, outcomes)
     assert outcomes["error"] >= 1 and outcomes["passed"] >= 1, outcomes
+
+
+# -- the mechanism sections: joints, drivers, loads of expressions, springs, events,
+# limits, tables -------------------------------------------------------------------
+SECTION_MODELS = {
+    "pendulum_limit": None, "panel_latch": None, "four_bar_driven": None,
+    "sections": """\
+name: sections
+gravity: [0, 0, -9.81]
+bodies:
+  a: {mass: 1.0, center: [0.5, 0, 0], inertia: [1.0e-3, 0.08, 0.08]}
+  b: {mass: 0.5, center: [1.5, 0, 0], inertia: [1.0e-3, 0.04, 0.04]}
+  c: {mass: 0.2, center: [1.5, 0, -0.5], inertia: [1.0e-3, 0.01, 0.01]}
+joints:
+  - {name: A, type: revolute, bodies: [ground, a], at: [0, 0, 0], axis: [0, 1, 0],
+     limits: [-1.0, 1.5], restitution: 0.3}
+  - {name: B, type: cylindrical, bodies: [a, b], at: [1, 0, 0], axis: [1, 0, 0]}
+  - {name: S, type: prismatic, bodies: [b, c], at: [1.5, 0, 0], axis: [0, 0, 1]}
+drivers:
+  - {name: spin, joint: B, angle: {table: motion.csv}}
+  - {name: push, joint: S, speed: "0.1*cos(2*t)"}
+loads:
+  - {type: torque, body: a, value: [0, "0.2*sin(3*t) - 0.05*A.rate + 0.1*A.angle", 0]}
+  - {type: force, body: b, value: ["0.5*B.position - 0.1*B.speed", 0, "-t"]}
+  - {type: torsion_spring, joint: A, stiffness: 2.0, angle: 0.2, damping: 0.01}
+  - {type: linear_spring, joint: B, stiffness: 10.0, length: 0.0, damping: 0.1}
+initial:
+  joints: {A: {angle: 0.1}}
+events:
+  - {name: reach, when: "A.angle >= 1.2", do: log}
+  - {name: low, when: "S.position + 0.5", direction: falling, do: stop}
+  - {name: late, when: "t >= 0.5*S.position + 2", do: stop}
+simulate: {t_end: 0.05, dt: 1.0e-3, method: rk4}
+""",
+}
+TABLE = "t, angle\n0, 0\n0.5, 0.2\n1, 0.3\n"
+ODD_PIECES = ["#", " # */ x /*", "'", '"', "\\", "\n", "\r", "\0", "/*", "*/", "//",
+              "??/", "{{ x }}", "[", ":", ";", "%", "\u00e9", "\u2028", "__class__",
+              "1e308", "1/0", "sqrt(-1)", "10**400", "A.angle.x", "lambda: 0"]
+EXPRESSIONS = ["t", "sin(t)", "1/t", "sqrt(t)", "log(t)", "abs(t)", "min(t, 1)",
+               "A.angle", "1/A.angle", "abs(A.rate)", "A.rate**2", "B.position",
+               "S.speed", "exp(1000*t)", "t**0.5", "atan2(t, 0)", "max(A.angle, 0)",
+               "0", "1e12*t", "(4294967296**2 + 1)*t", "B.angle", "pi", "A.rate*A.angle"]
+PATHS = ["motion.csv", "../motion.csv", "/etc/passwd", "missing.csv", "a" * 300,
+         "motion.csv/x", ".", "huge.csv", "bad.csv"]
+
+
+def section_model(name: str):
+    text = SECTION_MODELS[name]
+    if text is None:
+        return example(name)
+    return yaml.safe_load(text)
+
+
+def text_mutation_of_strings(data, draw) -> None:
+    """One mutation of a string of the model: an odd piece put in, a random
+    expression, a name, or a table path."""
+    strings = [p for p, v in paths(data) if isinstance(v, str)]
+    if not strings:
+        return
+    path = draw(st.sampled_from(strings))
+    holder, key = parent(data, path), path[-1]
+    kind = draw(st.sampled_from(["odd", "expression", "name", "path"]))
+    value = holder[key]
+    if kind == "odd":
+        k = draw(st.integers(0, len(value)))
+        holder[key] = value[:k] + draw(st.sampled_from(ODD_PIECES)) + value[k:]
+    elif kind == "expression":
+        a, b = draw(st.sampled_from(EXPRESSIONS)), draw(st.sampled_from(EXPRESSIONS))
+        holder[key] = draw(st.sampled_from([a, f"{a} + {b}", f"{a}*{b}", f"{a} >= {b}"]))
+    elif kind == "name":
+        holder[key] = draw(st.sampled_from(["A", "B", "S", "a", "ground", "motion",
+                                            "X" * 70, "t", "A_lower"]))
+    else:
+        holder[key] = draw(st.sampled_from(PATHS))
+
+
+@st.composite
+def mutated_section(draw):
+    name = draw(st.sampled_from(sorted(SECTION_MODELS)))
+    data = section_model(name)
+    for _ in range(draw(st.integers(1, 3))):
+        if not isinstance(data, dict) or not data:
+            break
+        if draw(st.booleans()):
+            text_mutation_of_strings(data, draw)
+        elif not mutate(data, draw):
+            break
+    return dump(data)
+
+
+def test_fuzz_sections_load_and_check(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("fuzz_sections") / "model"
+    folder.mkdir()
+    (folder / "motion.csv").write_text(TABLE)
+    (folder / "huge.csv").write_text("t, a\n0, 0\n1, " + "9" * 200_000 + "\n")
+    (folder / "bad.csv").write_text("t, a\n0, 0\nSECRET, 1\n")
+    path = folder / "model.yaml"
+    outcomes = Counter()
+
+    @fuzz_settings(N_SECTIONS)
+    @given(mutated_section())
+    def case(text):
+        path.write_text(text)
+        try:
+            report = check_model(path)
+        except FccgenError as exc:
+            clean_error(exc, path)
+            assert "SECRET" not in str(exc)
+            if isinstance(exc, ModelError):
+                assert exc.item, str(exc)
+            outcomes["error"] += 1
+            outcomes[type(exc).__name__] += 1
+            return
+        assert not NON_FINITE.search(report.text()), report.text()
+        assert "derived, printed to C and rendered" in report.text()
+        outcomes["passed"] += 1
+
+    case()
+    record("sections load, check and generate", N_SECTIONS, outcomes)
+    assert outcomes["error"] >= N_SECTIONS // 2 and outcomes["passed"] >= N_SECTIONS // 50, \
+        outcomes

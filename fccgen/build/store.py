@@ -43,7 +43,10 @@ KEY_CHARS = 16
 
 
 def model_dir(out_dir: Path, model_name: str) -> Path:
-    return Path(out_dir) / model_name
+    """``<out_dir>/<model_name>``; the name must be an ASCII identifier (the model
+    loader refuses any other), so that it can name nothing but one folder in out_dir."""
+    from ..render.escape import c_identifier
+    return Path(out_dir) / c_identifier(model_name)
 
 
 def entry_dir(out_dir: Path, model_name: str, key: str) -> Path:

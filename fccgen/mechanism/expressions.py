@@ -12,14 +12,16 @@ that names the file, line, item, rule and the text seen. The grammar::
 
     expr     := expr (+ | - | * | / | **) expr | (- | +) expr | ( expr )
               | NUMBER | pi | NAME | NAME.QUANTITY | FUNC(expr, ...)
-    NUMBER   := digits [. digits] [e|E [+|-] digits]   (finite as a double)
+    NUMBER   := digits [. digits] [e|E [+|-] digits]   (at most 1e12 in magnitude)
     FUNC     := sin cos tan exp log sqrt abs  (1 argument) | atan2 (2) | min max (>= 2)
     condition:= expr (>= | > | <= | <) expr               (events; exactly one comparison)
 
 ``NAME`` and ``NAME.QUANTITY`` must be keys of the symbol table the caller passes
 (``t``, ``A.angle``, ``S.speed``, ``P.x``, ...): a dotted name is one entry of the
 table, never an attribute lookup. Limits: :data:`MAX_CHARS` characters,
-:data:`MAX_NODES` syntax-tree nodes, :data:`MAX_DEPTH` levels of nesting.
+:data:`MAX_NODES` syntax-tree nodes, :data:`MAX_DEPTH` levels of nesting, numbers
+written at most :data:`MAX_LITERAL` and constants computed at most
+:data:`MAX_CONSTANT` in magnitude.
 
 The result is a SymPy expression over the caller's symbols (pass real symbols, so that
 derivatives of ``abs``, ``min``, ``max`` stay real), printable by fccgen's C printer:
@@ -43,6 +45,14 @@ from ..errors import ModelError
 MAX_CHARS = 1000
 MAX_NODES = 400
 MAX_DEPTH = 32
+# Every number written in an expression is at most MAX_LITERAL in magnitude, as every
+# number of a model (fccgen.model.fields.MAX_MAGNITUDE); every constant the expression
+# computes from them (a product or power of numbers, folded by SymPy) at most
+# MAX_CONSTANT, the size of a product of two model numbers: beyond that, the kernels'
+# products of loads, lengths and speeds overflow doubles (a 1e308 in a load stopped
+# the run at its first step).
+MAX_LITERAL = 1e12
+MAX_CONSTANT = MAX_LITERAL ** 2
 # Integer powers of exact numbers with exponents up to this stay exact (2**-3 = 1/8);
 # other powers of numbers are computed in floating point, so that 10**10**10 is
 # refused as an overflow instead of being computed digit by digit.
@@ -90,6 +100,9 @@ REFUSED = {
 OPERATOR_RULE = "operators are only + - * / ** and unary minus"
 
 # -- characters and tokens ---------------------------------------------------------------
+# Whitespace taken off both ends of a text before it is checked (only ASCII: any
+# other character, U+2028 included, is refused wherever it stands).
+ASCII_SPACE = " \t\n\r\f\v"
 # Operator tokens the grammar reads (== and != are refused later, with their reason).
 TOKEN_OPERATORS = frozenset({"+", "-", "*", "/", "**", "(", ")", ",", ".",
                              ">=", ">", "<=", "<", "==", "!="})
@@ -233,6 +246,9 @@ class _Walker:
             finite = math.isfinite(value)
         if not finite:
             raise self.fail(f"the number {literal} is not finite as a double")
+        if abs(value) > MAX_LITERAL:
+            raise self.fail(f"the number {literal} is larger than {MAX_LITERAL:g} in "
+                            "magnitude (fccgen's limit on every number of a model)")
         return sympy.Integer(value) if isinstance(value, int) else sympy.Float(value)
 
     def dotted(self, node: ast.Attribute) -> str:
@@ -296,6 +312,28 @@ class _Walker:
                                 "(overflow?)")
         return expr
 
+    def bounded(self, expr: sympy.Expr) -> sympy.Expr:
+        """``expr`` if each of its constants is at most MAX_CONSTANT in magnitude."""
+        for number in expr.atoms(sympy.Number):
+            if abs(float(number)) > MAX_CONSTANT:
+                raise self.fail(f"computes the constant {float(number):.6g}, larger than "
+                                f"{MAX_CONSTANT:g} in magnitude (the kernels multiply it "
+                                "by lengths, masses and speeds: doubles would overflow)")
+        return expr
+
+
+def finite_value(expr: sympy.Expr) -> bool:
+    """True when the constant ``expr`` (an expression with its symbols substituted) is
+    a finite real number: no infinity, NaN or imaginary part, as SymPy and as a
+    double."""
+    if expr.has(sympy.zoo, sympy.oo, -sympy.oo, sympy.nan):
+        return False
+    try:
+        number = complex(expr.evalf(20))
+    except (TypeError, ValueError, OverflowError, ZeroDivisionError):
+        return False
+    return number.imag == 0 and math.isfinite(number.real)
+
 
 def _parse(text, symbols, source, line, item, mode_rule: str):
     """(syntax tree body, walker) of ``text`` after the length, syntax and size checks."""
@@ -315,18 +353,19 @@ def _parse(text, symbols, source, line, item, mode_rule: str):
     if len(text) > MAX_CHARS:
         raise ModelError(source, line, item, f"is longer than {MAX_CHARS} characters",
                          f"{text[:40]}... ({len(text)} characters)")
-    if not text.strip():
+    text = text.strip(ASCII_SPACE)        # a YAML block scalar ends in a line break
+    if not text:
         raise fail(f"must be {mode_rule}, not empty text")
-    check_tokens(text.strip(), fail)
+    check_tokens(text, fail)
     try:
-        tree = ast.parse(text.strip(), mode="eval")
+        tree = ast.parse(text, mode="eval")
     except (SyntaxError, ValueError, RecursionError, MemoryError) as exc:
         reason = getattr(exc, "msg", None) or type(exc).__name__
         raise fail(f"is not {mode_rule} ({reason})") from None
     n_nodes = sum(1 for _ in ast.walk(tree))
     if n_nodes > MAX_NODES:
         raise fail(f"has more than {MAX_NODES} syntax nodes ({n_nodes})")
-    return tree.body, _Walker(text.strip(), symbols, fail)
+    return tree.body, _Walker(text, symbols, fail)
 
 
 def parse_expression(text: str, symbols: Mapping[str, sympy.Symbol], *, source: str,
@@ -338,7 +377,7 @@ def parse_expression(text: str, symbols: Mapping[str, sympy.Symbol], *, source: 
     Raises ModelError(source, line, item, rule, text) for anything outside the grammar
     of the module docstring."""
     body, walker = _parse(text, symbols, source, line, item, "an expression")
-    return walker.convert(body)
+    return walker.bounded(walker.convert(body))
 
 
 def parse_condition(text: str, symbols: Mapping[str, sympy.Symbol], *, source: str,
@@ -359,7 +398,7 @@ def parse_condition(text: str, symbols: Mapping[str, sympy.Symbol], *, source: s
                           "cross zero reliably)")
     lhs = walker.convert(body.left, 1)
     rhs = walker.convert(body.comparators[0], 1)
-    return walker.finite(lhs - rhs), DIRECTIONS[op]
+    return walker.bounded(walker.finite(lhs - rhs)), DIRECTIONS[op]
 
 
 def parse_event_function(text: str, symbols: Mapping[str, sympy.Symbol], *, source: str,
@@ -370,4 +409,4 @@ def parse_event_function(text: str, symbols: Mapping[str, sympy.Symbol], *, sour
     body, walker = _parse(text, symbols, source, line, item, "an event function")
     if isinstance(body, ast.Compare):
         return parse_condition(text, symbols, source=source, line=line, item=item)
-    return walker.finite(walker.convert(body)), None
+    return walker.bounded(walker.finite(walker.convert(body))), None

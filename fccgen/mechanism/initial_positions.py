@@ -13,8 +13,9 @@ with the minimum-norm change dq = -[B; C]^+ [g; c - d_k]: the second body's side
 or slides, the rest follows as little as the loops allow. C is the joint's rate (slide
 speed) row, the derivative of c along the constraint manifold
 (:func:`fccgen.mechanism.initial_speeds.speed_rows`), exact once g = 0, so Newton
-converges quadratically near the solution. Angles are accumulated step by step (each
-step turns less than half a turn), so any angle, several turns included, is reached.
+converges quadratically near the solution. An angle is reached the short way (whole
+turns taken off: they give the same configuration), so the walk turns at most half a
+turn; a slide is walked in at most MAX_STEPS steps (longer ones when it is far).
 Values the mechanism cannot take (beyond a four-bar's limit position, two angles on
 one degree of freedom that disagree, a joint that cannot move) leave Newton without
 convergence and are refused with the nearest values reached.
@@ -33,6 +34,7 @@ STEP_ANGLE = 0.1           # rad per continuation step
 STEP_LENGTH = 0.05         # body lengths per continuation step
 JOINT_TOL = 1e-12          # rad, and body lengths for positions
 MAX_NEWTON = 30
+MAX_STEPS = 1000           # continuation steps at most: a far slide takes longer steps
 RATE_OF = {"angle": "rate", "position": "speed"}
 
 
@@ -43,7 +45,7 @@ def _values(plan, q_ref: np.ndarray, q: np.ndarray, wanted: dict) -> np.ndarray:
         for c, axis in enumerate("xyz"):
             columns[f"{name}.{axis}"] = np.array([q_ref[3 * k + c], q[3 * k + c]])
             columns[f"{name}.v{axis}"] = np.zeros(2)
-    values = joint_columns(plan, columns, 2)
+    values = joint_columns(plan, columns, 2, near_given=False)   # no 1e6-rad offsets
     return np.array([values[f"{j}.{qty}"][1] - (qty == "angle") * values[f"{j}.{qty}"][0]
                      for j, (qty, _, _) in wanted.items()])
 
@@ -73,8 +75,13 @@ def assemble_at_joints(solver, q: np.ndarray) -> np.ndarray:
     scale = np.where(is_angle, 1.0, length)
     q_ref = np.array(q, float)
     start = np.where(is_angle, 0.0, _values(plan, q_ref, q_ref, wanted))
+    # An angle and the same angle plus whole turns are one configuration: the walk
+    # goes the short way, at most half a turn (it went 1e9 rad in 0.1 rad steps).
+    target = np.where(is_angle, start + np.remainder(target - start + math.pi,
+                                                     2 * math.pi) - math.pi, target)
     step = np.where(is_angle, STEP_ANGLE, STEP_LENGTH * length)
-    n_steps = max(1, math.ceil(float(np.max(np.abs(target - start) / step))))
+    n_steps = min(MAX_STEPS, max(1, math.ceil(float(np.max(np.abs(target - start)
+                                                           / step)))))
     q, accumulated = q_ref.copy(), start.copy()
     for k in range(1, n_steps + 1):
         d = start + (target - start) * k / n_steps

@@ -114,7 +114,10 @@ def lower_joint(j: Joint, frames: dict[str, np.ndarray]) -> JointLowering:
         cos = (float(j.axes[0] @ j.axes[1]) if j.value is None else math.cos(j.value))
         out.relations.append(("dot", a1, a2, cos))
     if t == "weld":
-        frame = frames[A] if A in frames else frames[B]
+        # Any two directions fixed in both bodies weld them; a pose body's frame axes
+        # are taken where there is one, else (two bodies of points and a vector,
+        # which have no frame matrix) the global axes.
+        frame = frames.get(A, frames.get(B, np.eye(3)))
         out.add("_x", "vector", frame[:, 0], both)
         out.add("_y", "vector", frame[:, 1], both)
     if t in ("planar", "point_on_plane"):

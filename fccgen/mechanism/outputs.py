@@ -55,8 +55,10 @@ class _Series:
         return np.zeros((self.n, 3))
 
 
-def joint_columns(plan, columns: dict[str, np.ndarray], n: int) -> dict[str, np.ndarray]:
-    """The joint columns of a lowered model's result (empty without joints)."""
+def joint_columns(plan, columns: dict[str, np.ndarray], n: int, *,
+                  near_given: bool = True) -> dict[str, np.ndarray]:
+    """The joint columns of a lowered model's result (empty without joints);
+    near_given=False: angles not moved by whole turns towards the initial ones."""
     lowering = getattr(plan.model, "mechanism", None)
     if lowering is None or n == 0:
         return {}
@@ -73,7 +75,9 @@ def joint_columns(plan, columns: dict[str, np.ndarray], n: int) -> dict[str, np.
             D = np.einsum("nij,kj->nik", C, written.rotation(A)[0].T @ written.rotation(B)[0])
             Dn = D @ n1
             angle = np.arctan2(np.cross(n1, Dn) @ a_A, Dn @ n1)
-            out[f"{j.name}.angle"] = _near_given(plan, j.name, np.unwrap(angle))
+            angle = np.unwrap(angle)
+            out[f"{j.name}.angle"] = _near_given(plan, j.name, angle) if near_given \
+                else angle
             a = RA @ a_A
             out[f"{j.name}.rate"] = np.einsum("ni,ni->n", s.omega(B) - s.omega(A), a)
         if j.type in SLIDE_TYPES:

@@ -23,8 +23,10 @@ from .yamlnodes import YMap, YNode, YScalar
 DRIVEN_QUANTITIES = {"angle": ("revolute", "cylindrical"),
                      "position": ("prismatic", "cylindrical"),
                      "distance": ("distance",)}
-# Rates: the driven quantity is their integral from 0 (closed form by SymPy).
+# Rates: the driven quantity is their integral from 0 (closed form by SymPy, given at
+# most INTEGRAL_SECONDS).
 RATES = {"rate": "angle", "speed": "position"}
+INTEGRAL_SECONDS = 10.0
 FUNCTION_KEYS = (*DRIVEN_QUANTITIES, *RATES)
 DRIVER_KEYS = ("name", "joint")
 # joint types whose lowering has a shared point named after the joint
@@ -135,18 +137,42 @@ class DriverReader(Reader):
                                 item=item)
         text = " ".join((text if isinstance(text, str) else repr(text)).split())
         if not integrate:
+            self.smooth_at_start(expr, t, node.line, item, text)
             return text
-        out = integral_text(expr, t)
+        out = bounded_integral_text(expr, t)
         try:
-            parse_expression(out or "", {"t": t}, source=self.source, line=node.line,
-                             item=item)
+            f = parse_expression(out or "", {"t": t}, source=self.source,
+                                 line=node.line, item=item)
         except ModelError:
             out = None
         if out is None:
             raise self.fail(node.line, item, "has no integral from 0 to t in closed form "
-                            "within the expression grammar (SymPy found none); give the "
-                            "angle or position itself", text)
+                            "within the expression grammar (SymPy found none within "
+                            f"{INTEGRAL_SECONDS:g} s); give the angle or position itself",
+                            text)
+        self.smooth_at_start(f, t, node.line, item, text)
         return out
+
+    def smooth_at_start(self, f, t, line, item: str, text: str) -> None:
+        """Refuse a driver whose kernels would not be finite: abs, min or max of t (the
+        rate jumps where they switch, the acceleration is a Dirac delta, which no
+        kernel can print), or a value, rate or acceleration that is not a finite
+        number at t = 0 (sqrt(t), log(t), sin(t)/t)."""
+        import sympy
+
+        from ..mechanism.expressions import finite_value
+        if f.has(sympy.Abs, sympy.Min, sympy.Max, sympy.sign, sympy.Heaviside):
+            raise self.fail(line, item, "must be smooth in t: abs, min and max make the "
+                            "driver's rate jump where they switch, and its acceleration "
+                            "a Dirac delta (write a smooth expression, or give a table, "
+                            "which is smooth)", text)
+        for order, what in enumerate(("value", "rate", "acceleration")):
+            value = sympy.diff(f, t, order).subs(t, 0)
+            if not finite_value(value):
+                raise self.fail(line, item, f"the driver's {what} at t = 0 is not a "
+                                f"finite number ({sympy.sstr(value)}): value, rate and "
+                                "acceleration must be finite at the start (sqrt(t), "
+                                "log(t), sin(t)/t are not)", text)
 
     def table(self, node: YMap, item: str, integrate: bool) -> str:
         """``{table: file.csv}``: the checked table's function text
@@ -162,6 +188,60 @@ class DriverReader(Reader):
         t, y = read_table(path, source=self.source, line=m.entries["table"].line,
                           item=child(item, "table"))
         return table_text(t, y)
+
+
+def bounded_integral_text(rate, t, seconds: float | None = None) -> str | None:
+    """:func:`integral_text`, given at most ``seconds`` (default INTEGRAL_SECONDS):
+    SymPy's integration has no time limit of its own (sin(t)**5*cos(t)**3 took
+    minutes), so it runs in a forked child process that is killed when the time is
+    up (None then). Where processes cannot be forked, it runs here, unbounded."""
+    import multiprocessing
+    import warnings
+
+    import sympy
+    # SymPy imports parts of its integrator on first use: done here, so that the
+    # child imports nothing (another thread may hold the import lock when it forks).
+    import sympy.integrals.heurisch  # noqa: F401
+    import sympy.integrals.manualintegrate  # noqa: F401
+    import sympy.integrals.meijerint  # noqa: F401
+    import sympy.integrals.risch  # noqa: F401
+
+    seconds = INTEGRAL_SECONDS if seconds is None else seconds
+    key = sympy.srepr((rate, t))
+    if key in _INTEGRALS:
+        return _INTEGRALS[key]
+    try:
+        context = multiprocessing.get_context("fork")
+    except ValueError:
+        return integral_text(rate, t)
+    receive, send = context.Pipe(duplex=False)
+
+    def child():
+        try:
+            send.send(integral_text(rate, t))
+        except BaseException:                # anything SymPy raises: no integral
+            send.send(None)
+
+    with warnings.catch_warnings():          # fork of a process that has threads
+        warnings.simplefilter("ignore", DeprecationWarning)
+        process = context.Process(target=child, daemon=True)
+        process.start()
+    send.close()
+    try:
+        out = receive.recv() if receive.poll(seconds) else None
+    except EOFError:                         # the child died
+        out = None
+    finally:
+        receive.close()
+        if process.is_alive():
+            process.kill()
+        process.join()
+    if out is not None:                      # only answers are kept, never a time-out
+        _INTEGRALS[key] = out
+    return out
+
+
+_INTEGRALS: dict[str, str] = {}          # srepr of (rate, t) -> integral text
 
 
 def integral_text(rate, t) -> str | None:

@@ -190,10 +190,34 @@ class ItemReader(Reader):
             text = n.value if isinstance(n, YScalar) and isinstance(
                 n.value, (bool, int, float)) else (n.text if isinstance(n, YScalar)
                                                    else n.plain())
-            parse_expression(text, t, source=self.source, line=n.line,
-                             item=child(item, k))
+            expr = parse_expression(text, t, source=self.source, line=n.line,
+                                    item=child(item, k))
+            self.load_expression_rules(expr, t, n.line, child(item, k), text)
             parts.append(" ".join((text if isinstance(text, str) else repr(text)).split()))
         return np.zeros(3), ";".join(parts)
+
+    def load_expression_rules(self, expr, symbols: dict, line, item: str, text) -> None:
+        """A load's expression must be affine in the joint rates and speeds (the
+        compiled force Jacobian df/dq' is a kernel of q alone, docs/elements.md), and
+        finite at the start: t = 0 and the written configuration (every joint
+        quantity 0)."""
+        import sympy
+
+        from ..mechanism.expressions import finite_value
+        speeds = [s for n, s in symbols.items() if n.endswith((".rate", ".speed"))]
+        for s in speeds:
+            if expr.has(s) and sympy.diff(expr, s).has(*speeds):
+                name = next(n for n, x in symbols.items() if x == s)
+                raise self.fail(line, item, f"must be linear in the joint rates and "
+                                f"speeds, as a damper is ({name} enters otherwise: abs, "
+                                "min, max, log, powers or products of rates are not "
+                                "supported, since the force's Jacobian in the speeds is "
+                                "computed without them)", text)
+        value = expr.subs({s: 0 for s in symbols.values()})
+        if not finite_value(value):
+            raise self.fail(line, item, "is not a finite number at the start (t = 0, "
+                            f"every joint quantity 0: {sympy.sstr(value)}); 1/A.angle, "
+                            "log(t), sin(t)/t are not", text)
 
     @staticmethod
     def joint_form(node: YNode) -> bool:

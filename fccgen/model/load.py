@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import ModelError
-from ..methods import names as _method_names
+from ..methods import EVENT_METHODS, names as _method_names
 from . import checks
 from .events import EventReader
 from .fields import IDENTIFIER, IDENTIFIER_RULE, Reader, child, listing
@@ -115,12 +115,24 @@ class _ModelReader(Reader):
         initial = items.initial(e["initial"], joints) if "initial" in e else Initial()
         simulate = items.simulate(e.get("simulate"), METHODS, self.values_per_output())
         events = EventReader(self.source, self.points, joints).events(e.get("events"))
+        self.check_event_method(events, simulate, e.get("simulate"))
         return Model(name=name, source=self.source, gravity=gravity, points=self.points,
                      vectors=self.vectors, bodies=self.bodies, constraints=constraints,
                      loads=loads, initial=initial, simulate=simulate,
                      where={k: self.where(line) for k, line in top.key_lines.items()},
                      pose_bodies=self.pose_bodies, joints=joints, drivers=drivers,
                      events=events)
+
+    def check_event_method(self, events, simulate, node) -> None:
+        """Events are located by the rk4 and dopri5 methods only (the compiled run
+        refuses the others): a model with events that names another method is refused
+        here, so that check refuses it as simulate does."""
+        if not events or simulate.method in EVENT_METHODS:
+            return
+        line = node.key_lines.get("method", node.line) if isinstance(node, YMap) else None
+        raise self.fail(line, "simulate.method", f"must be one of {listing(EVENT_METHODS)} "
+                        f"in a model with events (events are located by those methods "
+                        f"only; this model has {len(events)})", simulate.method)
 
     def values_per_output(self) -> int:
         """Numbers one output row of a run records (docs/design.md §4): t, 6 per moving
