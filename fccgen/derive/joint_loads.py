@@ -41,7 +41,10 @@ def _angle(s: ClassSymbols, prefix: str, inter: dict) -> tuple[sympy.Expr, sympy
     big_s, big_c, s_dot, c_dot = (_intermediate(inter, prefix + n, e) for n, e in (
         ("S", cos0 * big_d - sin0 * big_p), ("C", cos0 * big_p + sin0 * big_d),
         ("Sd", cos0 * d_dot - sin0 * p_dot), ("Cd", cos0 * p_dot + sin0 * d_dot)))
-    return (s.scalar(prefix + "th") + sympy.atan2(big_s, big_c),
+    # th, a parameter, stands as a real intermediate: min, max and abs of the angle
+    # then differentiate to sign(), not to re() and im() of a complex th
+    th = _intermediate(inter, prefix + "th", s.scalar(prefix + "th"))
+    return (th + sympy.atan2(big_s, big_c),
             (big_c * s_dot - big_s * c_dot) / (big_s ** 2 + big_c ** 2))
 
 
