@@ -52,8 +52,10 @@ def client_for(scheduler: str | None, workers: int, timeout: float):
             raise HostError(f"no Dask scheduler answers at {scheduler} ({exc}). To fix "
                             "it, start one (dask scheduler) or leave --scheduler out for "
                             "a local cluster") from None
+    # ":0": the scheduler's HTTP server takes a free port (with None it still binds
+    # :8787, and a busy 8787 stops the cluster from starting)
     cluster = distributed.LocalCluster(n_workers=1, threads_per_worker=workers,
-                                       processes=False, dashboard_address=None)
+                                       processes=False, dashboard_address=":0")
     return distributed.Client(cluster), cluster
 
 

@@ -84,7 +84,7 @@ def test_workers_in_other_processes_unpickle_the_solver(build_dir):
     from dask.distributed import LocalCluster
     solver = fccgen.load(DOUBLE, build_dir)
     with LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
-                      dashboard_address=None) as cluster:
+                      dashboard_address=":0") as cluster:
         table = run_sweep(solver, {"bodies.rod2.mass": MASSES[:2],
                                    "simulate.t_end": [T_END]},
                           scheduler=cluster.scheduler_address)

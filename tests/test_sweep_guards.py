@@ -107,7 +107,7 @@ def test_workers_that_cannot_see_the_build_folder_stop_the_sweep(solver, build_d
     moved = fccgen.load(DOUBLE, tmp_path / "build")      # the cached module: no compile
     (tmp_path / "build").rename(tmp_path / "elsewhere")
     with LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
-                      dashboard_address=None) as cluster:
+                      dashboard_address=":0") as cluster:
         with pytest.raises(SweepStopped) as caught:
             run_sweep(moved, SETS, scheduler=cluster.scheduler_address,
                       out=tmp_path / "t.csv")
