@@ -1,7 +1,11 @@
-"""Builds fccgen's own compiled runtime (the constrained solve, the engine, the
-integrators).
+"""Builds fccgen's own compiled runtime: the C engine (``fccgen/runtime/engine/*.c``,
+plain C99: assembly, constrained solves, projections, events, integrators) and the
+Cython modules that wrap it for Python.
 
-Every ``fccgen/runtime/_*.pyx`` is built: first those named in CIMPORT_ORDER (each one
+The engine's C sources are compiled into every runtime extension with the same flags
+as the Cython code; each extension holds its own copy, its symbols hidden
+(``-fvisibility=hidden`` on GCC and Clang: only the module's init function is exported,
+so no copy's symbol is seen from another module). Every ``fccgen/runtime/_*.pyx`` is built: first those named in CIMPORT_ORDER (each one
 cimports only modules before it), then any other, in name order (integrators that
 cimport only the engine). Generated kernel modules are built later, per model, by
 ``fccgen.build``.
@@ -18,8 +22,8 @@ from Cython.Build import cythonize
 from setuptools import Extension, setup
 from setuptools.command.build_ext import build_ext
 
-CIMPORT_ORDER = ("_solve", "_assemble", "_engine", "_ldl", "_sparse_blocks", "_al_refine",
-                 "_events")
+CIMPORT_ORDER = ("_solve", "_assemble", "_engine",
+                 "_events", "_power")
 
 
 def runtime_modules() -> list[str]:
@@ -30,7 +34,7 @@ def runtime_modules() -> list[str]:
                                                        if m not in CIMPORT_ORDER]
 
 
-UNIX_COMPILE_ARGS = ["-g0"]                # last on the command line: it wins
+UNIX_COMPILE_ARGS = ["-g0", "-fvisibility=hidden"]   # last on the command line: -g0 wins
 UNIX_LINK_ARGS = ["-g0"]
 
 
@@ -53,11 +57,17 @@ class QuietDebugBuild(build_ext):
         super().build_extension(ext)
 
 
+ENGINE = "fccgen/runtime/engine"
+_HERE = Path(__file__).resolve().parent
+ENGINE_SOURCES = sorted(f"{ENGINE}/{p.name}" for p in (_HERE / ENGINE).glob("*.c"))
+ENGINE_HEADERS = sorted(f"{ENGINE}/{p.name}" for p in (_HERE / ENGINE).glob("*.h"))
+
 extensions = [
     Extension(
         f"fccgen.runtime.{name}",
-        [f"fccgen/runtime/{name}.pyx"],
-        include_dirs=["fccgen/runtime"],
+        [f"fccgen/runtime/{name}.pyx", *ENGINE_SOURCES],
+        include_dirs=["fccgen/runtime", ENGINE],
+        depends=ENGINE_HEADERS,
         extra_compile_args=["-O2"],
     )
     for name in runtime_modules()

@@ -1,37 +1,26 @@
 # cython: language_level=3
-"""The compiled engine: accelerations and projections, in C without the GIL.
+"""The Python face of the C engine (engine/fcc_engine.c): accelerations and
+projections of one Assembler, on the dense path (this class) or the sparse one
+(_sparse.SparseEngine).
 
-An Engine owns an Assembler (the element kernels bound to a plan) and one constrained
-solve (_solve.pyx); integrators (_rk4.pyx) drive its nogil building blocks. Every
-work array is allocated once, with the Engine.
-
-Failures (a singular reduced mass matrix, a non-finite quantity) set an error record
-in C; the Python side turns it into a SimulationError saying what failed (and, in a
-run, when), so nothing continues on NaN.
+The engine's work is C without the GIL; this wrapper checks arguments, hands arrays in
+and out (every array returned is fresh), and turns the engine's error record into a
+SimulationError saying what failed (and, in a run, when), so nothing continues on NaN.
 """
-from libc.math cimport INFINITY, isfinite
-from libc.stdlib cimport calloc, free
-from libc.string cimport memcpy
-
 import time
 
 import numpy as np
 
+from fccgen import rank as _rank
 from fccgen.errors import SimulationError
 
-from ._assemble cimport ASM_B, ASM_C, ASM_F, ASM_G, ASM_H, ASM_M, ASM_T, Assembler
-from ._solve cimport (CSolve, csolve_apply, csolve_factor, csolve_free, csolve_init,
-                     csolve_reset_stats, csolve_svd_rank)
+from ._cengine cimport (FCC_OK, fcc_accelerations, fcc_baumgarte, fcc_constraint_residual,
+                        fcc_engine_decide_rank, fcc_engine_free, fcc_engine_init,
+                        fcc_project_positions, fcc_project_velocities, fcc_put_time,
+                        fcc_settings)
+from ._solve cimport lapack_table
 
 from ._messages import error_message
-
-
-cdef bint finite(const double *x, Py_ssize_t n) noexcept nogil:
-    cdef Py_ssize_t i
-    for i in range(n):
-        if not isfinite(x[i]):
-            return False
-    return True
 
 
 cdef class Engine:
@@ -48,63 +37,50 @@ cdef class Engine:
         if not (rank_tol > 0 and position_tol > 0 and max_newton >= 0):
             raise ValueError("rank_tol and position_tol must be positive, max_newton >= 0")
         self.asm = asm
-        self.n = asm.n_q
-        self.m = asm.n_g
-        self.position_tol = position_tol
-        self.max_newton = max_newton
-        self.diverge_residual = INFINITY
-        csolve_init(&self.sol, self.n, self.m, rank_tol)
-        self.row_group = <int *>calloc(self.m + 1, sizeof(int))
-        if self.row_group == NULL:
+        cdef fcc_settings s
+        s.rank_tol = rank_tol
+        s.position_tol = position_tol
+        s.max_newton = max_newton
+        s.grow_tol = _rank.GROW_TOL
+        s.decide_tol = _rank.DECIDE_TOL
+        s.ambiguous_low = _rank.AMBIGUOUS_LOW
+        s.row_floor = _rank.ROW_FLOOR
+        if fcc_engine_init(&self.c, &asm.a, lapack_table(), &s) != FCC_OK:
             raise MemoryError("cannot allocate the engine's work arrays")
-        cdef int e, k
-        for e in range(asm.n_el):
-            for k in range(asm.gptr[e], asm.gptr[e + 1]):
-                self.row_group[k] = asm.gptr[e]
-        self.sol.group = self.row_group
-        self.work = <double *>calloc(4 * self.n + self.m + 1, sizeof(double))
-        if self.work == NULL:
-            raise MemoryError("cannot allocate the engine's work arrays")
-        self.rhs = self.work
-        self.nb = self.rhs + self.n
-        self.dq = self.nb + self.m
-        self.vtmp = self.dq + self.n
-        self.stages = <double *>calloc(10 * self.n, sizeof(double))
-        if self.stages == NULL:
-            raise MemoryError("cannot allocate the engine's work arrays")
+        self.live = True
 
     def __dealloc__(self):
-        csolve_free(&self.sol)
-        free(self.row_group)
-        free(self.work)
-        free(self.stages)
+        if self.live:
+            fcc_engine_free(&self.c)
 
     @property
     def rank_tol(self):
-        return self.sol.rank_tol
+        return self.c.set.rank_tol
+
+    @property
+    def position_tol(self):
+        return self.c.set.position_tol
+
+    @property
+    def max_newton(self):
+        return self.c.set.max_newton
 
     @property
     def rank(self):
         """Numerical rank of B at the last factorisation."""
-        return self.sol.r
+        return self.c.sol.r
 
     @property
     def decided_rank(self):
         """The rank kept by the factorisations (-1: none decided, pivot threshold)."""
-        return self.sol.rank_fixed
+        return self.c.sol.rank_fixed
 
     def decide_rank(self, q, rank):
-        """Keep ``rank`` as the rank of B from now on (see "Rank" in _solve.pyx; -1:
-        back to the pivot threshold) and start the rank statistics anew."""
-        if not -1 <= rank <= min(self.n, self.m):
-            raise ValueError(f"rank must be in [-1, {min(self.n, self.m)}], got {rank}")
-        self.sol.rank_fixed = rank
-        csolve_reset_stats(&self.sol)
-        self.n_rank_log = 0
-        self.ke_peak = 0.0
-        self.ke_cut_max = 0.0
-        self.ke_cut_t = 0.0
-        self.factor_valid = False
+        """Keep ``rank`` as the rank of B from now on (see "Rank" in engine/fcc_dense.c;
+        -1: back to the pivot threshold) and start the rank statistics anew."""
+        if not -1 <= rank <= min(self.c.n, self.c.m):
+            raise ValueError(f"rank must be in [-1, {min(self.c.n, self.c.m)}], got {rank}")
+        fcc_engine_decide_rank(&self.c, rank)
 
     def rank_statistics(self):
         """What the factorisations since :meth:`decide_rank` saw: a dict with
@@ -114,245 +90,16 @@ cdef class Engine:
         largest fraction of the kinetic energy one velocity projection removed
         (kinetic_energy_cut, at kinetic_energy_cut_t) and the largest kinetic energy
         a velocity projection met (kinetic_energy_peak; 0 when none ran)."""
-        n = min(self.n_rank_log, RANK_LOG_SIZE)
-        return dict(factorisations=self.sol.n_factor, drops=self.sol.n_drop,
-                    svd_checks=self.sol.n_svd, smallest_kept=self.sol.kept_min,
-                    largest_dropped=self.sol.dropped_max,
-                    increases=[(self.rank_log[k][0], int(self.rank_log[k][1]),
-                                int(self.rank_log[k][2])) for k in range(n)],
-                    increases_total=self.n_rank_log,
-                    kinetic_energy_cut=self.ke_cut_max, kinetic_energy_cut_t=self.ke_cut_t,
-                    kinetic_energy_peak=self.ke_peak / 2.0)
-
-    # -- building blocks (nogil) ---------------------------------------------------
-    cdef int fail(self, int code, int info, int detail) noexcept nogil:
-        self.err = code
-        self.err_info = info
-        self.err_detail = detail
-        return -1
-
-    cdef int nonfinite_input(self, const double *q, const double *v, int flags) noexcept nogil:
-        """1-based index (see _messages.INPUTS) of the first non-finite input, 0 if none."""
-        cdef int n = self.n, m = self.m
-        if q != NULL and not finite(q, n): return 1
-        if v != NULL and not finite(v, n): return 2
-        if flags & ASM_M and not finite(self.asm.M, n * n): return 3
-        if flags & ASM_H and not finite(self.asm.h, n): return 4
-        if flags & ASM_F and not finite(self.asm.f, n): return 5
-        if flags & ASM_B and not finite(self.asm.B, m * n): return 6
-        if flags & ASM_C and not finite(self.asm.c, m): return 7
-        if flags & ASM_G and not finite(self.asm.g, m): return 8
-        return 0
-
-    cdef int factor(self, const double *q) noexcept nogil:
-        """Factor the assembled M and B; on failure, blame a non-finite input first."""
-        cdef int old = self.sol.rank_fixed, bad, k
-        cdef int info = csolve_factor(&self.sol, self.asm.M, self.asm.B)
-        self.factor_valid = False
-        if self.sol.grew:
-            k = self.n_rank_log
-            if k < RANK_LOG_SIZE:
-                self.rank_log[k][0] = self.err_t      # the integrators keep it current
-                self.rank_log[k][1] = old
-                self.rank_log[k][2] = self.sol.rank_fixed
-            self.n_rank_log += 1
-        if info == 0:
-            return 0
-        bad = self.nonfinite_input(q, NULL, ASM_M | ASM_B)
-        if bad:
-            return self.fail(ERR_NONFINITE_INPUT, 0, bad)
-        return self.fail(ERR_SINGULAR if info > 0 else ERR_LAPACK, info, 0)
-
-    cdef int accelerations_at(self, const double *q, const double *v, double *a,
-                              bint reuse) noexcept nogil:
-        """a = q'' at (q, v); reuse: sol already holds the factorisation at q."""
-        cdef int i, flags = ASM_H | ASM_F | ASM_C
-        if not reuse:
-            flags |= ASM_M | ASM_B
-        self.asm.assemble(q, v, flags)
-        if not reuse and self.factor(q) < 0:
-            return -1
-        for i in range(self.n):
-            self.rhs[i] = self.asm.f[i] - self.asm.h[i]
-        for i in range(self.m):
-            self.nb[i] = -self.asm.c[i]
-        csolve_apply(&self.sol, self.rhs, NULL, self.nb, a)
-        if not finite(a, self.n):
-            i = self.nonfinite_input(q, v, flags)
-            return self.fail(ERR_NONFINITE_INPUT if i else ERR_NONFINITE_RESULT, 0, i)
-        return 0
-
-    cdef int baumgarte_at(self, const double *q, const double *v, double *a,
-                          double alpha, double beta) noexcept nogil:
-        """a = q'' of the index-1 equations with Baumgarte stabilisation:
-        M a + B^T lambda = f - h, B a = -c - 2 alpha g' - beta^2 g(q), with
-        g' = B v + dg/dt and c the constraint bias (g'' - B a)."""
-        cdef int i, j, n = self.n
-        cdef int flags = ASM_M | ASM_B | ASM_H | ASM_F | ASM_C | ASM_G
-        if self.asm.n_time:
-            flags |= ASM_T
-        cdef double bv
-        cdef const double *row
-        self.asm.assemble(q, v, flags)
-        if self.factor(q) < 0:
-            return -1
-        for i in range(n):
-            self.rhs[i] = self.asm.f[i] - self.asm.h[i]
-        for i in range(self.m):
-            row = self.asm.B + i * n
-            bv = self.asm.gt[i] if self.asm.n_time else 0.0
-            for j in range(n):
-                bv += row[j] * v[j]
-            self.nb[i] = -self.asm.c[i] - 2.0 * alpha * bv - beta * beta * self.asm.g[i]
-        csolve_apply(&self.sol, self.rhs, NULL, self.nb, a)
-        if not finite(a, n):
-            i = self.nonfinite_input(q, v, flags)
-            return self.fail(ERR_NONFINITE_INPUT if i else ERR_NONFINITE_RESULT, 0, i)
-        return 0
-
-    cdef void assemble_constraints(self, const double *q, int flags) noexcept nogil:
-        """Assemble at q what the position projection asks for: g (ASM_G), B (ASM_B)
-        and M (ASM_M), where this engine's solves read them (here: the assembler's
-        dense arrays; the sparse path keeps M and B as element blocks)."""
-        self.asm.assemble(q, NULL, flags)
-
-    cdef double constraint_residual(self) noexcept nogil:
-        """max_k |g_k| / ||B_k|| with the g and B assembled last."""
-        return self.asm.scaled_residual()
-
-    cdef void solve_constrained(self, const double *Q, const double *w, const double *b,
-                                double *x) noexcept nogil:
-        """x of M x + B^T lambda = Q + M w, B x = b (Q, w, b may be NULL: zero) with
-        the factorisation at hand."""
-        csolve_apply(&self.sol, Q, w, b, x)
-
-    cdef void solve_newton(self, const double *b, double *x) noexcept nogil:
-        """x of a Newton step, M x + B^T mu = 0, B x = b, with the factorisation at
-        hand. Its accuracy need only be far below the step's own (the next residual
-        check judges the step): the sparse path stops its refinement sooner."""
-        self.solve_constrained(NULL, NULL, b, x)
-
-    cdef int project_positions_at(self, double *q, int *iterations,
-                                  bint reuse) noexcept nogil:
-        """Newton on g(q) = 0, in place: dq = argmin dq^T M dq / 2 subject to
-        B dq = -g, with g and B at every iterate and the metric M at the starting
-        point. Returns 0 (converged), 1 (not within max_newton) or -1 (error). Leaves g
-        assembled at the final q, and B when b_fresh. One loop for both paths: the
-        assembly, the residual and the solve are the engine's own
-        (assemble_constraints, constraint_residual, solve_newton). reuse: M, B and the
-        factorisation held are an integrator's last stage's, near q; an engine that can
-        (chord_ready) first takes chord steps with them (chord_step), and the first one
-        that does not converge as it should is undone: exact steps from there."""
-        cdef int i, it = 0
-        cdef double res
-        cdef bint exact = False
-        reuse = reuse and self.chord_ready()
-        self.b_fresh = not reuse
-        self.assemble_constraints(q, ASM_G if reuse else ASM_G | ASM_B)
-        res = self.constraint_residual()
-        while True:
-            if not isfinite(res):
-                iterations[0] = it
-                return self.fail(ERR_NONFINITE_INPUT, 0,
-                                 self.nonfinite_input(q, NULL, ASM_G | ASM_B) or 8)
-            if res <= self.position_tol:
-                break
-            if it == 0 and res > self.diverge_residual:
-                iterations[0] = it
-                self.err_value = res
-                self.err_bound = self.diverge_residual
-                return self.fail(ERR_DIVERGED, 0, 3)
-            if it >= self.max_newton:
-                iterations[0] = it
-                return 1
-            if reuse:
-                i = self.chord_step(q, &res)
-                if i < 0:
-                    iterations[0] = it
-                    return -1
-                if i == 1:
-                    it += 1
-                    continue
-                reuse = False
-            if not exact:                       # the metric: M at the first exact step
-                self.assemble_constraints(q, ASM_M if self.b_fresh else ASM_M | ASM_B)
-                self.b_fresh = exact = True
-            if self.factor(q) < 0:
-                iterations[0] = it
-                return -1
-            for i in range(self.m):
-                self.nb[i] = -self.asm.g[i]
-            self.solve_newton(self.nb, self.dq)
-            for i in range(self.n):
-                q[i] += self.dq[i]
-            it += 1
-            self.assemble_constraints(q, ASM_G | ASM_B)
-            res = self.constraint_residual()
-        iterations[0] = it
-        return 0
-
-    cdef bint chord_ready(self) noexcept nogil:
-        """Whether chord_step can be taken (the dense path: never; its factorisation
-        is a pivoted QR of one B, without the M and B it was made from)."""
-        return False
-
-    cdef int chord_step(self, double *q, double *res) noexcept nogil:
-        """A chord step from q (g assembled there, residual res[0]) with the M, B and
-        factorisation held: 1 when kept (q moved, g assembled there, res[0] its
-        residual), 0 when undone (q and g as they were), -1 on an error."""
-        return 0
-
-    cdef int project_velocities_at(self, const double *q, double *v,
-                                   bint have_B) noexcept nogil:
-        """v <- the M-orthogonal projection of v onto B v = -dg/dt (0 unless the model
-        has drivers: set_time first), in place. Leaves the factorisation of (M, B) at q
-        in sol; have_B: B is already assembled at q."""
-        cdef int i
-        cdef int flags = ASM_M if have_B else ASM_M | ASM_B
-        if self.asm.n_time:
-            flags |= ASM_T
-        self.asm.assemble(q, NULL, flags)
-        self.sol.check_growth = 1             # q has just been projected (or is given)
-        i = self.factor(q)
-        self.sol.check_growth = 0
-        if i < 0:
-            return -1
-        if self.asm.n_time:
-            for i in range(self.m):
-                self.nb[i] = -self.asm.gt[i]
-        csolve_apply(&self.sol, NULL, v, self.nb if self.asm.n_time else NULL,
-                     self.vtmp)
-        if not finite(self.vtmp, self.n):
-            i = self.nonfinite_input(q, v, ASM_M | ASM_B)
-            return self.fail(ERR_NONFINITE_INPUT if i else ERR_NONFINITE_RESULT, 0, i)
-        self.watch_kinetic_energy(v, self.vtmp)
-        memcpy(v, self.vtmp, self.n * sizeof(double))
-        self.factor_valid = True
-        return 0
-
-    cdef void watch_kinetic_energy(self, const double *v, const double *w) noexcept nogil:
-        """Track the fraction of the kinetic energy v^T M v / 2 that the projection
-        v -> w removes, (v - w)^T M (v - w) / 2 (M-orthogonal: the energy lost).
-        Accurate steps lose O(local error^2); a finite fraction means the constraints
-        forbid a motion the integrator made (a wrong rank, a locked mechanism).
-        Fractions are counted once the energy is above 1e-6 of its peak."""
-        cdef int i, j, n = self.n
-        cdef double before = 0.0, cut = 0.0, mv, md
-        cdef const double *row
-        for i in range(n):
-            row = self.asm.M + i * n
-            mv = 0.0
-            md = 0.0
-            for j in range(n):
-                mv += row[j] * v[j]
-                md += row[j] * (v[j] - w[j])
-            before += v[i] * mv
-            cut += (v[i] - w[i]) * md
-        if before > self.ke_peak:
-            self.ke_peak = before
-        if before > 1e-6 * self.ke_peak and before > 0.0 and cut / before > self.ke_cut_max:
-            self.ke_cut_max = cut / before
-            self.ke_cut_t = self.err_t
+        n = min(self.c.n_rank_log, 64)
+        return dict(factorisations=self.c.sol.n_factor, drops=self.c.sol.n_drop,
+                    svd_checks=self.c.sol.n_svd, smallest_kept=self.c.sol.kept_min,
+                    largest_dropped=self.c.sol.dropped_max,
+                    increases=[(self.c.rank_log[k][0], int(self.c.rank_log[k][1]),
+                                int(self.c.rank_log[k][2])) for k in range(n)],
+                    increases_total=self.c.n_rank_log,
+                    kinetic_energy_cut=self.c.ke_cut_max,
+                    kinetic_energy_cut_t=self.c.ke_cut_t,
+                    kinetic_energy_peak=self.c.ke_peak / 2.0)
 
     # -- Python access -------------------------------------------------------------
     cdef double[::1] vector(self, object x, str name, bint copy=True):
@@ -361,37 +108,37 @@ cdef class Engine:
         a = np.array(x, dtype=float) if copy else np.ascontiguousarray(x, dtype=float)
         if not a.flags.writeable:                         # typed views need writeable
             a = a.copy()
-        if a.shape != (self.n,):
-            raise ValueError(f"{name} must have shape ({self.n},), got {a.shape}")
+        if a.shape != (self.c.n,):
+            raise ValueError(f"{name} must have shape ({self.c.n},), got {a.shape}")
         return a
 
     cdef raise_error(self, int where):
-        self.err_where = where
+        self.c.err_where = where
         raise SimulationError(error_message(self.error_record(), in_run=False))
 
     cdef dict error_record(self):
-        return dict(code=self.err, info=self.err_info, detail=self.err_detail,
-                    where=self.err_where, stage=self.err_stage, t=self.err_t,
-                    h=self.err_h, value=self.err_value, bound=self.err_bound,
-                    rank=self.sol.r, n_q=self.n, n_g=self.m,
-                    nullity=self.sol.nr)
+        return dict(code=self.c.err, info=self.c.err_info, detail=self.c.err_detail,
+                    where=self.c.err_where, stage=self.c.err_stage, t=self.c.err_t,
+                    h=self.c.err_h, value=self.c.err_value, bound=self.c.err_bound,
+                    rank=self.c.sol.r, n_q=self.c.n, n_g=self.c.m,
+                    nullity=self.c.sol.nr)
 
     def reset_warm_start(self):
         """Nothing to reset: the dense path's solves carry nothing from one to the next
-        (the sparse path's carry the accelerations' multipliers, _al_refine.pyx)."""
+        (the sparse path's carry the accelerations' multipliers)."""
 
     def set_time(self, double t):
         """Evaluate later calls at the time t (models with drivers; Assembler.set_time)."""
-        self.asm.put_time(t)
+        fcc_put_time(self.c.asmb, t)
 
     def accelerations(self, q, v):
         """q'' at (q, v): a fresh array."""
         cdef double[::1] qv = self.vector(q, "q", False), vv = self.vector(v, "v", False)
-        a = np.empty(self.n)
+        a = np.empty(self.c.n)
         cdef double[::1] av = a
         cdef int rc
         with nogil:
-            rc = self.accelerations_at(&qv[0], &vv[0], &av[0], False)
+            rc = fcc_accelerations(&self.c, &qv[0], &vv[0], &av[0], False)
         if rc < 0:
             self.raise_error(AT_CALL)
         return a
@@ -399,11 +146,11 @@ cdef class Engine:
     def baumgarte_accelerations(self, q, v, double alpha, double beta):
         """q'' of the Baumgarte-stabilised index-1 equations at (q, v): a fresh array."""
         cdef double[::1] qv = self.vector(q, "q", False), vv = self.vector(v, "v", False)
-        a = np.empty(self.n)
+        a = np.empty(self.c.n)
         cdef double[::1] av = a
         cdef int rc
         with nogil:
-            rc = self.baumgarte_at(&qv[0], &vv[0], &av[0], alpha, beta)
+            rc = fcc_baumgarte(&self.c, &qv[0], &vv[0], &av[0], alpha, beta)
         if rc < 0:
             self.raise_error(AT_CALL)
         return a
@@ -416,17 +163,17 @@ cdef class Engine:
         cdef double[::1] qv = self.vector(q, "q")
         cdef int rc, it = 0
         with nogil:
-            rc = self.project_positions_at(&qv[0], &it, reuse)
+            rc = fcc_project_positions(&self.c, &qv[0], &it, reuse)
         if rc < 0:
             self.raise_error(AT_POSITIONS)
-        return np.asarray(qv), it, rc == 0, self.constraint_residual()
+        return np.asarray(qv), it, rc == 0, fcc_constraint_residual(&self.c)
 
     def project_velocities(self, q, v):
         """The M-orthogonal projection of v onto B(q) v = 0: a fresh array."""
         cdef double[::1] qv = self.vector(q, "q", False), vv = self.vector(v, "v")
         cdef int rc
         with nogil:
-            rc = self.project_velocities_at(&qv[0], &vv[0], False)
+            rc = fcc_project_velocities(&self.c, &qv[0], &vv[0], False)
         if rc < 0:
             self.raise_error(AT_VELOCITIES)
         return np.asarray(vv)
@@ -435,14 +182,14 @@ cdef class Engine:
         """Seconds taken by ``batch`` evaluations of the accelerations (assembly,
         factorisation, solve) in one compiled loop."""
         cdef double[::1] qv = self.vector(q, "q", False), vv = self.vector(v, "v", False)
-        a = np.empty(self.n)
+        a = np.empty(self.c.n)
         cdef double[::1] av = a
         cdef long i
         cdef int rc = 0
         t0 = time.perf_counter()
         with nogil:
             for i in range(batch):
-                rc = self.accelerations_at(&qv[0], &vv[0], &av[0], False)
+                rc = fcc_accelerations(&self.c, &qv[0], &vv[0], &av[0], False)
                 if rc < 0:
                     break
         elapsed = time.perf_counter() - t0

@@ -1,4 +1,4 @@
-"""Error messages of the compiled engine (the codes mirror the enums of _engine.pyx)."""
+"""Error messages of the compiled engine (the codes mirror the enums of engine/fcc_base.h)."""
 from __future__ import annotations
 
 # err_detail: which input was not finite (1-based).

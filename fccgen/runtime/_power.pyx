@@ -3,66 +3,54 @@
 quadrature, so that the energy check holds for models that exchange energy
 (fccgen/runtime/energy_check.py, docs/reliability.md "Energy").
 
-Along a motion dE/dt = v . f_nc + (driven models) lambda . dg/dt: the applied forces
-without potential (dampers, constant torques, loads of time or of joint quantities)
-and the drivers' constraint forces do work; gravity, constant forces and springs do
-not change E = T + V. The integrators add the stage powers P_i = stage_power(...)
-with their own weights, W += h sum b_i P_i (RK4: 1/6, 1/3, 1/3, 1/6; DOPRI5: its
-fifth-order weights, and its continuous extension for the records), so that
-E(t) - W(t) + (the impacts' losses) stays E(0) to the integration's own error.
-
-f_nc is assembled by a second Assembler of the same kernels over the elements whose
-forces have no potential (or part of one: damped springs, with their stiffness set to
-zero), its parameters copied from the engine's at every stage (the time, the angle
-references). The constraint forces' power is -v . (B^T lambda) = v . (M a + h - f),
-with M, h, f of the stage (M dense, or the sparse path's element blocks): exact for
-the index-1 equations at any state, and lambda . dg/dt on the constraint manifold.
+The C engine computes the stage powers and adds them up in its integrators
+(engine/fcc_work.c says how); this wrapper sets up its fcc_power from a second
+Assembler of the same kernels over the elements whose forces have no potential (or
+part of one: damped springs, with their stiffness set to zero), and hands the powers
+to loops that step in Python (fccgen.runtime.scipy_ivp).
 """
-from libc.stdlib cimport calloc, free
-
 import numpy as np
 
-from ._assemble cimport Assembler
+from ._cengine cimport (FCC_ERR_ARGUMENT, FCC_OK, fcc_power_fits, fcc_power_free,
+                        fcc_power_init, fcc_stage_power)
 from ._engine cimport Engine
-from ._sparse_blocks cimport SparseBlocks
 
 
 cdef class WorkTracker:
-    """The numbers of stage_power for one model: the Assembler ``nc`` of the elements
-    with forces without potential, the engine's parameter behind each of its
+    """The numbers of fcc_stage_power for one model: the Assembler ``nc`` of the
+    elements with forces without potential, the engine's parameter behind each of its
     parameters (src), those to zero in it (zero), and for driven models the
     constraint forces' power (n: the coordinates; sparse: the engine's path)."""
-    cdef Power c
-    cdef Assembler nc
 
     def __cinit__(self, Assembler nc, src, zero, bint constraints, bint sparse=False,
                   int n=0):
-        cdef int i
-        self.nc = nc
-        self.c.on = 1
-        self.c.nc = <void *>nc
-        self.c.n_params = nc.pptr[nc.n_el]
-        if len(src) != self.c.n_params:
+        cdef int[::1] s = np.ascontiguousarray(src, dtype=np.intc).reshape(-1)
+        cdef int[::1] z = np.ascontiguousarray(zero, dtype=np.intc).reshape(-1)
+        if s.shape[0] != nc.a.model.n_p:
             raise ValueError("need the engine's index of every parameter of nc")
-        self.c.n_zero = len(zero)
-        self.c.constraints = constraints
-        self.c.sparse = sparse
-        self.c.src = <int *>calloc(self.c.n_params + 1, sizeof(int))
-        self.c.zero = <int *>calloc(self.c.n_zero + 1, sizeof(int))
-        self.c.ma = <double *>calloc(n + 1, sizeof(double))
-        if self.c.src == NULL or self.c.zero == NULL or self.c.ma == NULL:
+        if n != nc.n_q:
+            raise ValueError(f"nc has {nc.n_q} coordinates, not {n}")
+        self.nc = nc
+        self.sparse = sparse
+        rc = fcc_power_init(&self.c, &nc.a, n, &s[0] if s.shape[0] else NULL,
+                            z.shape[0], &z[0] if z.shape[0] else NULL, constraints)
+        if rc == FCC_ERR_ARGUMENT:
+            raise ValueError(f"a parameter slot to zero is out of range: {list(zero)}")
+        if rc != FCC_OK:
             raise MemoryError("cannot allocate the work tracker")
-        for i in range(self.c.n_params):
-            self.c.src[i] = src[i]
-        for i in range(self.c.n_zero):
-            if not 0 <= zero[i] < self.c.n_params:
-                raise ValueError(f"parameter slot {zero[i]} out of range")
-            self.c.zero[i] = zero[i]
+        self.live = True
 
     def __dealloc__(self):
-        free(self.c.src)
-        free(self.c.zero)
-        free(self.c.ma)
+        if self.live:
+            fcc_power_free(&self.c)
+
+    def fits(self, Engine engine):
+        """Raise ValueError unless the tracker fits the engine (parameters, path)."""
+        if fcc_power_fits(&self.c, &engine.c) != FCC_OK:
+            raise ValueError("the tracker does not fit this engine's parameters")
+        if self.sparse != bool(engine.c.sparse):
+            raise ValueError("the tracker is for the other linear-solver path")
+        return None
 
     def power(self, Engine engine, q, v, a):
         """P at (q, v) with accelerations a that the engine solved at (q, v) just before
@@ -70,18 +58,15 @@ cdef class WorkTracker:
         cdef double[::1] qv = np.ascontiguousarray(q, float)
         cdef double[::1] vv = np.ascontiguousarray(v, float)
         cdef double[::1] av = np.ascontiguousarray(a, float)
-        cdef int i, top = engine.asm.pptr[engine.asm.n_el]
-        if not (qv.shape[0] == vv.shape[0] == av.shape[0] == engine.n == self.nc.n_q):
-            raise ValueError(f"q, v and a must hold {engine.n} numbers")
-        for i in range(self.c.n_params):
-            if not 0 <= self.c.src[i] < top:
-                raise ValueError("the tracker does not fit this engine's parameters")
-        if self.c.sparse != isinstance(engine, SparseBlocks):
-            raise ValueError("the tracker is for the other linear-solver path")
-        return stage_power(engine, &self.c, &qv[0], &vv[0], &av[0])
+        if not (qv.shape[0] == vv.shape[0] == av.shape[0] == engine.c.n):
+            raise ValueError(f"q, v and a must hold {engine.c.n} numbers")
+        self.fits(engine)
+        if engine.c.n == 0:
+            return 0.0
+        return fcc_stage_power(&engine.c, &self.c, &qv[0], &vv[0], &av[0])
 
 
-cdef Power *power_state(object tracker) except? NULL:
+cdef fcc_power *power_state(object tracker) except? NULL:
     """The C state of a WorkTracker (NULL for None)."""
     if tracker is None:
         return NULL

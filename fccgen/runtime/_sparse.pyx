@@ -1,184 +1,434 @@
 # cython: language_level=3
-"""The sparse path: accelerations and projections in time linear in the model's size.
+"""The Python face of the C engine's sparse path: accelerations and projections in time
+linear in the model's size (engine/fcc_sparse_*.c, fcc_al_refine.c: the element blocks,
+the LDL^T of A = M + B^T diag(alpha) B, the augmented-Lagrangian refinement, chord
+steps, the dense fallback and the rank-growth watch; their docstrings say how and why).
 
-SparseEngine is an Engine (same building blocks, same integrators) whose constrained
-solves are the augmented-Lagrangian refinement of _al_refine.pyx over the element
-blocks and the LDL^T of A = M + B^T diag(alpha) B of _sparse_blocks.pyx:
-
-* accelerations: M a + B^T lambda = f - h, B a = -c (Baumgarte:
-  B a = -c - 2 alpha g' - beta^2 g, formed in :meth:`SparseEngine.baumgarte_targets`);
-* velocity projection: M w + B^T mu = M v, B w = b with b from
-  :meth:`SparseEngine.velocity_targets` (-dg/dt of time-dependent constraints);
-* each Newton step of the position projection (Engine.project_positions_at, with
-  this engine's assembly, residual and solve): M dq + B^T mu = 0, B dq = -g; after an
-  integrator's step, first chord steps (below).
-
-Chord steps. After an RK4 step the blocks and the factorisation held are those of its
-last stage, at q + h v3, about h^2 a / 2 from the new q (5e-6 m on the cart of 20 links
-at dt 1e-3; DOPRI5's last stage is at the new q itself). A Newton step with them,
-M4 dq + B4^T mu = 0, B4 dq = -g(q), is a chord step: a consistent system, whose error
-is B4 - B(q), relative size d (about the distance over the model's size). It is solved
-by one augmented-Lagrangian step from zero multipliers, dq = A4^{-1} B4^T alpha (-g),
-off by about 1 / (1 + alpha sigma^2 / m) of itself (1e-7 where the rows are well
-conditioned, more near a singular position, where it shows in the residual as d does).
-The step leaves about d of the residual (1e-6 .. 1e-5, measured after RK4 steps of
-1e-3 s), and moves q along the constraints, where no residual sees it, by about d times
-the step; its metric is M at the stage's positions instead of the new ones, a change of
-the same order. It saves the factorisation, the assembly of M and B and the refined
-solve of an exact step: a sixth of the cart's RK4 step at n = 20. A chord step is kept
-when it leaves at most CHORD_GAIN of the residual and that move, estimated as the
-fraction of the residual left times the step's largest component, is at most CHORD_DRIFT
-of the position tolerance; otherwise (a factorisation made far from q, a row that nearly
-vanishes there, or a large step: the double pendulum at dt 0.05, where d is about 1e-2
-and the steps about 1e-7 m, moved 1.4e-8 m off the exact projections' trajectory in 20
-steps) it is undone and exact steps take over. The blocks must be the factorisation's
-own: B at the new q with the stage's factor makes the penalised system inconsistent by
-alpha |B| |B4 - B(q)|, and the step then moves q along the constraints by about RHO d
-times its size (100 times on the cart). Models with rows dependent only on the
-constraint manifold (_al_refine.pyx, "Directions beyond the decided rank") take exact
-steps only, whose solves fall back to the dense path's treatment of those rows.
-
-A solve whose refinement did not converge (constraints so ill-conditioned that the
-conjugate-gradient corrections run out of steps: _al_refine.pyx) is counted, and
-redone by the dense path's solve (pivoted QR of B at the decided rank, _solve.pyx) on
-M and B gathered from the blocks, when the model has at most DENSE_FALLBACK_MAX
-coordinates; the run reports both counts and warns (fccgen.rank.run_findings).
-
-Changes of the degrees of freedom. The solves need no rank, but the reports do: the
-rank r decided at the start (fccgen.rank) is kept, and raised, as on the dense path,
-when an SVD at a projected state finds sigma_{r+1} > GROW_TOL sigma_1 (rows scaled as
-fccgen.rank.row_scales). What starts that SVD is a bound, not a guess: for any n x k
-matrix N with orthonormal columns, k = n - r,
-
-    sigma_{r+1}(B_s) <= ||B_s N||_2 <= ||B_s N||_F        (Courant-Fischer)
-
-and sigma_1 >= 1 (each element's largest scaled row has unit length), so no growth
-past GROW_TOL goes unseen while ||B_s N||_F stays at or below it. N tracks the null
-space of B: set from the SVD at the start, then at every velocity projection replaced
-by A^{-1} M N (orthonormalised) with the factor at hand: a null-space direction is kept
-exactly (A x = M x when B x = 0), a component along a row direction of singular value
-sigma shrinks by about 1 / (1 + RHO sigma^2), so the motion of the constraint manifold
-between steps leaves ||B_s N|| near 1e-10 while a new independent row (sigma_{r+1}
-leaving 0) shows in full. One extra solve with A per tracked direction and projection.
-An SVD that does not confirm growth, finding sigma_{r+1} = x sigma_1 (x <= GROW_TOL),
-moves the trigger to the bound times GROW_TOL / x, kept within [2, 10]: the next SVD
-comes when the bound has grown as much as sigma_{r+1} must to pass GROW_TOL (the bound
-follows sigma_{r+1} within a constant on a mechanism leaving a singular position),
-at least twice, so that SVDs stay rare near singular positions, and at most ten
-times (the dense path's rule for its pivot).
+SparseEngine is an Engine whose C struct takes the sparse path. The set-up analysis
+(which coordinates are pinned, which entries the planar pattern leaves out: 
+sparse_setup.py; the fill-reducing order and scatter maps: sparsity.py) runs here once,
+its results handed to the C pattern (fcc_pattern); so does the start of the rank watch
+(an SVD of B), and its restart after a rank increase, called back from C.
 """
-from libc.math cimport INFINITY, sqrt
-from libc.stdlib cimport free
-from libc.string cimport memcpy, memset
+from types import SimpleNamespace
 
 import numpy as np
 
 from fccgen import rank as rank_rule
 
+from . import sparse_setup
 from .sparsity import jacobian_csr
 
-from ._al_refine cimport ALRefinement
-from ._assemble cimport ASM_B, ASM_C, ASM_F, ASM_G, ASM_H, ASM_M, ASM_T
-from ._engine cimport (ERR_NONFINITE_INPUT, ERR_NONFINITE_RESULT, Engine,
-                       RANK_LOG_SIZE, finite)
-from ._solve cimport csolve_apply, csolve_factor, csolve_svd_rank
-from ._sparse_blocks cimport alloc_zeroed
+from ._assemble cimport ASM_B, ASM_G, ASM_M, Assembler
+from ._cengine cimport (FCC_AL_MAX, FCC_CG_MAX, FCC_ERR_ARGUMENT, FCC_OK, FCC_REFINE_MAX,
+                        FCC_TRACK_MAX, fcc_engine, fcc_model, fcc_pattern,
+                        fcc_pattern_free, fcc_pattern_init, fcc_pattern_set_guards,
+                        fcc_pattern_set_structure, fcc_pattern_set_view,
+                        fcc_solve_constrained, fcc_sp_assemble_mb, fcc_sp_factor,
+                        fcc_sp_solve_a, fcc_sparse_free, fcc_sparse_init,
+                        fcc_sparse_resize, fcc_sparse_set_beyond_rank,
+                        fcc_sparse_set_watch)
+from ._engine cimport Engine
 
-# An unconverged solve is redone densely up to this many coordinates: the dense
-# factorisation is O(n^3), about 60 ms at 483 coordinates (A02, N = 160: 310 ms per
-# dense RK4 step of five), 0.5 s at 1000, acceptable for the rare evaluation that
-# needs it; larger models keep the unconverged solve and warn.
-DEF DENSE_FALLBACK_MAX = 1000
-# The rank-growth watch tracks at most this many null-space directions (degrees of
-# freedom); models with more degrees of freedom and redundant rows keep the start's rank.
-DEF TRACK_MAX = 16
+TRACK_MAX = FCC_TRACK_MAX
 # sigma_{r+1} > GROW_TOL sigma_1 raises the rank (fccgen.rank.GROW_TOL, the dense rule).
-cdef double GROW_TOL = rank_rule.GROW_TOL
-# A tracked direction whose length falls below this in the orthonormalisation has been
-# taken by the constraints: check at once.
-cdef double COLLAPSE = 1e-6
-# A chord step is kept when it leaves at most CHORD_GAIN of the residual and moves q
-# along the constraints by at most CHORD_DRIFT of the position tolerance (module
-# docstring, "Chord steps"): far below what the tolerance lets through, while an RK4
-# step at dt 1e-3 leaves a move of about 1e-5 of 1e-11 m.
-cdef double CHORD_GAIN = 1e-2
-cdef double CHORD_DRIFT = 1e-3
+GROW_TOL = rank_rule.GROW_TOL
 
 
-cdef inline double next_check_factor(double x) noexcept nogil:
-    """The factor between the bound of an SVD check that found sigma_{r+1} = x sigma_1
-    (below GROW_TOL) and the bound that starts the next one: GROW_TOL / x in [2, 10]."""
-    if not x > 0.0 or GROW_TOL / x > 10.0:
-        return 10.0
-    return GROW_TOL / x if GROW_TOL / x > 2.0 else 2.0
+cdef void _restart_watch(void *ctx, fcc_engine *e) noexcept nogil:
+    """The C engine's call after a rank increase: the watch from the null space of B
+    there (rare: once per change of the rank)."""
+    with gil:
+        (<SparseEngine>ctx)._restart()
 
 
-cdef class SparseEngine(ALRefinement):
-    """An Engine whose solves use the sparse augmented-Lagrangian refinement (module
-    docstring). Call :meth:`set_structure` (fccgen.runtime.sparsity) before use."""
-    cdef int n_track                  # tracked null-space directions (0: no watch)
-    cdef double *track                # n x TRACK_MAX: their orthonormal basis N
-    cdef double *bn                   # m x TRACK_MAX: B_s N, column by column
-    cdef double *xw                   # n: work
-    cdef double *rs                   # m: 1 / the scaled row norms
-    cdef double grow_trigger          # the bound that starts an SVD check
-    cdef double bound_max             # largest ||B_s N||_F met
-    cdef long n_svd
+def _ints(values):
+    return np.ascontiguousarray(values, dtype=np.intc)
+
+
+def _doubles(values):
+    return np.ascontiguousarray(values, dtype=float)
+
+
+cdef const int *_ip(int[::1] x):
+    return &x[0] if x.shape[0] else NULL
+
+
+cdef const double *_dp(double[::1] x):
+    return &x[0] if x.shape[0] else NULL
+
+
+cdef object ints(const int *p, int k):
+    """p[:k] as a fresh array."""
+    return np.array([p[i] for i in range(k)], dtype=np.intc)
+
+
+cdef object doubles(const double *p, int k):
+    """p[:k] as a fresh array."""
+    return np.array([p[i] for i in range(k)], dtype=float)
+
+
+cdef class SparseEngine(Engine):
+    """An Engine whose solves use the sparse augmented-Lagrangian refinement. Call
+    :meth:`set_structure` (fccgen.runtime.sparsity) before use."""
+    cdef fcc_pattern pat
+    cdef bint pat_live
     cdef object start_key             # (rank, q bytes) of the basis in start_basis
     cdef object start_basis           # the watch's basis from the SVD at that start
     cdef int start_n_track
-    cdef long n_fallback              # unconverged solves redone by the dense solve
-    cdef long n_chord, n_chord_undone # chord steps kept, undone
-    cdef double *qsave                # n: q before a chord step
-    cdef double *mv                   # n: M v of the velocity projection
-    cdef readonly int dense_fallback_max
 
-    def __cinit__(self, *args, **kwargs):
-        self.track = <double *>alloc_zeroed(self.n * TRACK_MAX, sizeof(double))
-        self.bn = <double *>alloc_zeroed(self.m * TRACK_MAX, sizeof(double))
-        self.xw = <double *>alloc_zeroed(self.n, sizeof(double))
-        self.rs = <double *>alloc_zeroed(self.m, sizeof(double))
-        self.mv = <double *>alloc_zeroed(self.n, sizeof(double))
-        self.qsave = <double *>alloc_zeroed(self.n, sizeof(double))
-        self.dense_fallback_max = DENSE_FALLBACK_MAX
+    def __cinit__(self, Assembler asm, *args, **kwargs):
+        if fcc_pattern_init(&self.pat, &asm.model) != FCC_OK:
+            raise MemoryError("cannot allocate the sparse solve's pattern")
+        self.pat_live = True
+        if fcc_sparse_init(&self.c, &self.pat) != FCC_OK:
+            raise MemoryError("cannot allocate the sparse solve's work arrays")
+        self.c.sp.restart_watch = _restart_watch
+        self.c.sp.restart_ctx = <void *>self
 
     def __dealloc__(self):
-        free(self.track); free(self.bn); free(self.xw); free(self.rs); free(self.mv)
-        free(self.qsave)
+        if self.live:
+            fcc_sparse_free(&self.c)          # Engine.__dealloc__ frees the rest
+        if self.pat_live:
+            fcc_pattern_free(&self.pat)
 
+    # -- set-up --------------------------------------------------------------------
+    def _elements(self):
+        """The elements as sparse_setup reads them (its docstring)."""
+        cdef int e, n_el = self.asm.n_el
+        cdef const fcc_model *md = &self.asm.model
+        return SimpleNamespace(
+            nq=np.array([md.cls[e].n_q for e in range(n_el)], dtype=np.intp),
+            ng=np.array([md.cls[e].n_g for e in range(n_el)], dtype=np.intp),
+            has_m=np.array([md.cls[e].mass_matrix != NULL for e in range(n_el)], bool),
+            has_b=np.array([md.cls[e].constraint_jacobian != NULL
+                            for e in range(n_el)], bool),
+            has_rate=np.array([md.cls[e].constraint_rate != NULL
+                               for e in range(n_el)], bool),
+            qptr=np.array([md.qptr[e] for e in range(n_el + 1)], dtype=np.intp),
+            qidx=np.array([md.qidx[e] for e in range(md.qptr[n_el])], dtype=np.intp),
+            gptr=np.array([md.gptr[e] for e in range(n_el + 1)], dtype=np.intp),
+            mptr=np.array([self.pat.mptr[e] for e in range(n_el + 1)], dtype=np.intp),
+            bptr=np.array([self.pat.bptr[e] for e in range(n_el + 1)], dtype=np.intp))
+
+    def _blocks(self, q, int flags):
+        """(Mblk, Bblk) copies: the element blocks assembled at q (flags ASM_M,
+        ASM_B)."""
+        cdef double[::1] qv = self.vector(q, "q")
+        cdef int n_el = self.asm.n_el
+        fcc_sp_assemble_mb(&self.c, &qv[0], flags)
+        nm, nb = self.pat.mptr[n_el], self.pat.bptr[n_el]
+        return (np.array(<double[:nm]>self.c.sp.Mblk) if nm else np.zeros(0),
+                np.array(<double[:nb]>self.c.sp.Bblk) if nb else np.zeros(0))
+
+    def _check_samples(self, samples):
+        qs = np.ascontiguousarray(np.atleast_2d(samples), dtype=float)
+        if qs.shape[1] != self.c.n:
+            raise ValueError(f"samples have {qs.shape[1]} coordinates, the model "
+                             f"{self.c.n}")
+        return qs
+
+    def set_pinned(self, samples):
+        """Leave out of the solve the coordinates that linear constraints with constant
+        rows hold still, and those rows (before planar_pattern and set_structure):
+        sparse_setup.pinned_view says which. The same answer as the full solve, while
+        the fixed rows keep their entries and hold (checked at every assembly and
+        position projection): otherwise the pattern trips and the solver redoes the
+        call on the full pattern, as for planar_pattern. Returns the number of pinned
+        coordinates (0: the full view is kept)."""
+        if self.pat.ready or self.pat.compact:
+            raise RuntimeError("the structure is already set")
+        qs = self._check_samples(samples)
+        if self.pat.bptr[self.asm.n_el] == 0:
+            return 0
+        blocks = [self._blocks(q, ASM_B)[1] for q in qs]
+        g0 = self.asm.quantity(ASM_G, qs[0])
+        view = sparse_setup.pinned_view(self._elements(), blocks, g0,
+                                        self.c.set.position_tol)
+        if view is None:
+            return 0
+        cdef int[::1] snq = _ints(view["snq"]), sloc = _ints(view["sloc"])
+        cdef int[::1] sng = _ints(view["sng"]), srloc = _ints(view["srloc"])
+        cdef int[::1] pinned = _ints(view["pinned"]), rows = _ints(view["fixed_rows"])
+        cdef int[::1] off = _ints(view["fixed_off"])
+        cdef double[::1] efix = _doubles(view["efix"]), norm = _doubles(view["fixed_norm"])
+        cdef double[::1] gtol = _doubles(view["fixed_g_tol"])
+        cdef double[::1] val = _doubles(view["fixed_val"]), tol = _doubles(view["fixed_tol"])
+        if (fcc_pattern_set_view(&self.pat, _ip(snq), _ip(sloc), _ip(sng), _ip(srloc),
+                                 _dp(efix), pinned.shape[0], _ip(pinned), rows.shape[0],
+                                 _ip(rows), _dp(norm), _dp(gtol), off.shape[0], _ip(off),
+                                 _dp(val), _dp(tol)) != FCC_OK
+                or fcc_sparse_resize(&self.c) != FCC_OK):
+            raise MemoryError("cannot allocate the sparse solve's view")
+        return self.pat.n_pinned
+
+    def planar_pattern(self, samples):
+        """Take the pattern of A from the element blocks at the coordinate vectors in
+        samples (before set_structure; sparse_setup.planar_masks): a model written in
+        a plane keeps its out-of-plane entries exactly zero while it moves in it, so
+        the fill of L is about halved there. Every later assembly checks the entries
+        left out: a nonzero one trips the pattern (the factorisation then fails with
+        ERR_PATTERN and the solver redoes the call on the full pattern,
+        paths.make_engine). Returns (mask_ptr, mask) for
+        fccgen.runtime.sparsity.structure."""
+        if self.pat.ready:
+            raise RuntimeError("the structure is already set")
+        qs = self._check_samples(samples)
+        samples_blocks = [self._blocks(q, ASM_M | ASM_B) for q in qs]
+        view = self.view_entries() if self.pat.compact else None
+        ptr, mask, offs_m, tol_m, offs_b, tol_b = sparse_setup.planar_masks(
+            self._elements(), samples_blocks, view)
+        cdef int[::1] zm = _ints(offs_m), zb = _ints(offs_b)
+        cdef double[::1] tm = _doubles(tol_m), tb = _doubles(tol_b)
+        if fcc_pattern_set_guards(&self.pat, zm.shape[0], _ip(zm), _dp(tm), zb.shape[0],
+                                  _ip(zb), _dp(tb)) != FCC_OK:
+            raise MemoryError("cannot allocate the sparse solve's guards")
+        self.c.sp.tripped = False
+        if not self.pat.compact:
+            return ptr, mask
+        return sparse_setup.view_masks((ptr, mask), self.solve_locals(),
+                                       self.solve_elements()[2])
+
+    def set_structure(self, perm, Ap, Ai, emap_ptr, emap):
+        """Take the pattern of A and the scatter maps (fccgen.runtime.sparsity.Structure)
+        and do the symbolic factorisation."""
+        if self.pat.ready:
+            raise RuntimeError("the structure is already set")
+        cdef int n = self.c.n, e
+        cdef int[::1] pv = _ints(perm), apv = _ints(Ap), aiv = _ints(Ai)
+        epv = _ints(emap_ptr)
+        if pv.shape[0] != n or apv.shape[0] != n + 1 or epv.shape[0] != self.asm.n_el + 1:
+            raise ValueError("the structure does not match the engine's sizes")
+        if sorted(np.asarray(pv).tolist()) != list(range(n)):
+            raise ValueError("perm is not a permutation")
+        snq = [self.pat.snq[e] for e in range(self.asm.n_el)]
+        cdef int[::1] ptr, ea, eb, pos
+        ptr, ea, eb, pos = sparse_setup.structure_entries(epv, emap, snq, apv[n])
+        rc = fcc_pattern_set_structure(&self.pat, &pv[0], &apv[0], _ip(aiv), &ptr[0],
+                                       _ip(ea), _ip(eb), _ip(pos))
+        if rc == FCC_ERR_ARGUMENT:
+            raise ValueError("the pattern of A lacks a pinned coordinate's diagonal")
+        if rc != FCC_OK or fcc_sparse_resize(&self.c) != FCC_OK:
+            raise MemoryError("cannot allocate the sparse solve's factorisation")
+
+    def solve_elements(self):
+        """(q_ptr, q_idx, couples) of the solve's view (set_pinned): each element's
+        free coordinates, and whether it adds a block to A (a mass matrix or kept
+        rows on them); the assembler's elements when nothing is pinned."""
+        cdef int e, n_el = self.asm.n_el
+        q_ptr = np.array([self.pat.sptr[e] for e in range(n_el + 1)], dtype=np.intc)
+        q_idx = np.array([self.pat.sidx[e] for e in range(self.pat.sptr[n_el])],
+                         dtype=np.intc)
+        couples = np.array([self.pat.snq[e] > 0 and (
+            self.pat.mcptr[e + 1] > self.pat.mcptr[e] or self.pat.sng[e] > 0)
+            for e in range(n_el)], dtype=bool)
+        return q_ptr, q_idx, couples
+
+    def view_entries(self):
+        """(in_m, in_b): for each entry of the mass and Jacobian blocks, whether the
+        solve's view (set_pinned) reads it (its coordinates free, its row kept)."""
+        pinned, fixed = self.pinned_coordinates
+        return sparse_setup.view_entries(self._elements(), pinned, fixed, self.c.n,
+                                         self.c.m)
+
+    def solve_locals(self):
+        """(sizes, s_ptr, s_loc): each element's number of local coordinates, and
+        where each free one of the solve's view (set_pinned) sits in that list."""
+        cdef int e, n_el = self.asm.n_el
+        return (np.array([self.asm.model.cls[e].n_q for e in range(n_el)], dtype=np.intp),
+                np.array([self.pat.sptr[e] for e in range(n_el + 1)], dtype=np.intp),
+                np.array([self.pat.sloc[e] for e in range(self.pat.sptr[n_el])],
+                         dtype=np.intp))
+
+    @property
+    def pinned_coordinates(self):
+        """The coordinates the solve leaves out (set_pinned), and the fixed rows."""
+        cdef int i
+        return (np.array([self.pat.pinned[i] for i in range(self.pat.n_pinned)],
+                         dtype=np.intp),
+                np.array([self.pat.fixed_rows[i] for i in range(self.pat.n_fixed_rows)],
+                         dtype=np.intp))
+
+    def pattern_arrays(self):
+        """The pattern's constants as the set-up gave them: {"view": the arguments of
+        fcc_pattern_set_view (None without pinned coordinates), "guards": those of
+        fcc_pattern_set_guards, "structure": those of fcc_pattern_set_structure (None
+        before set_structure)}, each a dict of fresh arrays; what another instance of
+        the engine (a program that holds the C engine alone) is built from."""
+        cdef int n_el = self.asm.n_el
+        cdef const fcc_pattern *P = &self.pat
+        view = None
+        if P.compact:
+            view = dict(snq=ints(P.snq, n_el), sloc=ints(P.sloc, P.sptr[n_el]),
+                        sng=ints(P.sng, n_el), srloc=ints(P.srloc, P.sgptr[n_el]),
+                        efix=doubles(P.efix, n_el), pinned=ints(P.pinned, P.n_pinned),
+                        fixed_rows=ints(P.fixed_rows, P.n_fixed_rows),
+                        fixed_norm=doubles(P.fixed_norm, P.n_fixed_rows),
+                        fixed_g_tol=doubles(P.fixed_g_tol, P.n_fixed_rows),
+                        fixed_off=ints(P.fixed_off, P.n_fixed),
+                        fixed_val=doubles(P.fixed_val, P.n_fixed),
+                        fixed_tol=doubles(P.fixed_tol, P.n_fixed))
+        guards = dict(zero_m=ints(P.zero_m, P.n_zero_m),
+                      zero_m_tol=doubles(P.zero_m_tol, P.n_zero_m),
+                      zero_b=ints(P.zero_b, P.n_zero_b),
+                      zero_b_tol=doubles(P.zero_b_tol, P.n_zero_b))
+        structure = None
+        if P.ready:
+            structure = dict(perm=ints(P.perm, P.n), Ap=ints(P.Ap, P.n + 1),
+                             Ai=ints(P.Ai, P.nnz_a), ent_ptr=ints(P.ent_ptr, n_el + 1),
+                             ent_a=ints(P.ent_a, P.ent_ptr[n_el]),
+                             ent_b=ints(P.ent_b, P.ent_ptr[n_el]),
+                             ent_pos=ints(P.ent_pos, P.ent_ptr[n_el]))
+        return dict(view=view, guards=guards, structure=structure)
+
+    @property
+    def pattern_tripped(self):
+        """Whether an assembly found a block entry nonzero that was zero where the
+        pattern was taken (planar_pattern), or a fixed row moved."""
+        return bool(self.c.sp.tripped)
+
+    @property
+    def nonzeros(self):
+        """(nonzeros of upper(A), nonzeros of the strict lower part of L)."""
+        return self.pat.nnz_a, self.pat.nnz_l
+
+    @property
+    def factored_columns(self):
+        """The columns the LDL^T and its solves cover (set_structure: all but the
+        trailing pinned ones)."""
+        return self.pat.n_lead
+
+    # -- the refinement's settings and statistics -------------------------------------
+    def limit_refinement(self, int corrections=FCC_REFINE_MAX, int cg_steps=FCC_CG_MAX,
+                         int al_steps=FCC_AL_MAX):
+        """Cap the corrections, conjugate-gradient steps and augmented-Lagrangian
+        steps of a solve (defaults: the engine's FCC_REFINE_MAX, FCC_CG_MAX,
+        FCC_AL_MAX); low caps make solves stop unconverged, for tests of what
+        follows."""
+        if corrections < 1 or cg_steps < 0 or al_steps < 1:
+            raise ValueError("at least one correction and one augmented-Lagrangian "
+                             "step, and no negative step count")
+        self.c.sp.refine_max = corrections
+        self.c.sp.cg_max = cg_steps
+        self.c.sp.al_max = al_steps
+
+    def set_beyond_rank(self, double kept_sigma):
+        """Stop the conjugate-gradient corrections at directions beyond the decided
+        rank (engine/fcc_al_refine.c, "Directions beyond the decided rank"):
+        kept_sigma is the smallest scaled singular value the rank decision kept
+        (sigma_r / sigma_1); 0 turns the stop off (rows dependent exactly, or none)."""
+        fcc_sparse_set_beyond_rank(&self.c, kept_sigma)
+
+    @property
+    def beyond_rank_quotient(self):
+        """The Rayleigh quotient below which the corrections stop (0: off)."""
+        return self.c.sp.beyond_quotient
+
+    def solve_statistics(self):
+        """Factorisations and solves since the last rank decision, refinement iterations
+        in all and at most in one solve, and solves that did not converge."""
+        return dict(factorisations=self.c.sp.n_factor, solves=self.c.sp.n_solves,
+                    iterations=self.c.sp.n_iterations,
+                    max_iterations=self.c.sp.most_iterations,
+                    unconverged=self.c.sp.n_unconverged,
+                    beyond_rank_stops=self.c.sp.n_beyond_rank)
+
+    def reset_warm_start(self):
+        """Start the next acceleration solve's multipliers from zero (every run and
+        every direct call does: a result does not depend on what was solved before)."""
+        self.c.sp.warm_valid = False
+
+    def set_dense_fallback_max(self, int n_max):
+        """Redo unconverged solves densely only for models of at most n_max
+        coordinates (default FCC_DENSE_FALLBACK_MAX; 0: never), for tests."""
+        self.c.sp.dense_fallback_max = n_max
+
+    @property
+    def dense_fallback_max(self):
+        return self.c.sp.dense_fallback_max
+
+    def _factored_at(self, q):
+        cdef double[::1] qv = self.vector(q, "q", False)
+        fcc_sp_assemble_mb(&self.c, &qv[0], ASM_M | ASM_B)
+        if fcc_sp_factor(&self.c, &qv[0]) < 0:
+            raise ArithmeticError("the factorisation of M + B^T alpha B failed")
+
+    def solve_at(self, q, Q, b):
+        """x of M x + B^T lambda = Q, B x = b with M, B assembled and A factored at q
+        (the engine's constrained solve, for tests and diagnosis)."""
+        cdef double[::1] Qv = _doubles(Q), bv = _doubles(b)
+        x = np.zeros(self.c.n)
+        cdef double[::1] xv = x
+        if len(q) != self.c.n or Qv.shape[0] != self.c.n or bv.shape[0] != self.c.m:
+            raise ValueError("q, Q or b does not match the model's sizes")
+        self._factored_at(q)
+        fcc_solve_constrained(&self.c, &Qv[0], NULL, _dp(bv), &xv[0])
+        return x
+
+    def solve_a_at(self, q, y):
+        """A^{-1} y with A = M + B^T diag(alpha) B factored at q, and alpha."""
+        x = np.array(y, dtype=float)
+        cdef double[::1] xv = x
+        self._factored_at(q)
+        fcc_sp_solve_a(&self.c, &xv[0])
+        return x, np.array(<double[:self.c.m]>self.c.sp.alpha)
+
+    # -- the rank decision and its watch ------------------------------------------------
     def decide_rank(self, q, rank):
         """Keep the decision for the reports (the solve itself needs no rank), start
-        the statistics anew, and start the rank-growth watch (module docstring) from
-        the null space of the row-scaled B at q when the rank can grow (rank below
+        the statistics anew, and start the rank-growth watch (engine/fcc_sparse_watch.c)
+        from the null space of the row-scaled B at q when the rank can grow (rank below
         min(n, m)) and n - rank <= TRACK_MAX; deciding again at the same q and rank
         (a run from its initial state) reuses that start's basis instead of a new SVD."""
         cdef double[::1] saved
+        cdef int n = self.c.n
         Engine.decide_rank(self, q, rank)
-        self.n_factor = self.n_solves = self.n_iterations = self.n_unconverged = 0
-        self.n_beyond_rank = 0
-        self.n_fallback = 0
-        self.n_chord = self.n_chord_undone = 0
-        self.sol.n_drop = 0
-        self.most_iterations = 0
-        self.n_svd = 0
-        self.bound_max = 0.0
-        self.n_track = 0
         if q is None:
             return
         key = (rank, np.asarray(q, dtype=float).tobytes())
         if key != self.start_key:           # a run decides again at its initial state
             self.start_key = None
             self.start_watch(self.asm.quantity(ASM_B, q)
-                             if self.n <= rank_rule.dense_columns_max() else
+                             if n <= rank_rule.dense_columns_max() else
                              jacobian_csr(self.asm, q), rank)
-            self.start_basis = np.array(<double[:self.n * TRACK_MAX]>self.track)
-            self.start_n_track = self.n_track
+            self.start_basis = np.array(<double[:n * TRACK_MAX]>self.c.sp.track)
+            self.start_n_track = self.c.sp.n_track
             self.start_key = key
         else:
             saved = self.start_basis
-            memcpy(self.track, &saved[0], <size_t>self.n * TRACK_MAX * sizeof(double))
-            self.grow_trigger = GROW_TOL
-            self.n_track = self.start_n_track
+            fcc_sparse_set_watch(&self.c, self.start_n_track, &saved[0], GROW_TOL)
+
+    def start_watch(self, B, int rank):
+        """N = the right singular vectors of the row-scaled B beyond the first rank
+        (its null space when rank is B's), when the rank can grow (rank below
+        min(n, m)) and n - rank <= TRACK_MAX; otherwise no watch. B dense: a full SVD;
+        B sparse (models above rank.dense_columns_max() coordinates, where that SVD
+        would take minutes): shift-invert Lanczos on B^T B
+        (fccgen.rank_sparse.smallest_right_vectors)."""
+        cdef int n = self.c.n, m = self.c.m, k = n - rank, i
+        fcc_sparse_set_watch(&self.c, 0, NULL, GROW_TOL)
+        if rank < 0 or rank >= min(n, m) or k > TRACK_MAX:
+            return
+        groups = [self.asm.model.row_group[i] for i in range(m)]
+        try:
+            if isinstance(B, np.ndarray):
+                _, _, vt = np.linalg.svd(B / rank_rule.row_scales(B, groups)[:, None],
+                                         full_matrices=m < n)     # vt: n x n
+                basis = vt[rank:rank + k].T
+            else:
+                from fccgen import rank_sparse
+                basis = rank_sparse.smallest_right_vectors(
+                    rank_sparse.scaled(B, groups), k)
+        except (np.linalg.LinAlgError, ArithmeticError, RuntimeError):
+            return                           # no basis: the start's rank is kept
+        cdef double[::1] cols = np.ascontiguousarray(np.asarray(basis).T, dtype=float).ravel()
+        fcc_sparse_set_watch(&self.c, k, &cols[0], GROW_TOL)
+
+    def _restart(self):
+        """The watch from the null space of B after a rank increase (_restart_watch)."""
+        cdef int n = self.c.n, m = self.c.m
+        self.start_watch(np.array(<double[:m * n]>self.c.sol.A).reshape(m, n),
+                         self.c.sol.rank_fixed)
 
     def accelerations(self, q, v):
         """Engine.accelerations, from zero multipliers (a direct call does not depend
@@ -191,359 +441,30 @@ cdef class SparseEngine(ALRefinement):
         self.reset_warm_start()
         return Engine.baumgarte_accelerations(self, q, v, alpha, beta)
 
-    def set_dense_fallback_max(self, int n_max):
-        """Redo unconverged solves densely only for models of at most n_max
-        coordinates (default DENSE_FALLBACK_MAX; 0: never), for tests."""
-        self.dense_fallback_max = n_max
-
     def rank_statistics(self):
         """As Engine.rank_statistics; drops are the dense fallback's factorisations
         with a pivot dropped within the decided rank (the dense path's meaning),
         largest_dropped the largest bound ||B_s N||_F on sigma_{r+1} / sigma_1 met by
         the rank-growth watch; sparse_solves, sparse_unconverged (refinements that
         did not converge), sparse_dense_fallbacks (of those, redone densely) and
-        sparse_beyond_rank (of those, stopped at a direction beyond the decided rank:
-        _al_refine.pyx); chord_steps and chord_steps_undone, the position projection's
-        chord steps kept and undone (module docstring)."""
+        sparse_beyond_rank (of those, stopped at a direction beyond the decided rank);
+        chord_steps and chord_steps_undone, the position projection's chord steps kept
+        and undone (engine/fcc_sparse_engine.c)."""
         stats = Engine.rank_statistics(self)
-        stats.update(factorisations=self.n_factor, drops=self.sol.n_drop,
-                     svd_checks=self.n_svd, smallest_kept=1.0,
-                     largest_dropped=self.bound_max, sparse_solves=self.n_solves,
-                     sparse_unconverged=self.n_unconverged,
-                     sparse_dense_fallbacks=self.n_fallback,
-                     sparse_beyond_rank=self.n_beyond_rank, chord_steps=self.n_chord,
-                     chord_steps_undone=self.n_chord_undone)
+        stats.update(factorisations=self.c.sp.n_factor, drops=self.c.sol.n_drop,
+                     svd_checks=self.c.sp.n_svd, smallest_kept=1.0,
+                     largest_dropped=self.c.sp.bound_max,
+                     sparse_solves=self.c.sp.n_solves,
+                     sparse_unconverged=self.c.sp.n_unconverged,
+                     sparse_dense_fallbacks=self.c.sp.n_fallback,
+                     sparse_beyond_rank=self.c.sp.n_beyond_rank,
+                     chord_steps=self.c.sp.n_chord,
+                     chord_steps_undone=self.c.sp.n_chord_undone)
         return stats
-
-    cdef int finish(self, const double *q, const double *v, const double *a,
-                    int flags) noexcept nogil:
-        """0, or the error of a non-finite result (blaming an input first)."""
-        cdef int i
-        if finite(a, self.n):
-            return 0
-        i = self.nonfinite_input(q, v, flags)
-        return self.fail(ERR_NONFINITE_INPUT if i else ERR_NONFINITE_RESULT, 0, i)
-
-    cdef int accelerations_at(self, const double *q, const double *v, double *a,
-                              bint reuse) noexcept nogil:
-        cdef int i, flags = ASM_H | ASM_F | ASM_C
-        if reuse:
-            self.asm.assemble(q, v, flags)
-        else:
-            flags |= ASM_M | ASM_B
-            self.assemble_blocks(q, v, flags)
-            if self.factor(q) < 0:
-                return -1
-        for i in range(self.n):
-            self.rhs[i] = self.asm.f[i] - self.asm.h[i]
-        for i in range(self.m):
-            self.nb[i] = -self.asm.c[i]
-        self.solve_kkt(self.rhs, NULL, self.nb, a, True, False)
-        return self.finish(q, v, a, flags)
-
-    cdef int baumgarte_at(self, const double *q, const double *v, double *a,
-                          double alpha, double beta) noexcept nogil:
-        cdef int i, flags = ASM_M | ASM_B | ASM_H | ASM_F | ASM_C | ASM_G
-        self.asm.assemble(q, v, ASM_H | ASM_F | ASM_C | ASM_G
-                          | (ASM_T if self.asm.n_time else 0))
-        self.assemble_mb(q, ASM_M | ASM_B)
-        if self.factor(q) < 0:
-            return -1
-        for i in range(self.n):
-            self.rhs[i] = self.asm.f[i] - self.asm.h[i]
-        self.baumgarte_targets(v, alpha, beta, self.nb)
-        self.solve_kkt(self.rhs, NULL, self.nb, a, True, False)
-        return self.finish(q, v, a, flags)
-
-    cdef void baumgarte_targets(self, const double *v, double alpha, double beta,
-                                double *b) noexcept nogil:
-        """b = -c - 2 alpha g' - beta^2 g, the right-hand side of B a = b in
-        Baumgarte's stabilisation, with g' = B v + dg/dt (assembled c, g and, for
-        time-dependent constraints, dg/dt; blocks of B)."""
-        cdef int i
-        self.mult_b(v, b)
-        if self.asm.n_time:
-            for i in range(self.m):
-                b[i] += self.asm.gt[i]
-        for i in range(self.m):
-            b[i] = -self.asm.c[i] - 2.0 * alpha * b[i] - beta * beta * self.asm.g[i]
-
-    # -- the varying parts of Engine.project_positions_at ---------------------------
-    cdef void assemble_constraints(self, const double *q, int flags) noexcept nogil:
-        """g into the assembler (the fixed rows checked: SparseBlocks.set_pinned),
-        M and B as element blocks."""
-        if flags & ASM_G:
-            self.asm.assemble(q, NULL, ASM_G)
-            self.check_fixed_g()
-        if flags & (ASM_M | ASM_B):
-            self.assemble_mb(q, flags & (ASM_M | ASM_B))
-
-    cdef double constraint_residual(self) noexcept nogil:
-        return self.scaled_residual_sparse()
-
-    cdef bint chord_ready(self) noexcept nogil:
-        """A factorisation is held, its blocks with it, and no row is dependent only on
-        the constraint manifold (module docstring, "Chord steps")."""
-        return self.held and not self.tripped and self.beyond_quotient == 0.0
-
-    cdef int chord_step(self, double *q, double *res) noexcept nogil:
-        """A Newton step with the blocks and factorisation held (one augmented-
-        Lagrangian step: module docstring, "Chord steps"), kept (1) when it
-        leaves at most CHORD_GAIN of the residual and its estimated move along the
-        constraints, (residual left / residual before) max |dq|, is at most
-        CHORD_DRIFT of the position tolerance; else undone (0)."""
-        cdef int i, n = self.n
-        cdef double trial, step, size
-        for i in range(self.m):
-            self.nb[i] = -self.asm.g[i]
-        memset(self.base, 0, <size_t>n * sizeof(double))
-        self.first_pass(self.nb, False, self.dq)   # B^T alpha (-g): zero where pinned
-        memcpy(self.qsave, q, <size_t>n * sizeof(double))
-        self.solve_a_add(self.dq, q, &step, &size)
-        self.assemble_constraints(q, ASM_G)
-        trial = self.constraint_residual()
-        if (trial <= CHORD_GAIN * res[0]
-                and trial * step <= CHORD_DRIFT * self.position_tol * res[0]):
-            res[0] = trial
-            self.n_chord += 1
-            return 1
-        memcpy(q, self.qsave, <size_t>n * sizeof(double))
-        self.assemble_constraints(q, ASM_G)
-        self.n_chord_undone += 1
-        return 0
-
-    cdef void solve_constrained(self, const double *Q, const double *w, const double *b,
-                                double *x) noexcept nogil:
-        """solve_kkt, started from zero multipliers (projections)."""
-        self.solve_kkt(Q, w, b, x, False, False)
-
-    cdef void solve_newton(self, const double *b, double *x) noexcept nogil:
-        """solve_kkt of a Newton step (_al_refine.pyx, NEWTON_STOP)."""
-        self.solve_kkt(NULL, NULL, b, x, False, True)
-
-    cdef void solve_kkt(self, const double *Q, const double *w, const double *b,
-                        double *x, bint warm, bint newton) noexcept nogil:
-        """kkt_solve (warm: from the last accelerations' multipliers; newton: a Newton
-        step's); when it did not converge, the dense solve instead (module docstring)
-        if the model is small enough and M, B factor there."""
-        if (self.kkt_solve(Q, w, b, x, warm, newton)
-                or self.n > self.dense_fallback_max):
-            return
-        self.gather_dense()
-        if csolve_factor(&self.sol, self.asm.M, self.asm.B) == 0:
-            csolve_apply(&self.sol, Q, w, b, x)
-            self.n_fallback += 1
-
-    cdef int project_velocities_at(self, const double *q, double *v,
-                                   bint have_B) noexcept nogil:
-        self.assemble_mb(q, ASM_M if have_B else ASM_M | ASM_B)
-        if self.factor(q) < 0:
-            return -1
-        self.velocity_targets(q, self.nb)
-        if self.pinned_still(v):                # M v on the view is enough
-            self.mult_m(v, self.mv, False)
-        else:                                   # M v whole: v moves pinned coordinates
-            self.mult_m_full(v, self.mv, False)
-        self.solve_constrained(self.mv, NULL, self.nb, self.vtmp)
-        if self.finish(q, v, self.vtmp, ASM_M | ASM_B) < 0:
-            return -1
-        self.watch_kinetic_energy(v, self.vtmp)
-        memcpy(v, self.vtmp, self.n * sizeof(double))
-        self.factor_valid = True
-        self.watch_rank()
-        return 0
-
-    cdef void watch_rank(self) noexcept nogil:
-        """The rank-growth watch at a projected state, with A factored there (module
-        docstring): N <- orth(A^{-1} M N), then an SVD check when ||B_s N||_F passes
-        the trigger."""
-        cdef int i, j, k = self.n_track, n = self.n
-        cdef double bound = 0.0
-        cdef double *col
-        cdef bint collapsed
-        if k <= 0:
-            return
-        for j in range(k):
-            col = self.track + j * n
-            self.mult_m(col, self.xw, False)
-            self.solve_a(self.xw)
-            memcpy(col, self.xw, <size_t>n * sizeof(double))
-        collapsed = not self.orthonormalise()
-        if collapsed:
-            bound = INFINITY
-        else:
-            self.scaled_rows()
-            for j in range(k):
-                self.mult_b(self.track + j * n, self.bn + j * self.m)
-                for i in range(self.m):
-                    self.bn[j * self.m + i] *= self.rs[i]
-                    bound += self.bn[j * self.m + i] * self.bn[j * self.m + i]
-            bound = sqrt(bound)
-        if bound > self.bound_max:
-            self.bound_max = bound
-        if bound > self.grow_trigger:
-            self.check_growth(bound, collapsed)
-
-    cdef bint orthonormalise(self) noexcept nogil:
-        """Modified Gram-Schmidt, twice, on the tracked columns; False when one of them
-        shrinks below COLLAPSE of its length (the constraints took that direction)."""
-        cdef int j, l, i, sweep, n = self.n
-        cdef double d, before, after
-        cdef double *a
-        cdef double *b
-        for j in range(self.n_track):
-            a = self.track + j * n
-            before = 0.0
-            for i in range(n):
-                before += a[i] * a[i]
-            for sweep in range(2):
-                for l in range(j):
-                    b = self.track + l * n
-                    d = 0.0
-                    for i in range(n):
-                        d += a[i] * b[i]
-                    for i in range(n):
-                        a[i] -= d * b[i]
-            after = 0.0
-            for i in range(n):
-                after += a[i] * a[i]
-            if not after > COLLAPSE * COLLAPSE * before:
-                return False
-            after = 1.0 / sqrt(after)
-            for i in range(n):
-                a[i] *= after
-        return True
-
-    cdef void scaled_rows(self) noexcept nogil:
-        """rs_k = 1 / max(||B_k||, ROW_FLOOR * the largest row of B_k's element), the
-        row scaling of fccgen.rank, from alpha_k = RHO m_ref / s_k^2 of the factor."""
-        cdef int k
-        cdef double largest = 0.0
-        for k in range(self.m):
-            if self.alpha[k] > largest:
-                largest = self.alpha[k]
-        for k in range(self.m):             # alpha_k / largest = (s_min / s_k)^2
-            self.rs[k] = sqrt(self.alpha[k] / largest) if largest > 0.0 else 1.0
-        largest = 0.0
-        for k in range(self.m):
-            if self.rnorm[k] * self.rs[k] > largest:
-                largest = self.rnorm[k] * self.rs[k]
-        for k in range(self.m):
-            self.rs[k] = self.rs[k] / largest if largest > 0.0 else 1.0
-
-    cdef void check_growth(self, double bound, bint collapsed) noexcept nogil:
-        """The dense path's confirmation: the SVD of the row-scaled B (csolve_svd_rank,
-        the same scaling and GROW_TOL); more singular values above GROW_TOL sigma_1
-        than the decided rank raise it, logged with the time like Engine.factor, and
-        the watch starts again from the null space there (also after a collapse);
-        otherwise the trigger moves up (next_check_factor)."""
-        cdef int e, r, a, nq, row, svd, old = self.sol.rank_fixed, n = self.n
-        cdef const int *idx
-        cdef const double *blk
-        self.n_svd += 1
-        memset(self.sol.A, 0, <size_t>self.m * n * sizeof(double))
-        for e in range(self.asm.n_el):      # dense B (m x n, row-major) from the blocks
-            nq = self.asm.cls[e].n_q
-            idx = self.asm.qidx + self.asm.qptr[e]
-            blk = self.Bblk + self.bptr[e]
-            row = self.asm.gptr[e]
-            for r in range(self.asm.cls[e].n_g):
-                for a in range(nq):
-                    self.sol.A[(row + r) * n + idx[a]] = blk[r * nq + a]
-        svd = csolve_svd_rank(&self.sol, self.sol.A, GROW_TOL)
-        if svd > old:
-            if self.n_rank_log < RANK_LOG_SIZE:
-                self.rank_log[self.n_rank_log][0] = self.err_t
-                self.rank_log[self.n_rank_log][1] = old
-                self.rank_log[self.n_rank_log][2] = svd
-            self.n_rank_log += 1
-            self.sol.rank_fixed = svd
-        elif not collapsed:
-            self.grow_trigger = bound * next_check_factor(
-                self.sol.sigma[old] / self.sol.sigma[0]
-                if old < min(n, self.m) and self.sol.sigma[0] > 0.0 else 0.0)
-            return
-        with gil:                           # rare: once per change of the rank
-            self.start_watch(np.array(<double[:self.m * n]>self.sol.A).reshape(self.m, n),
-                             self.sol.rank_fixed)
-
-    def start_watch(self, B, int rank):
-        """N = the right singular vectors of the row-scaled B beyond the first rank
-        (its null space when rank is B's), when the rank can grow (rank below
-        min(n, m)) and n - rank <= TRACK_MAX; otherwise no watch. B dense: a full SVD;
-        B sparse (models above rank.dense_columns_max() coordinates, where that SVD
-        would take minutes): shift-invert Lanczos on B^T B
-        (fccgen.rank_sparse.smallest_right_vectors)."""
-        cdef int k = self.n - rank, i, j
-        self.n_track = 0
-        self.grow_trigger = GROW_TOL
-        if rank < 0 or rank >= min(self.n, self.m) or k > TRACK_MAX:
-            return
-        groups = [self.sol.group[i] for i in range(self.m)]
-        try:
-            if isinstance(B, np.ndarray):
-                _, _, vt = np.linalg.svd(B / rank_rule.row_scales(B, groups)[:, None],
-                                         full_matrices=self.m < self.n)   # vt: n x n
-                basis = vt[rank:rank + k].T
-            else:
-                from fccgen import rank_sparse
-                basis = rank_sparse.smallest_right_vectors(
-                    rank_sparse.scaled(B, groups), k)
-        except (np.linalg.LinAlgError, ArithmeticError, RuntimeError):
-            return                           # no basis: the start's rank is kept
-        for j in range(k):
-            for i in range(self.n):
-                self.track[j * self.n + i] = basis[i, j]
-        self.n_track = k
-
-    cdef void velocity_targets(self, const double *q, double *b) noexcept nogil:
-        """b of the velocity projection's B w = b: -dg/dt at the time set last
-        (zero when no constraint depends on time)."""
-        cdef int i
-        if not self.asm.n_time:
-            memset(b, 0, <size_t>self.m * sizeof(double))
-            return
-        self.asm.assemble(q, NULL, ASM_T)
-        for i in range(self.m):
-            b[i] = -self.asm.gt[i]
-
-    cdef bint pinned_still(self, const double *v) noexcept nogil:
-        """v is zero on every pinned coordinate (as after a projection): then the
-        products with M on the solve's view give M v on the free coordinates, all that
-        the velocity projection's solve and energy watch read (w is zero there too)."""
-        cdef int i
-        for i in range(self.n_pinned):
-            if v[self.pinned[i]] != 0.0:
-                return False
-        return True
-
-    cdef void watch_kinetic_energy(self, const double *v, const double *w) noexcept nogil:
-        """As Engine.watch_kinetic_energy, with M v from the velocity projection (mv).
-        The energy removed is (v - w)^T M (v - w) = (v - w)^T M v - w^T B^T mu, and
-        B w = 0 when no constraint depends on time: then one product, M v, gives both
-        numbers (w^T M (v - w) is rounding, about 1e-16 |w| |M (v - w)|); with
-        time-dependent constraints, a second product with v - w."""
-        cdef int i, n = self.n
-        cdef double before = 0.0, cut = 0.0
-        for i in range(n):
-            self.dx[i] = v[i] - w[i]
-            before += v[i] * self.mv[i]
-        if self.asm.n_time:
-            self.mult_m_full(self.dx, self.t, False)
-            for i in range(n):
-                cut += self.dx[i] * self.t[i]
-        else:
-            for i in range(n):
-                cut += self.dx[i] * self.mv[i]
-        if before > self.ke_peak:
-            self.ke_peak = before
-        if before > 1e-6 * self.ke_peak and before > 0.0 and cut / before > self.ke_cut_max:
-            self.ke_cut_max = cut / before
-            self.ke_cut_t = self.err_t
 
     cdef dict error_record(self):
         rec = Engine.error_record(self)
-        rank = self.sol.rank_fixed
-        rec.update(rank=rank, nullity=self.n - rank if rank >= 0 else self.n, sparse=True)
+        rank = self.c.sol.rank_fixed
+        rec.update(rank=rank, nullity=self.c.n - rank if rank >= 0 else self.c.n,
+                   sparse=True)
         return rec
-

@@ -1,8 +1,8 @@
 """The dense or the sparse path of the compiled engine, chosen by the model's size and,
 for small models, by how well the sparse solve is posed where each run starts.
 
-Dense (runtime/_engine.pyx with _solve.pyx): a pivoted QR of B and a null-space basis
-per factorisation, O(n^3). Sparse (runtime/_sparse.pyx): an
+Dense (runtime/engine/fcc_engine.c with fcc_dense.c): a pivoted QR of B and a
+null-space basis per factorisation, O(n^3). Sparse (runtime/engine/fcc_sparse_*.c): an
 LDL^T of M + B^T alpha B over a pattern fixed at load time (runtime/sparsity.py), linear
 in the size for chains and trees. "auto" takes the sparse path from
 SPARSE_MIN_COORDINATES coordinates on (docs/performance.md, "Dense and sparse paths").
@@ -45,7 +45,7 @@ def pattern_samples(q0, v0, scale: float) -> np.ndarray:
 
 # Small models under "auto" (small_model_path). KEPT_MIN: the smallest scaled singular
 # value sigma_r / sigma_1 the rank decision keeps; an augmented-Lagrangian step shrinks
-# that direction's error by 1 / (1 + RHO sigma^2) (RHO 1e7, _sparse_blocks.pyx), 1e-3 at
+# that direction's error by 1 / (1 + RHO sigma^2) (RHO 1e7, engine/fcc_sparse.h), 1e-3 at
 # 1e-2. Measured: 4e-2 .. 1 on the examples; the body whose u is 0.6 and 0.1 degrees
 # from r_ij keeps 5e-3 and 1e-3, and a tenth of its sparse solves did not converge.
 # MASS_MIN: the smallest eigenvalue of the reduced mass matrix N^T M N (N the null

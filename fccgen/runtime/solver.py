@@ -103,7 +103,7 @@ def time_slots(plan) -> np.ndarray:
 def dense_only_reason(plan) -> str:
     """What in the model only the dense path handles ("" if nothing): the lock and
     bounce rows of events are solved through the dense path's factorisation
-    (fccgen/runtime/_events.pyx)."""
+    (fccgen/runtime/engine/fcc_events.c)."""
     if plan.model.events:
         return "events (lock and bounce rows)"
     return ""
@@ -495,7 +495,7 @@ class CompiledSolver:
         self._engine = self._sparse_engine if self.sparse else self.dense_engine()
 
     def _manifold_redundancy(self, q, decision) -> float:
-        """For the sparse path's solves (_al_refine.pyx, "Directions beyond the decided
+        """For the sparse path's solves (engine/fcc_al_refine.c, "Directions beyond the decided
         rank"): sigma_r / sigma_1 of the decision when B has rows dependent only on the
         constraint manifold, 0 when its dependent rows (if any) are dependent
         everywhere. The test: the rank at q moved off the constraints by

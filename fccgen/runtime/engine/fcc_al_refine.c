@@ -1,0 +1,373 @@
+/* The sparse path's constrained solve: iterative refinement of the saddle-point system
+ *
+ *     M x + B^T lambda = Q,    B x = b
+ *
+ * with the true residuals r1 = Q - M x - B^T lambda, r2 = b - B x, each correction an
+ * augmented-Lagrangian step (Garcia de Jalon and Bayo) with the factor of
+ * A = M + B^T diag(alpha) B (fcc_sparse_blocks.c):
+ *
+ *     A dx = r1 + B^T alpha r2,   dlambda = alpha (B dx - r2),
+ *
+ * which zeroes r1 and multiplies the constraint part of the error by about
+ * 1 / (1 + alpha sigma^2 / m) (sigma: a singular value of B, m a mass): with
+ * alpha_k = RHO m_ref / ||B_k||^2 about three iterations reach rounding. It stops when
+ * the estimated remaining change, |dx| rate / (1 - rate), is below AL_STOP |x|. The
+ * multiplier update alpha (B dx - r2) equals -alpha r2 at the new x, so it is made in
+ * the next iteration's residual pass, which forms r2, the update and r1 + B^T alpha r2
+ * in one sweep over the element blocks. Near a singular position (sigma small) these
+ * steps slow down; the corrections are then conjugate-gradient solves of the
+ * multipliers' Schur system B A^{-1} B^T, preconditioned by diag(alpha): its
+ * eigenvalues are t / (1 + t), t = alpha sigma^2 / m, clustered at 1 but for the weak
+ * directions, so a few weak directions cost a few extra steps (the scissor mast: 2-4),
+ * many at once more (the A02 chain of 80 loops at its flat position: 180). Their
+ * stopping test is on the residual, with a bound set from the first step's (see the
+ * constants). Redundant rows need no rank decision.
+ *
+ * Augmented-Lagrangian steps stop when the estimated remaining change,
+ * |dx| rate / (1 - rate), is at most AL_STOP |x|; a step with rate above SLOW (or the
+ * al_max-th) hands over to conjugate-gradient corrections. Their iterations stop when
+ * the preconditioned residual r2^T diag(alpha) r2 of the constraints is at most
+ * CG_TOL^2 times its value after the first augmented-Lagrangian step (a test on the
+ * residual, not on the change: past the rounding floor the change can grow, along the
+ * null space of B^T, which the redundant rows make large), or after cg_max steps. The
+ * refinement ends when a correction after the first starts below that bound (its
+ * right-hand side is rounding: nothing left for the iterations) or changes x by at
+ * most REFINE_STOP |x|; after refine_max corrections it is a solve that did not
+ * converge (counted, and redone by the dense solve when the model is small enough:
+ * fcc_sparse_engine.c). The bound is relative to the first step's residual, not to the
+ * first correction's: after al_max steps that converged slowly the correction may
+ * start at rounding already (the scissor mast of 17 bays at t = 0.2 s), and iterations
+ * below it only amplify the noise. CG_TOL 1e-8: measured on the A02 chain of 80 loops
+ * at its flat position, 1e-9 reaches the same accuracy and 1e-10 no longer converges.
+ * FCC_CG_MAX 400: that chain takes 180 steps there (80 eigenvalues of
+ * diag(alpha) B A^{-1} B^T spread between 1e-10 and 0.99: every loop's row nearly
+ * dependent).
+ *
+ * A Newton step of the position projection stops at NEWTON_STOP instead
+ * (fcc_sp_kkt_solve's newton): an error e |dq| in the step leaves about e times the
+ * residual it removes, and moves q by e |dq| along the constraints, with |dq| about
+ * the position tolerance (1e-11 of the model's size); the next residual check judges
+ * the step. Where the rows are well conditioned the second step's estimate is about
+ * 1e-14 |x|, so these solves take two steps instead of three.
+ *
+ * Directions beyond the decided rank (fcc_sparse_set_beyond_rank). Rows dependent only
+ * on the constraint manifold (a linkage mobile by its geometry: Bricard's loop, the
+ * scissor mast) are independent a little off it: at an RK stage, positions off by the
+ * step's error, their singular value rises from 1e-15 to about that error, and so does
+ * the right-hand side's component along them. Exactly dependent rows (A02's planar
+ * rows) stay dependent. The dense path keeps rank pivots and drops the rest; resolving
+ * such a direction instead divides the one small number by the other: stage
+ * accelerations wrong by O(1) (measured 9.6 and 2e4 on Bricard's two encodings at
+ * dt 1e-3) that pass every residual test. So for such models the conjugate-gradient
+ * corrections stop at a search direction p whose preconditioned Rayleigh quotient
+ * p^T S p / p^T diag(alpha)^-1 p, about t / (1 + t) with t = alpha sigma^2 / m, is
+ * below that of a direction of FCC_BEYOND_FRACTION times the smallest scaled singular
+ * value kept by the rank decision: far below every direction within the rank (the
+ * scissor mast's weakest has t = 42), far above the stage's (sigma ~1e-6 at dt 1e-3,
+ * 1e-4 at 1e-2, against 0.05 .. 0.2 kept on Bricard), and the solve counts as not
+ * converged: the dense solve, which drops that direction, redoes it. Accepting the
+ * stopped solve is not enough: the augmented-Lagrangian steps before it move x along
+ * the direction too, by t / (1 + t) of the wrong amount each (Bricard's line encoding
+ * kept 1e-2 J of energy error so).
+ *
+ * Warm start. Each augmented-Lagrangian step multiplies the multipliers' error by the
+ * rate, about 1e-7 (RHO); from zero the first x is off by that rate times lambda, so a
+ * solve takes three steps (two to reach rounding, one whose rate shows it has). The
+ * accelerations of consecutive evaluations (RK stages, steps) differ by O(h), so
+ * starting from the last converged ones leaves the first x off by the rate times that
+ * change: two steps. Projections and Newton steps solve other systems and start from
+ * zero. A warm start that meets a slow step (rate above SLOW) is dropped and the solve
+ * starts again from zero, so the conjugate-gradient corrections near singular
+ * positions run exactly as from a cold start.
+ */
+#include <math.h>
+#include <string.h>
+
+#include "fcc_engine.h"
+
+#define AL_STOP 1e-15
+#define NEWTON_STOP 1e-8
+#define SLOW 0.05
+#define CG_TOL 1e-8
+#define REFINE_STOP 1e-14
+
+/* One pass over the elements for the true residuals at x: r2 = b - B x (b NULL: zero;
+ * stored when r2 is not NULL), then, when pending, the deferred multiplier update
+ * lambda -= alpha r2 (the augmented-Lagrangian update lambda + alpha (B dx - r2_old)
+ * written with the new residual), and y = base - M x - B^T (lambda - alpha r2) when
+ * penalised (the right-hand side r1 + B^T alpha r2 of the next correction),
+ * y = r1 = base - M x - B^T lambda otherwise; rho = r2^T diag(alpha) r2. Each
+ * element's coordinates are gathered and scattered once; each of its coordinates'
+ * share is summed in a register (M row, then the rows' terms in order). */
+static void residual_pass(fcc_engine *e, const double *x, const double *b, int pending,
+                          int penalised, double *y, double *r2)
+{
+    fcc_sparse *s = &e->sp;
+    const fcc_pattern *P = s->pat;
+    int el, a, c, r, nq, ng, row;
+    const int *idx, *rows;
+    const double *mb, *bb;
+    double *xl = s->lq, *zl = s->lz;
+    double acc, z;
+    memcpy(y, s->base, (size_t)e->n * sizeof(double));
+    s->rho = 0.0;
+    for (el = 0; el < e->model->n_el; el++) {
+        nq = P->snq[el];
+        ng = P->sng[el];
+        mb = P->mcptr[el + 1] > P->mcptr[el] ? s->Mc + P->mcptr[el] : NULL;
+        if (mb == NULL && ng == 0)
+            continue;
+        idx = P->sidx + P->sptr[el];
+        for (a = 0; a < nq; a++)
+            xl[a] = x[idx[a]];
+        bb = s->Bc + P->bcptr[el];
+        rows = P->srow + P->sgptr[el];
+        for (r = 0; r < ng; r++) {
+            row = rows[r];
+            acc = b != NULL ? b[row] : 0.0;
+            for (a = 0; a < nq; a++)
+                acc -= bb[r * nq + a] * xl[a];
+            if (pending)
+                s->lam[row] -= s->alpha[row] * acc;
+            if (r2 != NULL)
+                r2[row] = acc;
+            s->rho += acc * s->alpha[row] * acc;
+            z = s->lam[row];
+            if (penalised)
+                z -= s->alpha[row] * acc;
+            zl[r] = z;
+        }
+        for (a = 0; a < nq; a++) {
+            acc = 0.0;
+            if (mb != NULL)
+                for (c = 0; c < nq; c++)
+                    acc += mb[a * nq + c] * xl[c];
+            for (r = 0; r < ng; r++)
+                acc += bb[r * nq + a] * zl[r];
+            y[idx[a]] -= acc;
+        }
+    }
+}
+
+void fcc_sp_first_pass(fcc_engine *e, const double *b, int warm, double *y)
+{
+    /* residual_pass at x = 0 (not pending, penalised), with lambda = 0 or (warm) the
+     * multipliers the solve started from: y = base - B^T (lambda - alpha b), without
+     * the products with M and B that vanish there; the same operations in the same
+     * order as residual_pass on what is left (the same rounding). */
+    fcc_sparse *s = &e->sp;
+    const fcc_pattern *P = s->pat;
+    int el, a, r, nq, ng, row;
+    const int *idx, *rows;
+    const double *bb;
+    double *zl = s->lz;
+    double acc, z;
+    memcpy(y, s->base, (size_t)e->n * sizeof(double));
+    if (b == NULL && !warm)
+        return;
+    for (el = 0; el < e->model->n_el; el++) {
+        ng = P->sng[el];
+        if (ng == 0)
+            continue;
+        nq = P->snq[el];
+        idx = P->sidx + P->sptr[el];
+        bb = s->Bc + P->bcptr[el];
+        rows = P->srow + P->sgptr[el];
+        for (r = 0; r < ng; r++) {
+            row = rows[r];
+            z = warm ? s->lam[row] : 0.0;
+            if (b != NULL)
+                z -= s->alpha[row] * b[row];
+            zl[r] = z;
+        }
+        for (a = 0; a < nq; a++) {
+            acc = 0.0;
+            for (r = 0; r < ng; r++)
+                acc += bb[r * nq + a] * zl[r];
+            y[idx[a]] -= acc;
+        }
+    }
+}
+
+/* (dx, dlam) of M dx + B^T dlam = r1, B dx = r2: conjugate gradients on the
+ * multipliers' Schur system S mu = B x0 - r2, S = B A^{-1} B^T, preconditioned by
+ * diag(alpha), from x0 = A^{-1} (r1 + B^T alpha r2); dx = x0 - A^{-1} B^T mu and
+ * dlam = mu + alpha (B dx - r2) satisfy the first equation exactly whatever the
+ * iteration count. The iterations stop when res^T alpha res is at most rz_stop (set to
+ * CG_TOL^2 times its first value when not positive), or after cg_max. Returns the
+ * number of solves with A; cg_steps holds the iterations taken (0: the residual
+ * started below rz_stop). */
+static int correction(fcc_engine *e, double *rz_stop)
+{
+    fcc_sparse *s = &e->sp;
+    int i, n = e->n, m = e->m;
+    double rz, rz_new, psp, pap, step;
+    s->beyond_hit = 0;
+    memcpy(s->dx, s->r1, (size_t)n * sizeof(double));
+    fcc_sp_mult_bt(e, s->r2, s->alpha, s->dx);
+    fcc_sp_solve_a(e, s->dx);
+    fcc_sp_mult_b(e, s->dx, s->res);
+    rz = 0.0;
+    for (i = 0; i < m; i++) {
+        s->res[i] -= s->r2[i];
+        s->mu[i] = 0.0;
+        s->cg_p[i] = s->alpha[i] * s->res[i];
+        rz += s->res[i] * s->cg_p[i];
+    }
+    if (!(*rz_stop > 0.0))
+        *rz_stop = CG_TOL * CG_TOL * rz;
+    s->cg_steps = 0;
+    while (s->cg_steps < s->cg_max && rz > *rz_stop) {
+        memset(s->u, 0, (size_t)n * sizeof(double));
+        fcc_sp_mult_bt(e, s->cg_p, NULL, s->u);
+        fcc_sp_solve_a(e, s->u);
+        fcc_sp_mult_b(e, s->u, s->cg_sp);
+        s->cg_steps++;
+        psp = 0.0;
+        for (i = 0; i < m; i++)
+            psp += s->cg_p[i] * s->cg_sp[i];
+        if (!(psp > 0.0))
+            break;
+        if (s->beyond_quotient > 0.0) {
+            pap = 0.0;
+            for (i = 0; i < m; i++)
+                if (s->alpha[i] > 0.0)
+                    pap += s->cg_p[i] * s->cg_p[i] / s->alpha[i];
+            if (psp < s->beyond_quotient * pap) {
+                s->cg_steps--;                 /* not taken: beyond the rank */
+                s->n_beyond_rank++;
+                s->beyond_hit = 1;
+                break;
+            }
+        }
+        step = rz / psp;
+        for (i = 0; i < n; i++)
+            s->dx[i] -= step * s->u[i];
+        rz_new = 0.0;
+        for (i = 0; i < m; i++) {
+            s->mu[i] += step * s->cg_p[i];
+            s->res[i] -= step * s->cg_sp[i];
+            rz_new += s->res[i] * s->alpha[i] * s->res[i];
+        }
+        for (i = 0; i < m; i++)
+            s->cg_p[i] = s->alpha[i] * s->res[i] + (rz_new / rz) * s->cg_p[i];
+        rz = rz_new;
+    }
+    for (i = 0; i < m; i++)                 /* res = B dx - r2 */
+        s->bdx[i] = s->mu[i] + s->alpha[i] * s->res[i];
+    return s->cg_steps + 1;
+}
+
+/* The refinement from x = 0 and the multipliers in lam (zero unless warm), the solves
+ * with A added to *solves; the augmented-Lagrangian steps stop when the estimated
+ * remaining change is at most stop |x|. Each correction is one augmented-Lagrangian
+ * step, its right-hand side and the previous step's multiplier update formed in one
+ * pass (residual_pass), while those converge fast; once a step shrinks the change by
+ * less than SLOW (a nearly singular B: near a singular position), the corrections are
+ * conjugate-gradient solves (correction). Returns 1 when it converged, 0 when not, -1
+ * when a warm start met that slow step (not continued: the conjugate-gradient bounds
+ * are set from a cold start's first residual). At most al_max + refine_max passes. */
+static int refine(fcc_engine *e, const double *b, double *x, int warm, int *solves,
+                  double stop)
+{
+    fcc_sparse *s = &e->sp;
+    int i, it, n = e->n, m = e->m, cg = 0;
+    double nd = 0.0, nx = 0.0, prev = 0.0, rate, rz_stop = -1.0;
+    int pending = 0;
+    memset(x, 0, (size_t)n * sizeof(double));
+    for (it = 0; it < s->al_max + s->refine_max; it++) {
+        if (cg) {
+            residual_pass(e, x, b, pending, 0, s->r1, s->r2);
+            pending = 0;
+            *solves += correction(e, &rz_stop);
+            if (s->beyond_hit)                 /* redone densely */
+                return 0;
+            for (i = 0; i < m; i++)
+                s->lam[i] += s->bdx[i];
+            nd = 0.0;
+            nx = 0.0;
+            for (i = 0; i < n; i++) {
+                x[i] += s->dx[i];
+                if (fabs(s->dx[i]) > nd)
+                    nd = fabs(s->dx[i]);
+                if (fabs(x[i]) > nx)
+                    nx = fabs(x[i]);
+            }
+        } else {
+            if (it == 0) {
+                fcc_sp_first_pass(e, b, warm, s->dx);
+            } else {
+                residual_pass(e, x, b, pending, 1, s->dx, NULL);
+                if (it == 1)
+                    rz_stop = CG_TOL * CG_TOL * s->rho;
+            }
+            fcc_sp_solve_a_add(e, s->dx, x, &nd, &nx);
+            pending = 1;
+            *solves += 1;
+        }
+        if (!(nd > 0.0))                        /* zero, or NaN (the caller checks x) */
+            return 1;
+        if (cg) {
+            if (nd <= REFINE_STOP * nx || (cg > 1 && s->cg_steps == 0))
+                return 1;
+            cg++;
+            if (cg > s->refine_max)
+                return 0;
+        } else if (it > 0) {
+            rate = nd / prev;
+            if (rate < 0.5 && nd * rate / (1.0 - rate) <= stop * nx)
+                return 1;
+            if (rate > SLOW)
+                cg = 1;
+        }
+        if (!cg && it + 1 >= s->al_max)
+            cg = 1;
+        if (cg && warm)
+            return -1;
+        prev = nd;
+    }
+    return 0;
+}
+
+int fcc_sp_kkt_solve(fcc_engine *e, const double *Q, const double *w, const double *b,
+                     double *x, int warm, int newton)
+{
+    /* x of M x + B^T lambda = Q + M w, B x = b (Q, w, b may be NULL: zero): iterative
+     * refinement with the true residuals. warm (the accelerations): lambda starts
+     * from the last converged acceleration solve's multipliers, else from zero; a warm
+     * start that meets a slow step starts again from zero. newton: a Newton step's
+     * solve, whose augmented-Lagrangian steps stop at NEWTON_STOP. Returns whether
+     * the refinement converged. */
+    fcc_sparse *s = &e->sp;
+    const fcc_pattern *P = s->pat;
+    int i, status, solves = 0, n = e->n, m = e->m;
+    if (Q != NULL)
+        memcpy(s->base, Q, (size_t)n * sizeof(double));
+    else
+        memset(s->base, 0, (size_t)n * sizeof(double));
+    if (w != NULL)                        /* M w whole: w may move pinned coordinates */
+        fcc_sp_mult_m_full(e, w, s->base, 1);
+    for (i = 0; i < P->n_pinned; i++)     /* pinned coordinates: x stays 0 there */
+        s->base[P->pinned[i]] = 0.0;
+    s->n_solves++;
+    status = -1;
+    if (warm && s->warm_valid) {
+        memcpy(s->lam, s->lam_warm, (size_t)m * sizeof(double));
+        status = refine(e, b, x, 1, &solves, AL_STOP);
+    }
+    if (status < 0) {
+        memset(s->lam, 0, (size_t)m * sizeof(double));
+        status = refine(e, b, x, 0, &solves, newton ? NEWTON_STOP : AL_STOP);
+    }
+    if (warm) {
+        s->warm_valid = status == 1;
+        if (status == 1)
+            memcpy(s->lam_warm, s->lam, (size_t)m * sizeof(double));
+    }
+    if (status != 1)
+        s->n_unconverged++;
+    s->n_iterations += solves;
+    if (solves > s->most_iterations)
+        s->most_iterations = solves;
+    return status == 1;
+}

@@ -1,0 +1,159 @@
+/* Events: event functions, switchable joint rows, impacts (fcc_events.c,
+ * fcc_event_actions.c). The kernels come from the model's generated event module
+ * (fccgen_events.h). fcc_event_spec holds the constants (the table, each event's
+ * direction, action, joint rows, restitution, the settings); fcc_events one run's
+ * state (angle references, active rows, work, the log).
+ *
+ * The events need the dense path today: the responses to the joint rows are solved
+ * with the dense factorisation (fcc_dense_apply) and the rows that enter the solves
+ * are decided by an SVD of [B; G_active] (LAPACK's dgesvd).
+ */
+#ifndef FCC_EVENTS_H
+#define FCC_EVENTS_H
+
+#include "fcc_engine.h"
+#include "fccgen_events.h"
+
+enum {
+    FCC_ACT_STOP = 0,
+    FCC_ACT_LOG = 1,
+    FCC_ACT_LOCK = 2,
+    FCC_ACT_UNLOCK = 3,
+    FCC_ACT_BOUNCE = 4,
+    FCC_ACT_REST = 5,         /* a bounce too slow to go on: the limit holds (a lock) */
+    FCC_ACT_RELEASE = 6       /* a resting contact whose force turned tensile lets go */
+};
+
+/* Columns of the event log: t, event, action, impulse, ke before, ke after,
+ * constraint error, dof, speed before, note, sigma. */
+#define FCC_LOG_COLS 11
+enum {
+    FCC_NOTE_REDUNDANT = 1,   /* a lock that adds no constraint on the motion */
+    FCC_NOTE_UNCERTAIN = 2    /* the rank after the switch is in the uncertain band */
+};
+
+typedef struct fcc_event_spec {
+    const fcc_event_table *tab;
+    int n, ne, nr, np;
+    int nang;                 /* angle quantities: p[3j:3j+3] their references */
+    double tol;               /* location tolerance in time */
+    double v_rest;            /* a bounce with |ds/dt| below this becomes a rest */
+    int max_per_step;         /* more events than this in one step: Zeno, rest */
+    long cap_log;             /* rows of the log */
+    int *angle_row;           /* per parameter triple: its quantity row */
+    int *direction;           /* per event: +1 rising, -1 falling, 0 either */
+    int *action;
+    int *row;                 /* per event: its joint's first quantity row (or -1) */
+    int *row2;                /* ... second row (cylindrical) or -1 */
+    double *restitution;
+} fcc_event_spec;
+
+typedef struct fcc_events {
+    const fcc_event_spec *spec;
+    double *p;                /* angle references (theta, cos, sin), then constants */
+    double *s0;               /* watched values (2 ne: the event functions, then the */
+    double *s1;               /* release functions) at the step's start; at its end
+                                 (or a trial time), then n numbers of work */
+    double *sg;               /* event gradients (ne x n) */
+    double *r, *rg, *rb;      /* quantity values, gradients (nr x n), bias */
+    double *z;                /* nr x n: constrained responses to the active rows */
+    double *gz;               /* nr x nr work */
+    double *mu;
+    double *held;             /* per quantity row: the value a lock holds (2 nr) */
+    int *active;              /* per quantity row: the row is an active constraint */
+    int *used;                /* ... and independent: it enters the solves (rank) */
+    int n_used;
+    int *rested;              /* per event: its bounce rests (release is watched) */
+    double *rel_sign;         /* per event: the sign making its release function > 0
+                                 when the resting contact's multiplier pulls */
+    double *acc;              /* n: accelerations for the release functions */
+    int m;                    /* the engine's constraint rows (0: rank work not set) */
+    double *aug;              /* (m + nr) x n: the row-scaled [B; G_active] (rank) */
+    double *svm, *sig, *svw;  /* its copy for dgesvd; singular values; work */
+    int lsvw;
+    int note;                 /* FCC_NOTE_ bits of the last switch */
+    double note_sigma;        /* the smallest relative singular value in the band */
+    int stop;                 /* a stop event happened */
+    long n_log;
+    double *log;              /* cap_log x FCC_LOG_COLS */
+    /* the element kernels' copies of the angle references (torsion springs and loads
+     * of joint angles count turns through them; fcc_events_mirror) */
+    int nm;                   /* how many copies, */
+    int *mslot;               /* ... where (the index of theta in mdst; cos, sin follow) */
+    int *mang;                /* ... and of which angle (its parameter triple) */
+    double *mdst;             /* the element parameters (an assembly's; not owned) */
+    double *mkeep;            /* ... their values outside runs (3 nm) */
+    double max_turn;          /* the largest re-basing |angle - theta_r| of the run */
+    int max_turn_j;           /* ... its angle (parameter triple), -1: none yet */
+} fcc_events;
+
+/* Illinois (modified regula falsi) on one watched value. */
+typedef struct fcc_bracket {
+    double a, b;              /* the bracket holding its crossing, b past it */
+    double fa, fb;
+    int side;                 /* the end kept last: -1 a, +1 b (0: none yet) */
+    int it;
+} fcc_bracket;
+
+/* The spec of a table's events: per event direction, action, rows, restitution; the
+ * angle quantities' rows; copied. */
+int fcc_event_spec_init(fcc_event_spec *c, const fcc_event_table *tab, int nang,
+                        const int *angle_row, const int *direction, const int *action,
+                        const int *row, const int *row2, const double *restitution,
+                        double tol, double v_rest, int max_per_step, long cap_log);
+void fcc_event_spec_free(fcc_event_spec *c);
+/* One run's state; constants: the event module's parameters after the angle
+ * references (np - 3 nang numbers). */
+int fcc_events_init(fcc_events *ev, const fcc_event_spec *c, const double *constants);
+void fcc_events_free(fcc_events *ev);
+/* The rank work for an engine with m rows (needs the engine's LAPACK table). */
+int fcc_events_rank_work(fcc_events *ev, const fcc_lapack *lapack, int m);
+/* Start a run: angle references 0 (and their copies), no rows active or resting, an
+ * empty log, no turn yet. */
+void fcc_events_reset(fcc_events *ev);
+/* Copy the angle references into the assembly a's element parameters at every
+ * re-basing (fcc_ev_refresh) and reset: the reference of angle angles[i] (its index
+ * among the angle quantities) to a->params[slots[i] .. slots[i] + 3) (theta, cos,
+ * sin). Their present values are kept for fcc_events_restore. Set-up: allocates.
+ * Returns FCC_OK, FCC_ERR_ARGUMENT (an index out of range) or FCC_ERR_MEMORY. */
+int fcc_events_mirror(fcc_events *ev, fcc_assembly *a, int n, const int *slots,
+                      const int *angles);
+/* Put back the element parameters' values kept by fcc_events_mirror (outside runs a
+ * torsion spring's reference is its free angle). */
+void fcc_events_restore(fcc_events *ev);
+
+void fcc_ev_bracket(fcc_events *ev, int k, fcc_bracket *br, double b);
+int fcc_ev_bracket_open(fcc_events *ev, fcc_bracket *br, double scale);
+double fcc_ev_bracket_trial(fcc_bracket *br);
+void fcc_ev_bracket_update(fcc_events *ev, int k, fcc_bracket *br, double c, double fc);
+void fcc_ev_refresh(fcc_events *ev, const double *q);
+/* The angle references' copies into the element parameters (after a change of p). */
+void fcc_ev_mirror(fcc_events *ev);
+void fcc_ev_values(fcc_events *ev, const double *q, const double *v, double t,
+                   double *out);
+int fcc_ev_watch(fcc_engine *e, fcc_events *ev, const double *q, const double *v,
+                 double t, double *out);
+int fcc_ev_crossed(fcc_events *ev, const double *a, const double *b);
+/* Watched value k crosses from a[k] to b[k] and counts: not a held lock or rest
+ * (whose function hovers at zero by the position tolerance). */
+int fcc_ev_watched(fcc_events *ev, int k, const double *a, const double *b);
+int fcc_ev_crosses(fcc_events *ev, int k, double a, double b);
+int fcc_ev_constrain(fcc_engine *e, fcc_events *ev, const double *q, const double *v,
+                     double t, double *a);
+int fcc_ev_correct(fcc_engine *e, fcc_events *ev, double *q, double *v);
+int fcc_ev_apply(fcc_engine *e, fcc_events *ev, int k, double *q, double *v, double t);
+double fcc_ev_leaving(fcc_events *ev, int k, const double *q, const double *v,
+                      double t);
+
+/* Shared by fcc_events.c and fcc_event_actions.c. */
+int fcc_ev_responses(fcc_engine *e, fcc_events *ev, const double *q);
+int fcc_ev_multipliers(fcc_engine *e, fcc_events *ev, int m);
+int fcc_ev_hold(fcc_engine *e, fcc_events *ev, int m, const double *x,
+                const double *target, double *y);
+void fcc_ev_set_rows(fcc_events *ev, int k, int flag);
+int fcc_ev_rests(fcc_events *ev, int k);
+double fcc_ev_kinetic(fcc_engine *e, const double *q, const double *v);
+double fcc_ev_row_error(fcc_events *ev, const double *q);
+int fcc_ev_decide(fcc_engine *e, fcc_events *ev, const double *q);
+
+#endif

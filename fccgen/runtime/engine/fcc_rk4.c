@@ -1,0 +1,296 @@
+/* Classical RK4 with projection, and RK4 on the Baumgarte-stabilised equations: the
+ * whole per-step loop (fcc_rk4.h).
+ *
+ * After each step (if asked): Newton position projection onto g(q) = 0, then the
+ * M-orthogonal velocity projection onto B v = 0; the factorisation of the velocity
+ * projection is the one the next step's first stage needs (same M and B), so it is
+ * reused. Events: after each step the watched values are compared with the step's
+ * start; the first that crossed is located by re-integrating partial steps from the
+ * saved start (Illinois), acted on, and the rest of the step integrated again.
+ */
+#include <math.h>
+#include <string.h>
+
+#include "fcc_rk4.h"
+
+static int stage(fcc_engine *e, fcc_rk4 *r, int k, const double *q, const double *v,
+                 double *a, int reuse)
+{
+    int rc;
+    e->err_stage = k;
+    r->n_rhs++;
+    if (r->baumgarte) {
+        rc = fcc_baumgarte(e, q, v, a, r->alpha, r->beta);
+    } else {
+        rc = fcc_accelerations(e, q, v, a, reuse);
+        if (rc == 0 && r->ev != NULL)         /* active lock rows (events) */
+            rc = fcc_ev_constrain(e, r->ev, q, v, r->t0, a);
+    }
+    if (rc == 0 && r->pw != NULL)             /* the stage's power (fcc_work.h) */
+        r->p[k - 1] = fcc_stage_power(e, r->pw, q, v, a);
+    return rc;
+}
+
+/* One classical RK4 step of (q' = v, v' = a(t, q, v)) of size h from t, in place;
+ * leaves the time at t + h. */
+static int step(fcc_engine *e, fcc_rk4 *r, double t, double h)
+{
+    int i, n = e->n;
+    double h2 = 0.5 * h, h6 = h / 6.0, w0 = r->w;
+    fcc_put_time(e->asmb, t);
+    if (stage(e, r, 1, r->q, r->v, r->a1, e->factor_valid) < 0) return -1;
+    for (i = 0; i < n; i++) {
+        r->qs[i] = r->q[i] + h2 * r->v[i];
+        r->v2[i] = r->v[i] + h2 * r->a1[i];
+    }
+    fcc_put_time(e->asmb, t + h2);
+    if (stage(e, r, 2, r->qs, r->v2, r->a2, 0) < 0) return -1;
+    for (i = 0; i < n; i++) {
+        r->qs[i] = r->q[i] + h2 * r->v2[i];
+        r->v3[i] = r->v[i] + h2 * r->a2[i];
+    }
+    if (stage(e, r, 3, r->qs, r->v3, r->a3, 0) < 0) return -1;
+    for (i = 0; i < n; i++) {
+        r->qs[i] = r->q[i] + h * r->v3[i];
+        r->v4[i] = r->v[i] + h * r->a3[i];
+    }
+    fcc_put_time(e->asmb, t + h);
+    if (stage(e, r, 4, r->qs, r->v4, r->a4, 0) < 0) return -1;
+    for (i = 0; i < n; i++) {
+        r->q[i] += h6 * (r->v[i] + 2.0 * r->v2[i] + 2.0 * r->v3[i] + r->v4[i]);
+        r->v[i] += h6 * (r->a1[i] + 2.0 * r->a2[i] + 2.0 * r->a3[i] + r->a4[i]);
+    }
+    if (r->pw != NULL)                        /* the work, by the step's own weights */
+        r->w = w0 + h6 * (r->p[0] + 2.0 * r->p[1] + 2.0 * r->p[2] + r->p[3]);
+    return 0;
+}
+
+/* Check the new state, project it (if asked) and track max |g|. Follows a step, whose
+ * last stage left M, B and their factorisation at q + h v3. */
+static int after_step(fcc_engine *e, fcc_rk4 *r)
+{
+    int rc, it = 0;
+    double cerr;
+    if (!(fcc_finite(r->q, e->n) && fcc_finite(r->v, e->n))) {
+        e->err_where = FCC_AT_STEP;
+        return fcc_fail(e, FCC_ERR_NONFINITE_INPUT, 0, !fcc_finite(r->q, e->n) ? 1 : 2);
+    }
+    if (fcc_diverged(e, r->q, r->q_bound) || fcc_diverged(e, r->v, r->v_bound)) {
+        e->err_where = FCC_AT_STEP;
+        return fcc_fail(e, FCC_ERR_DIVERGED, 0, e->err_bound == r->q_bound ? 1 : 2);
+    }
+    if (r->project) {
+        e->err_where = FCC_AT_POSITIONS;
+        rc = fcc_project_positions(e, r->q, &it, 1);   /* M, B, factor held: stage 4's */
+        if (rc < 0)
+            return -1;
+        r->failures += rc;
+        r->newton_total += it;
+        if (it > r->newton_max)
+            r->newton_max = it;
+        cerr = fcc_max_abs_g(e->asmb);          /* g is left assembled at the final q */
+        e->err_where = FCC_AT_VELOCITIES;
+        if (fcc_project_velocities(e, r->q, r->v, e->b_fresh) < 0)
+            return -1;
+        if (r->ev != NULL && fcc_ev_correct(e, r->ev, r->q, r->v) < 0)
+            return -1;
+    } else {
+        fcc_assemble(e->asmb, r->q, NULL, FCC_ASM_G);
+        cerr = fcc_max_abs_g(e->asmb);
+    }
+    if (!(cerr <= r->max_cerr))
+        r->max_cerr = cerr;
+    return 0;
+}
+
+void fcc_rk4_record(fcc_engine *e, fcc_rk4 *r, double t)
+{
+    double cerr;
+    r->out.t[r->n_out] = t;
+    cerr = fcc_write_record(e, &r->out, r->n_out, r->q, r->v);
+    if (r->w_out != NULL)
+        r->w_out[r->n_out] = r->w;
+    if (!(cerr <= r->max_cerr))
+        r->max_cerr = cerr;
+    r->n_out++;
+}
+
+/* The state at t0 + tau by one step of size tau from the saved step start (a
+ * re-integrated partial step), into r->q, r->v. */
+static int state_at(fcc_engine *e, fcc_rk4 *r, double t0, double tau)
+{
+    memcpy(r->q, r->saved, (size_t)e->n * sizeof(double));
+    memcpy(r->v, r->saved + e->n, (size_t)e->n * sizeof(double));
+    r->w = r->wsave;
+    e->factor_valid = 0;
+    r->t0 = t0;
+    return step(e, r, t0, tau);
+}
+
+/* Illinois (modified regula falsi, fcc_ev_bracket) on tau -> s_k(state(t0 + tau))
+ * over [0, h], where s_k crosses between the saved start (ev->s0) and the step's end
+ * (ev->s1): the bracket [a, b] always holds the crossing; stops when b - a <= tol.
+ * *tau: b, the earliest time found past the crossing. */
+static int locate(fcc_engine *e, fcc_rk4 *r, int k, double t0, double h, double *tau)
+{
+    fcc_events *ev = r->ev;
+    int ne = ev->spec->ne;
+    fcc_bracket br;
+    double c;
+    fcc_ev_bracket(ev, k, &br, h);
+    while (fcc_ev_bracket_open(ev, &br, 1.0)) {
+        c = fcc_ev_bracket_trial(&br);
+        if (state_at(e, r, t0, c) < 0)
+            return -1;
+        if (fcc_ev_watch(e, ev, r->q, r->v, t0 + c, ev->s1 + 2 * ne) < 0)  /* work */
+            return -1;
+        fcc_ev_bracket_update(ev, k, &br, c, ev->s1[2 * ne + k]);
+    }
+    *tau = br.b;
+    return 0;
+}
+
+/* After a step from t0 of size h (state projected): find the first event that
+ * crossed, locate it, act, and integrate the rest of the step again; repeat (at most
+ * 4 max_per_step times). ev->s0 holds the event values at the step's start. */
+static int events(fcc_engine *e, fcc_rk4 *r, double t0, double h)
+{
+    fcc_events *ev = r->ev;
+    int ne = ev->spec->ne, max_per_step = ev->spec->max_per_step;
+    int k, j, first, rc, count = 0, loops = 0;
+    double tau, best;
+    for (;;) {
+        if (fcc_ev_watch(e, ev, r->q, r->v, t0 + h, ev->s1) < 0)
+            return -1;
+        k = fcc_ev_crossed(ev, ev->s0, ev->s1);
+        loops++;
+        if (k < 0 || loops > 4 * max_per_step) {      /* none (more) in this step */
+            fcc_ev_refresh(ev, r->q);
+            return fcc_ev_watch(e, ev, r->q, r->v, t0 + h, ev->s0);
+        }
+        best = h;
+        first = k;
+        for (j = k; j < 2 * ne; j++) {           /* the earliest of those that crossed */
+            if (j > k && !fcc_ev_watched(ev, j, ev->s0, ev->s1))   /* a held lock */
+                continue;
+            if (locate(e, r, j, t0, h, &tau) < 0)
+                return -1;
+            if (tau < best || j == k) {
+                best = tau;
+                first = j;
+            }
+        }
+        if (state_at(e, r, t0, best) < 0 || after_step(e, r) < 0)
+            return -1;
+        count++;
+        e->err_t = t0 + best;
+        rc = fcc_ev_apply(e, ev, count <= max_per_step ? first : -1 - first, r->q, r->v,
+                          t0 + best);
+        if (rc < 0)
+            return -1;
+        count -= rc;                         /* an impact that was none does not count */
+        if (ev->stop) {
+            r->stopped = 1;
+            r->t_stop = t0 + best;
+            return 0;
+        }
+        fcc_ev_refresh(ev, r->q);
+        if (fcc_ev_watch(e, ev, r->q, r->v, t0 + best, ev->s0) < 0)
+            return -1;
+        ev->s0[first] = fcc_ev_leaving(ev, first, r->q, r->v, t0 + best);
+        t0 = t0 + best;
+        h = h - best;
+        memcpy(r->saved, r->q, (size_t)e->n * sizeof(double));
+        memcpy(r->saved + e->n, r->v, (size_t)e->n * sizeof(double));
+        r->wsave = r->w;
+        if (h <= 0.0)
+            return 0;
+        r->t0 = t0;
+        if (step(e, r, t0, h) < 0 || after_step(e, r) < 0)
+            return -1;
+    }
+}
+
+int fcc_rk4_advance(fcc_engine *e, fcc_rk4 *r)
+{
+    double t, h;
+    while (r->k < r->n_steps) {
+        t = r->k * r->dt;
+        h = r->k < r->n_steps - 1 ? r->dt : r->t_end - t;
+        e->err_where = FCC_AT_STAGE;
+        e->err_t = t;
+        e->err_h = h;
+        if (r->ev != NULL) {
+            memcpy(r->saved, r->q, (size_t)e->n * sizeof(double));
+            memcpy(r->saved + e->n, r->v, (size_t)e->n * sizeof(double));
+            r->wsave = r->w;
+        }
+        r->t0 = t;
+        if (step(e, r, t, h) < 0)
+            return FCC_RUN_ERROR;
+        r->k++;
+        t = r->k < r->n_steps ? r->k * r->dt : r->t_end;
+        e->err_t = t;
+        if (after_step(e, r) < 0)
+            return FCC_RUN_ERROR;
+        if (r->ev != NULL) {
+            if (events(e, r, t - h, h) < 0)
+                return FCC_RUN_ERROR;
+            if (r->stopped) {
+                fcc_rk4_record(e, r, r->t_stop);
+                return FCC_RUN_DONE;
+            }
+        }
+        if (r->k % r->every == 0 || r->k == r->n_steps)
+            fcc_rk4_record(e, r, t);
+        if (r->k < r->n_steps && r->pause != NULL && r->pause(r->pause_ctx))
+            return FCC_RUN_PAUSE;
+    }
+    return FCC_RUN_DONE;
+}
+
+int fcc_rk4_start(fcc_rk4 *r, fcc_engine *e, const double *q0, const double *v0)
+{
+    int i, n = e->n;
+    double big = 0.0;
+    r->q = e->stages;
+    r->v = e->stages + n;
+    r->qs = e->stages + 2 * n;
+    r->v2 = e->stages + 3 * n;
+    r->v3 = e->stages + 4 * n;
+    r->v4 = e->stages + 5 * n;
+    r->a1 = e->stages + 6 * n;
+    r->a2 = e->stages + 7 * n;
+    r->a3 = e->stages + 8 * n;
+    r->a4 = e->stages + 9 * n;
+    memcpy(r->q, q0, (size_t)n * sizeof(double));
+    memcpy(r->v, v0, (size_t)n * sizeof(double));
+    r->k = r->n_out = r->n_rhs = r->failures = r->newton_total = 0;
+    r->newton_max = 0;
+    r->max_cerr = 0.0;
+    r->t0 = 0.0;
+    r->stopped = 0;
+    r->t_stop = r->t_end;
+    r->w = r->wsave = 0.0;
+    r->p[0] = r->p[1] = r->p[2] = r->p[3] = 0.0;
+    fcc_divergence_bounds(n, q0, v0, r->t_end, r->dt, &r->q_bound, &r->v_bound);
+    e->factor_valid = 0;
+    e->err = FCC_OK;
+    fcc_put_time(e->asmb, 0.0);
+    /* A step that leaves the constraints by 1% of the model's size (an accurate one
+     * leaves them by its local error, orders below) has diverged. */
+    for (i = 0; i < n; i++)
+        if (fabs(q0[i]) > big)
+            big = fabs(q0[i]);
+    e->diverge_residual = 1e-2 * (big > 1e-300 ? big : 1e-300);
+    e->running = 1;
+    if (r->ev != NULL)
+        return fcc_ev_watch(e, r->ev, r->q, r->v, 0.0, r->ev->s0);
+    return 0;
+}
+
+void fcc_run_finish(fcc_engine *e)
+{
+    e->running = 0;
+    e->diverge_residual = INFINITY;
+}
