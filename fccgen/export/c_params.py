@@ -81,10 +81,12 @@ def parameter_map(plan) -> list[tuple[str, float, np.ndarray]]:
             x0 = current_value(plan.model, key)
         except (ValueError, IndexError, AttributeError, TypeError):
             continue
-        step = 0.5 * abs(x0) if x0 != 0 else 1.0
-        p1 = _params_at(plan, {key: x0 + step})
-        p2 = _params_at(plan, {key: x0 + 2 * step})
-        if p1 is None or p2 is None:
+        for step in ((1e-3 * abs(x0) if x0 != 0 else 1.0) * s for s in (1, -1)):
+            p1 = _params_at(plan, {key: x0 + step})
+            p2 = _params_at(plan, {key: x0 + 2 * step})
+            if p1 is not None and p2 is not None:
+                break
+        else:
             continue
         slope = (p1 - base) / step
         if not np.allclose(p2, base + 2 * step * slope, rtol=0, atol=LINEAR_RTOL * scale):

@@ -49,9 +49,8 @@ def environment():
     return env
 
 
-def refusal(solver) -> str:
+def refusal(plan) -> str:
     """Why the export cannot take this model ("" if it can)."""
-    plan = solver.plan
     if plan.model.events:
         return ("the model has events; their joint rows are solved by the dense path "
                 "(LAPACK), which a standalone export does not have")
@@ -202,9 +201,14 @@ def export_c(model_path, out_dir, build_dir="generated", *, progress=None) -> Pa
     """Write the C project of the model into out_dir (made, or emptied of what a
     previous export wrote); returns out_dir."""
     import fccgen
+    from ..api import plan_model
     out_dir = Path(out_dir)
+    plan = plan_model(model_path)
+    why = refusal(plan)
+    if why:
+        raise ExportError(f"{plan.model.source}: cannot export {plan.model.name}: {why}")
     solver = fccgen.load(model_path, build_dir, linear_solver="sparse", progress=progress)
-    why = refusal(solver)
+    why = refusal(solver.plan)
     if why:
         raise ExportError(f"{solver.plan.model.source}: cannot export {solver.plan.model.name}"
                           f": {why}")
