@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import re
 import shutil
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -197,12 +198,22 @@ def export_columns(solver, result) -> list[str]:
     return [n for n in result.names[1:] if n not in drivers and n not in reactions]
 
 
-def export_c(model_path, out_dir, build_dir="generated", *, progress=None) -> Path:
-    """Write the C project of the model into out_dir (made, or emptied of what a
-    previous export wrote); returns out_dir."""
+@dataclass
+class Project:
+    """The files of a model's C project and what they hold."""
+    name: str
+    files: dict
+    columns: list
+    keys: list
+    inputs: list
+    t_end: float
+    output_dt: float
+
+
+def c_project_files(model_path, build_dir="generated", *, progress=None) -> Project:
+    """Build the model (sparse path), run it in Python, and render its C project."""
     import fccgen
     from ..api import plan_model
-    out_dir = Path(out_dir)
     plan = plan_model(model_path)
     why = refusal(plan)
     if why:
@@ -210,8 +221,8 @@ def export_c(model_path, out_dir, build_dir="generated", *, progress=None) -> Pa
     solver = fccgen.load(model_path, build_dir, linear_solver="sparse", progress=progress)
     why = refusal(solver.plan)
     if why:
-        raise ExportError(f"{solver.plan.model.source}: cannot export {solver.plan.model.name}"
-                          f": {why}")
+        raise ExportError(f"{solver.plan.model.source}: cannot export "
+                          f"{solver.plan.model.name}: {why}")
     name = c_identifier(solver.plan.model.name)
     result = python_run(solver)
     table = OutputTable(solver.plan, export_columns(solver, result))
@@ -219,7 +230,20 @@ def export_c(model_path, out_dir, build_dir="generated", *, progress=None) -> Pa
     keys = parameter_map(solver.plan)
     inputs = model_inputs(solver.plan)
     files = render_files(solver, name, result, table, keys, inputs)
-    write_project(out_dir, files, Path(solver.module.__file__).resolve().parent, name)
+    kernels = Path(solver.module.__file__).resolve().parent
+    files = {**engine_files(name), **files, "kernels.c": (kernels / "kernels.c").read_text(),
+             "kernels.h": (kernels / "kernels.h").read_text()}
+    d = solver.plan.model.simulate
+    return Project(name, files, [c for c, _, _ in table.columns], keys, inputs,
+                   float(d.t_end), float(d.output_dt if d.output_dt is not None else d.dt))
+
+
+def export_c(model_path, out_dir, build_dir="generated", *, progress=None) -> Path:
+    """Write the C project of the model into out_dir (made, or replaced when it holds
+    an earlier export); returns out_dir."""
+    out_dir = Path(out_dir)
+    project = c_project_files(model_path, build_dir, progress=progress)
+    write_project(out_dir, project.files)
     return out_dir
 
 
@@ -260,11 +284,8 @@ def engine_files(name: str) -> dict[str, str]:
     return files
 
 
-def write_project(out_dir: Path, files: dict, kernels: Path, name: str) -> None:
+def write_project(out_dir: Path, everything: dict) -> None:
     """Write every file into a fresh folder next to out_dir, then put it in place."""
-    everything = {**engine_files(name), **files,
-                  "kernels.c": (kernels / "kernels.c").read_text(),
-                  "kernels.h": (kernels / "kernels.h").read_text()}
     out_dir.parent.mkdir(parents=True, exist_ok=True)
     tmp = out_dir.with_name(out_dir.name + ".partial")
     if tmp.exists():
