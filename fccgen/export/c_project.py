@@ -227,7 +227,7 @@ def c_project_files(model_path, build_dir="generated", *, progress=None) -> Proj
     result = python_run(solver)
     table = OutputTable(solver.plan, export_columns(solver, result))
     table.set_angle_shifts(result)
-    keys = parameter_map(solver.plan)
+    keys = keep_initial_speeds(solver, parameter_map(solver.plan), result)
     inputs = model_inputs(solver.plan)
     files = render_files(solver, name, result, table, keys, inputs)
     kernels = Path(solver.module.__file__).resolve().parent
@@ -245,6 +245,21 @@ def export_c(model_path, out_dir, build_dir="generated", *, progress=None) -> Pa
     project = c_project_files(model_path, build_dir, progress=progress)
     write_project(out_dir, project.files)
     return out_dir
+
+
+def keep_initial_speeds(solver, keys, result):
+    """The keys, or none when moving them changes the initial speeds (an M-weighted
+    projection of given speeds): the export starts from the speeds it stored."""
+    if not keys:
+        return keys
+    q0, v0 = result_state(result, solver.plan)
+    if not np.any(v0):
+        return keys
+    moved = solver.with_parameters({k: x0 * (1 + 1e-3) + (x0 == 0) for k, x0, _ in keys})
+    v1 = moved.initial_state().v
+    if np.max(np.abs(v1 - v0)) <= 1e-12 * max(1.0, float(np.max(np.abs(v0)))):
+        return keys
+    return []
 
 
 def model_inputs(plan) -> list:
