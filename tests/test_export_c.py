@@ -198,3 +198,15 @@ def test_a_model_with_events_is_refused_with_the_reason(build_dir, tmp_path):
     with pytest.raises(ExportError, match="events.*dense path"):
         export_c(EXAMPLES / "solar_array.yaml", tmp_path / "sa", build_dir)
     assert not (tmp_path / "sa").exists()
+
+
+def test_the_command_line_says_what_is_missing_or_refused(capsys, tmp_path):
+    from fccgen.cli import main
+    model = str(EXAMPLES / "four_bar.yaml")
+    assert main(["export", model, "--build-dir", str(tmp_path)]) == 1
+    assert "--c DIR" in capsys.readouterr().err
+    assert main(["export", str(EXAMPLES / "solar_array.yaml"), "--c", str(tmp_path / "sa"),
+                 "--build-dir", str(tmp_path)]) == 1
+    err = capsys.readouterr().err
+    assert "cannot export solar_array" in err and "events" in err
+    assert not (tmp_path / "sa").exists()
