@@ -210,3 +210,12 @@ def test_the_command_line_says_what_is_missing_or_refused(capsys, tmp_path):
     err = capsys.readouterr().err
     assert "cannot export solar_array" in err and "events" in err
     assert not (tmp_path / "sa").exists()
+
+
+@pytest.mark.skipif(shutil.which("cmake") is None, reason="needs cmake")
+def test_cmake_builds_the_same_project(exported, tmp_path):
+    folder = exported("four_bar")[0]
+    build = tmp_path / "build"
+    run(["cmake", "-S", str(folder), "-B", str(build), "-DCMAKE_BUILD_TYPE=Release"], tmp_path)
+    run(["cmake", "--build", str(build), "--target", "four_bar_selftest"], tmp_path)
+    assert run([str(build / "four_bar_selftest")], tmp_path).strip() == "selftest passed"
