@@ -44,8 +44,9 @@ def load(path, build_dir=DEFAULT_BUILD_DIR, *, force=False, progress: Progress =
     from .build import load_module
     from .runtime import CompiledSolver
     plan, built = generate(path, build_dir, force=force, progress=progress)
+    from .events.references import angle_sources
     events = None
-    if plan.model.events:
+    if plan.model.events or angle_sources(plan):  # events, or angles counted over turns
         from .events.build import load_events
         events = load_events(plan, build_dir, force=force)
     return CompiledSolver(plan, load_module(built), events_module=events, **solver_options)

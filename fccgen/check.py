@@ -32,6 +32,7 @@ import numpy as np
 import scipy.linalg
 import scipy.sparse as sp
 
+from .analysis.cables import cable_lines
 from .mechanism.report import DEPENDENT_TOL, dependency_text, dependent_rows, rows_text
 from . import rank as rank_rule
 from . import rank_sparse
@@ -76,6 +77,7 @@ class CheckReport:
     rank_gap: tuple[float, float] = (1.0, 0.0)    # sigma_r / sigma_1, sigma_{r+1} / sigma_1
     uncertain: list[float] = field(default_factory=list)   # sigma / sigma_1 in the band
     generation: str = ""         # what check generated (kernels, events), or that it did not
+    cables: list[str] = field(default_factory=list)    # flexible members (analysis.cables)
 
     @property
     def dof_counted(self) -> int:
@@ -107,6 +109,9 @@ class CheckReport:
         if self.joints:
             lines.append("  joints (lowering):")
             lines += [f"    {j}" for j in self.joints]
+        if self.cables:
+            lines.append("  flexible members:")
+            lines += [f"    {c}" for c in self.cables]
         lines.append(f"  element classes: {len(self.classes)}")
         lines += [f"    {c}" for c in self.classes]
         if self.generation:
@@ -248,7 +253,8 @@ def _report(solver, report) -> CheckReport:
         init_report=init.report(), notes=notes,
         joints=model.mechanism.describe() if model.mechanism is not None else [],
         dependent=dependent,
-        rank_gap=tuple(decision.gap), uncertain=list(decision.uncertain))
+        rank_gap=tuple(decision.gap), uncertain=list(decision.uncertain),
+        cables=cable_lines(plan))
 
 
 def _initial_state(solver):

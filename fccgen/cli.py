@@ -332,7 +332,19 @@ def _run_summary(result) -> str:
             f"energy drift {info.get('energy_drift', float('nan')):.3g} "
             + (f"(max |E - E0|, E0 = {e[0]:.6g})" if "event_energy_loss" not in info else
                f"(max |E + event losses - E0|, E0 = {e[0]:.6g}; events took "
-               f"{info['event_energy_loss']:.6g})") + _dof_summary(info))
+               f"{info['event_energy_loss']:.6g})") + _dof_summary(info)
+            + _work_summary(info))
+
+
+def _work_summary(info) -> str:
+    """The energy balance with the work added back (runtime/energy_check.py), for a
+    model whose energy changes on purpose."""
+    check = info.get("energy_check") or {}
+    if check.get("work") is None:
+        return ""
+    return (f"; energy balance {check.get('balance_drift', float('nan')):.3g} "
+            f"(max |E - W + event losses - E0|, W = {check['work']:.6g}: the work of "
+            f"dampers, drivers and loads without potential)")
 
 
 def _internal_note(result, args) -> str:

@@ -12,7 +12,15 @@ KINDS = (".yaml", ".py", ".md")     # models, the scripts that write models, the
 
 
 def _folder() -> Path:
-    return Path(str(resources.files("fccgen.examples")))
+    """The installed package data; in a source checkout imported without installing
+    (a Python started in the repository root), the repository's ``examples/``."""
+    try:
+        return Path(str(resources.files("fccgen.examples")))
+    except ModuleNotFoundError:
+        source = Path(__file__).resolve().parent.parent / "examples"
+        if (source / "double_pendulum.yaml").is_file():
+            return source
+        raise
 
 
 def example_names() -> list[str]:

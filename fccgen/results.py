@@ -251,10 +251,14 @@ def timed_run(plan, method, sched, options, project, run, settings=None) -> Resu
 
 
 def _with_joint_columns(plan, result):
-    """Add the joint columns (J.angle, J.rate, ...) of a mechanism-level model."""
+    """Add the joint columns (J.angle, J.rate, ...) of a mechanism-level model, and
+    the strain and curvature at the nodes of flexible members."""
     if getattr(plan.model, "mechanism", None) is not None:
         from .mechanism.outputs import add_joint_columns
         add_joint_columns(plan, result)
+    if getattr(plan.model, "cables", None):
+        from .mechanism.cable_outputs import add_cable_columns
+        add_cable_columns(plan, result)
     return result
 
 

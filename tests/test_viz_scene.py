@@ -69,6 +69,13 @@ def test_every_example_page_draws_its_bodies_and_joints(name, compiled, tmp_path
     assert set(with_inertia) <= drawn
     joints = by_name(data, "joints")
     assert set(j.name for j in model.joints) <= set(joints["text"])
+    members = by_name(data, "cables")                # flexible members as curves
+    assert (members is not None) == bool(model.cables)
+    if members is not None:                          # one curve each, tip where the run put it
+        assert members["x"].count(None) == len(model.cables)
+        tip = f"{next(iter(model.cables))}.tip"
+        assert members["x"][members["x"].index(None) - 1] == pytest.approx(
+            result[f"{tip}.x"][0], abs=1e-12)
     # only names the user wrote are shown: no point the lowering made
     labels = [t for trace in data for t in (trace.get("text") or []) if isinstance(t, str)]
     assert not [t for t in labels if re.search(r"_(axis\d?|center|end|[xyz]|a|b|n\d|nb|"

@@ -34,6 +34,10 @@ from .tangent import amax, bases, curvature, min_norm_multipliers
 FORCE_RTOL = 1e-11       # max |N^T f| relative to the largest applied force entry
 POSITION_RTOL = 1e-13    # max |g_k| / ||B_k|| relative to the largest body length
                          # (rounding of g = |r|^2 - l^2 is ~1e-16 l^2, of B ~1e-16 l)
+STEP_RTOL = 1e-13        # a Newton step this small (relative to the largest length)
+                         # ends the iteration too: stiff elastic members (EA of 1e5
+                         # and more) cancel internal forces far larger than the loads,
+                         # whose rounding then exceeds FORCE_RTOL of the loads
 MIN_LOAD_STEP = 2.0 ** -12
 MAX_ITERATIONS = 30
 
@@ -179,6 +183,9 @@ def _newton(solver, q, s, force_rtol, max_iterations):
         z = _tangential_step(-N.T @ J @ N, N.T @ (f + J @ dq_p), scale,
                              solver.length_scale)
         q = q + dq_p + N @ z
+        if (amax(dq_p + N @ z) <= STEP_RTOL * solver.length_scale
+                and _scaled(g, B) <= POSITION_RTOL * solver.length_scale):
+            return q, it + 1, True
     return q, max_iterations, False
 
 

@@ -57,13 +57,17 @@ def compiler_identity() -> dict[str, str]:
 def cache_key(model_name: str, classes, flag_policy: dict, extra: str = "") -> str:
     """sha256 over everything the built module depends on.
 
-    That is the module name, the class keys in order, the tool versions, the template
+    That is the module name, the class keys and parameter layouts in order, the tool
+    versions, the template
     and C-interface texts, the flag policy and the compiler. ``extra`` distinguishes
     modules built from kernels that did not come from ``fccgen.derive``.
     """
     payload = {
         "model_name": model_name,
         "class_keys": [c.key for c in classes],
+        # the kernels' parameter layout: a layout change (a new runtime parameter) is a
+        # new build even where the class keys are the same
+        "class_params": [list(getattr(c, "param_names", ())) for c in classes],
         "versions": tool_versions(),
         "templates": {name: _sha256(text) for name, text in template_texts().items()},
         "header": _sha256(runtime_header()),

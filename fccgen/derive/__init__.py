@@ -5,7 +5,7 @@
 
 Only this package and fccgen.printing import SymPy.
 """
-from . import joint_loads, mechanism  # noqa: F401  (registers drivers, loads, ...)
+from . import cables, joint_loads, mechanism  # noqa: F401  (registers drivers, loads, ...)
 from .derived import DerivedClass, derive_class
 
 __all__ = ["DerivedClass", "derive_class"]

@@ -181,13 +181,24 @@ def spring(s: ClassSymbols) -> Outputs:
             "force_jacobian_v": [wi * ds for wi in w for ds in d_scale_v]}
 
 
+def reference_rotation(s: ClassSymbols, prefix: str) -> tuple[sympy.Expr, sympy.Expr]:
+    """cos and sin of theta_init + th: the initial angle (prefix cos0, sin0) turned on
+    by the runtime's angle reference (prefix th, cr, sr)."""
+    c0, s0 = s.scalar(prefix + "cos0"), s.scalar(prefix + "sin0")
+    cr, sr = s.scalar(prefix + "cr"), s.scalar(prefix + "sr")
+    return c0 * cr - s0 * sr, s0 * cr + c0 * sr
+
+
 def torsion_spring(s: ClassSymbols) -> Outputs:
     """Torsion spring-damper about the shared unit vector u of bodies A and B.
 
     p_A = r_ij,A - lA u and p_B = r_ij,B - lB u (lA = l_A beta_A: perpendicular to u on
     the constraint manifold); D = u.(p_A x p_B) and P = p_A.p_B, so that the angle from
-    p_A to p_B is atan2(D, P). Turned back by the free position (cos0, sin0):
-    S = cos0 D - sin0 P, C = cos0 P + sin0 D and phi = theta - theta0 = atan2(S, C).
+    p_A to p_B is atan2(D, P). Turned back by the initial angle (cos0, sin0) and the
+    reference th (cr, sr; the runtime keeps th at the joint angle of the last accepted
+    state, fccgen.events.references): with c = cos0 cr - sin0 sr, s = sin0 cr + cos0 sr,
+    S = c D - s P, C = c P + s D and phi = th - free + atan2(S, C), the deflection
+    from the free angle counted over turns (atan2 stays near 0 within a step).
     V = k phi^2 / 2 and f = -(k phi + c phi') g, with N = S^2 + C^2 and
 
         g = dphi/dq = (C/N) dS - (S/N) dC,    phi' = (C S' - S C')/N,
@@ -200,7 +211,7 @@ def torsion_spring(s: ClassSymbols) -> Outputs:
     scalars of S, C and small polynomials."""
     ai, aj, bi, bj, u = (s.triple(n) for n in ("A.ri", "A.rj", "B.ri", "B.rj", "u"))
     k, c, n = s.scalar("k"), s.scalar("c"), len(s.q)
-    cos0, sin0 = s.scalar("cos0"), s.scalar("sin0")
+    cos0, sin0 = reference_rotation(s, "")
     pa = aj.pos - ai.pos - s.scalar("lA") * u.pos
     pb = bj.pos - bi.pos - s.scalar("lB") * u.pos
     pa_dot = aj.vel - ai.vel - s.scalar("lA") * u.vel
@@ -220,7 +231,7 @@ def torsion_spring(s: ClassSymbols) -> Outputs:
     norm = big_s ** 2 + big_c ** 2
     w_s, w_c = big_c / norm, -big_s / norm
     b1, b2 = (big_s ** 2 - big_c ** 2) / norm ** 2, 2 * big_s * big_c / norm ** 2
-    phi = sympy.atan2(big_s, big_c)
+    phi = s.scalar("th") - s.scalar("free") + sympy.atan2(big_s, big_c)
     g = [w_s * x + w_c * y for x, y in zip(d_s, d_c)]
     torque = k * phi + c * (w_s * s_dot + w_c * c_dot)
 

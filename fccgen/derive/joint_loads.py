@@ -6,15 +6,17 @@ The components F(t, z) are read from the class's ``function`` by the restricted
 grammar over real symbols, and the joint quantities z are replaced by their
 expressions in the class's q, v and parameters:
 
-    angle    = atan2(S, C),  S = cos0 D - sin0 P,  C = cos0 P + sin0 D,
+    angle    = th + atan2(S, C),  S = c D - s P,  C = c P + s D,
+               (c, s) = cos, sin of theta_init + th  (cos0, sin0 turned by cr, sr),
                D = u.(p_A x p_B),  P = p_A.p_B,  p = r_j - r_i - lam u,
     rate     = (C S' - S C') / (S^2 + C^2)      (S', C' by the product rule),
     position = u.(r_b - r_a) - s0,
     speed    = u'.(r_b - r_a) + u.(r_b' - r_a').
 
-The angle is measured from the initial configuration and lies in (-pi, pi): it is
-the torsion spring's, with no per-step reference, so the kernel is smooth wherever
-the joint stays within half a turn of its start. f = Dhat^T F (force) or
+The angle is measured from the initial configuration and counted over turns, as the
+torsion spring's: th is the reference the runtime keeps at the joint angle of the
+last accepted state (fccgen.events.references), so the atan2 stays near 0 within a
+step. f = Dhat^T F (force) or
 Phi_b^T R^T T (torque) of the load's body; df/dq, df/dq' by the chain rule through
 the polynomials S, C, S', C' (and s, s'), which keeps the expressions small.
 """
@@ -22,7 +24,7 @@ from __future__ import annotations
 
 import sympy
 
-from .elements import BUILDERS, Outputs, force, torque
+from .elements import BUILDERS, Outputs, force, reference_rotation, torque
 from .kinematics import cross, dot
 from .symbols import ClassSymbols
 
@@ -30,7 +32,7 @@ from .symbols import ClassSymbols
 def _angle(s: ClassSymbols, prefix: str, inter: dict) -> tuple[sympy.Expr, sympy.Expr]:
     ai, aj, bi, bj, u = (s.triple(prefix + n) for n in ("A.ri", "A.rj", "B.ri", "B.rj", "u"))
     la, lb = s.scalar(prefix + "lA"), s.scalar(prefix + "lB")
-    cos0, sin0 = s.scalar(prefix + "cos0"), s.scalar(prefix + "sin0")
+    cos0, sin0 = reference_rotation(s, prefix)
     pa, pb = aj.pos - ai.pos - la * u.pos, bj.pos - bi.pos - lb * u.pos
     va, vb = aj.vel - ai.vel - la * u.vel, bj.vel - bi.vel - lb * u.vel
     big_d, big_p = dot(u.pos, cross(pa, pb)), dot(pa, pb)
@@ -39,7 +41,10 @@ def _angle(s: ClassSymbols, prefix: str, inter: dict) -> tuple[sympy.Expr, sympy
     big_s, big_c, s_dot, c_dot = (_intermediate(inter, prefix + n, e) for n, e in (
         ("S", cos0 * big_d - sin0 * big_p), ("C", cos0 * big_p + sin0 * big_d),
         ("Sd", cos0 * d_dot - sin0 * p_dot), ("Cd", cos0 * p_dot + sin0 * d_dot)))
-    return (sympy.atan2(big_s, big_c),
+    # th, a parameter, stands as a real intermediate: min, max and abs of the angle
+    # then differentiate to sign(), not to re() and im() of a complex th
+    th = _intermediate(inter, prefix + "th", s.scalar(prefix + "th"))
+    return (th + sympy.atan2(big_s, big_c),
             (big_c * s_dot - big_s * c_dot) / (big_s ** 2 + big_c ** 2))
 
 

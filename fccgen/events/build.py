@@ -59,13 +59,17 @@ def _print(name: str, equation: str, exprs: list, system: EventSystem,
 def print_kernels(system: EventSystem) -> list[EventKernel]:
     qty = [x.expr for x in system.quantities]
     grad = lambda exprs: [g for e in exprs for g in system.gradient(e)]   # noqa: E731
+    zero = [sympy.S.Zero] * len(system.q)
     return [
         _print("event_values", "s_k(q, v, t)", system.functions, system, False),
         _print("event_gradients", "ds_k/dq", grad(system.functions), system, True),
         _print("quantity_values", "r_j(q)", qty, system, False),
-        _print("quantity_gradients", "dr_j/dq", grad(qty), system, True),
+        _print("quantity_gradients", "dr_j/dq",
+               [g for x in system.quantities
+                for g in (system.gradient(x.expr) if x.lockable else zero)], system, True),
         _print("quantity_bias", "(d/dt dr_j/dq) v",
-               [system.quantity_bias(x) for x in system.quantities], system, False),
+               [system.quantity_bias(x) if x.lockable else sympy.S.Zero
+                for x in system.quantities], system, False),
     ]
 
 
@@ -73,6 +77,8 @@ def event_hash(system: EventSystem) -> str:
     """sha256 of the event functions and quantities: what the module computes."""
     text = sympy.srepr((system.q, system.p, system.functions,
                         [x.expr for x in system.quantities]))
+    if not all(x.lockable for x in system.quantities):
+        text += repr([x.lockable for x in system.quantities])
     return hashlib.sha256(text.encode("utf-8")).hexdigest()
 
 
@@ -95,7 +101,7 @@ def render(model_name: str, module_name: str, system: EventSystem, names: list[s
 def build_events(plan, out_dir="generated", *, force: bool = False) -> BuiltModule | None:
     """Build (or reuse) the event module of ``plan.model`` (None: it has no events)."""
     model = plan.model
-    if not model.events:
+    if not needs_events_module(plan):
         return None
     system = event_system(plan)
     e_hash = event_hash(system)
@@ -126,7 +132,15 @@ def build_events(plan, out_dir="generated", *, force: bool = False) -> BuiltModu
     return _built(entry, manifest, False, {})
 
 
+def needs_events_module(plan) -> bool:
+    """The model has events, or element kernels that read a joint angle through a
+    turn-counting reference (fccgen.events.references)."""
+    from .references import angle_sources
+    return bool(plan.model.events) or bool(angle_sources(plan))
+
+
 def load_events(plan, out_dir="generated", *, force: bool = False):
-    """The imported event module of ``plan.model`` (None: no events)."""
+    """The imported event module of ``plan.model`` (None: no events, no referenced
+    angles)."""
     built = build_events(plan, out_dir, force=force)
     return None if built is None else load_module(built)

@@ -20,19 +20,25 @@ import numpy as np
 
 from ..mechanism.joints import perpendiculars
 from ..model.types import GROUND
+from .references import HINGE_SIZE, angle_sources, event_quantities, hinge_constants
 
-SIZES = {"body": 3, "triple": 3, "angle": 12}
+SIZES = {"body": 3, "triple": 3, "angle": 12, "hinge": HINGE_SIZE}
 
 
 def layout(plan, angle_joints: list[str]) -> list[tuple[str, str]]:
     """(kind, name) of each group of constants: every body (l, alpha, beta), every
     fixed point and vector (x, y, z), every angle quantity's joint (a_A, n1, a_A x n1,
-    w), in that order."""
+    w; or, for an angle only element kernels read, the "hinge" numbers of
+    fccgen.events.references.hinge_constants), in that order."""
     model = plan.model
     out = [("body", name) for name in model.bodies if name != GROUND]
     out += [("triple", name) for name in (*model.points, *model.vectors)
             if name not in plan.index]
-    return out + [("angle", name) for name in angle_joints]
+    lowering = getattr(model, "mechanism", None)
+    joints = {jl.joint.name: jl.joint for jl in lowering.joints} if lowering else {}
+    events = {name for name, kind in event_quantities(model.events, joints)
+              if kind == "angle"}
+    return out + [("angle" if name in events else "hinge", name) for name in angle_joints]
 
 
 def _positions(model) -> dict:
@@ -78,6 +84,7 @@ def values(plan, angle_joints: list[str]) -> np.ndarray:
     model = plan.model
     lowering = getattr(model, "mechanism", None)
     joints = {jl.joint.name: jl.joint for jl in lowering.joints} if lowering else {}
+    hinges = {s.name: s for s in angle_sources(plan)}
     pos = _positions(model)
     out = []
     for kind, name in layout(plan, angle_joints):
@@ -85,6 +92,8 @@ def values(plan, angle_joints: list[str]) -> np.ndarray:
             out += body_constants(model, name)
         elif kind == "triple":
             out += [float(x) for x in pos[name]]
+        elif kind == "hinge":
+            out += [float(x) for x in hinge_constants(plan, hinges[name])]
         else:
             out += [float(x) for x in angle_constants(model, joints[name])]
     return np.array(out, dtype=float)

@@ -21,6 +21,11 @@ initial configuration of a model.
 
 Switchable rows (lock and unlock) are the joint quantities r(q) held at a value; their
 Jacobian grad_q r and bias (d/dt grad_q r) . v = v^T (d^2 r / dq^2) v are kernels too.
+
+After the events' quantities come the angles that only element kernels read (torsion
+springs, loads of joint angles; fccgen.events.references): the runtime re-bases their
+references like the others and copies them into those kernels' parameters. They are
+never locked, so their gradient and bias rows are left zero.
 """
 from __future__ import annotations
 
@@ -28,9 +33,9 @@ from dataclasses import dataclass
 
 import sympy
 
-from ..mechanism.joints import ANGLE_TYPES
 from ..model.types import GROUND
 from .constants import SIZES, layout
+from .references import HINGE_TRIPLES, angle_sources, event_quantities
 
 
 @dataclass
@@ -42,6 +47,8 @@ class Quantity:
     param: int | None                # angles: index k of (theta_r, cos, sin) in p
     parts: tuple | None = None       # angles: (y, x, (y', x'), (y'', x'')) of
                                      # expr = theta_r + atan2(y, x), along v
+    lockable: bool = True            # False: only element kernels read its reference
+                                     # (fccgen.events.references); no gradient, bias
 
     @property
     def name(self) -> str:
@@ -167,6 +174,34 @@ def _angle(f: _Frames, joint, p) -> tuple:
     return theta, y0, x0, (y1, x1), (y2, x2)
 
 
+def _hinge(f: _Frames, plan, source, p) -> sympy.Expr:
+    """theta_r + atan2(S, C) of an angle that only element kernels read, measured as
+    its first reader measures it (fccgen.events.references, docs/elements.md): with
+    p = r_j - r_i - lam u on each side, D = u.(p_A x p_B), P = p_A.p_B and (S, C) =
+    (D, P) turned back by the initial angle and theta_r. Cheaper than the frames'
+    measure, and the reader's atan2 then starts each step at 0 exactly."""
+    el = plan.elements[source.element]
+    c = f.consts[("hinge", source.name)]
+    la, lb, c0, s0 = c[:4]
+    moving = dict(zip(el.cls.moving_triples, el.slots))
+    tri = {}
+    for k, t in enumerate(HINGE_TRIPLES):
+        name = source.prefix + t
+        if name in moving:
+            tri[t] = sympy.Matrix(f.q[3 * moving[name]:3 * moving[name] + 3])
+        else:
+            tri[t] = sympy.Matrix(c[4 + 3 * k:7 + 3 * k])
+    u = tri["u"]
+    pa = tri["A.rj"] - tri["A.ri"] - la * u
+    pb = tri["B.rj"] - tri["B.ri"] - lb * u
+    big_d, big_p = u.dot(pa.cross(pb)), pa.dot(pb)
+    theta, cr, sr = p
+    cos_, sin_ = c0 * cr - s0 * sr, s0 * cr + c0 * sr
+    # unevaluated: SymPy's atan2 asks the signs of its arguments, seconds per angle
+    return theta + sympy.atan2(cos_ * big_d - sin_ * big_p, cos_ * big_p + sin_ * big_d,
+                               evaluate=False)
+
+
 def _position(f: _Frames, joint) -> sympy.Expr:
     ra, rb = f.triple(f"{joint.name}_a"), f.triple(f"{joint.name}_b")
     return (rb - ra).dot(f.triple(f"{joint.name}_axis"))
@@ -182,7 +217,13 @@ def event_system(plan) -> EventSystem:
     t = sympy.Symbol("t", real=True)
     lowering = getattr(model, "mechanism", None)
     joints = {jl.joint.name: jl.joint for jl in lowering.joints} if lowering else {}
-    wanted = _wanted_quantities(model.events, joints)
+    wanted = event_quantities(model.events, joints)
+    # angles that only element kernels read (springs, loads of joint angles): after
+    # the events' own, for their references (fccgen.events.references)
+    referenced = {src.name: src for src in angle_sources(plan)
+                  if (src.name, "angle") not in wanted}
+    wanted += [(name, "angle") for name in referenced]
+    lockable = len(wanted) - len(referenced)
     angles = [jname for jname, kind in wanted if kind == "angle"]
     p = []
     for k in range(len(angles)):
@@ -194,12 +235,17 @@ def event_system(plan) -> EventSystem:
         p += consts[(kind, name)]
     frames = _Frames(plan, q, v, consts)
     quantities = []
-    for jname, kind in wanted:
-        if kind == "angle":
+    for row, (jname, kind) in enumerate(wanted):
+        if kind == "angle" and jname in referenced:
+            k = len([x for x in quantities if x.kind == "angle"])
+            quantities.append(Quantity(jname, kind, _hinge(frames, plan, referenced[jname],
+                                                           p[3 * k:3 * k + 3]),
+                                       k, None, False))
+        elif kind == "angle":
             k = len([x for x in quantities if x.kind == "angle"])
             theta, y, x, rates, biases = _angle(frames, joints[jname], p[3 * k:3 * k + 3])
             quantities.append(Quantity(jname, kind, theta + sympy.atan2(y, x), k,
-                                       (y, x, rates, biases)))
+                                       (y, x, rates, biases), row < lockable))
         else:
             quantities.append(Quantity(jname, kind, _position(frames, joints[jname]), None))
     system = EventSystem(q, v, t, p, quantities, [], [])
@@ -209,27 +255,6 @@ def event_system(plan) -> EventSystem:
         system.functions.append(s)
         system.uses_v.append(bool(s.free_symbols & set(v)))
     return system
-
-
-def _wanted_quantities(events, joints) -> list[tuple[str, str]]:
-    """(joint, angle|position) of every joint quantity that events read or lock."""
-    wanted: list[tuple[str, str]] = []
-
-    def want(jname, kind):
-        if (jname, kind) not in wanted:
-            wanted.append((jname, kind))
-
-    for ev in events:
-        for s in sorted(ev.function.free_symbols, key=str):
-            jname, _, what = s.name.partition(".")
-            if jname in joints:
-                want(jname, "angle" if what in ("angle", "rate") else "position")
-        if ev.action in ("lock", "unlock"):
-            j = joints[ev.joint]
-            want(j.name, "angle" if j.type in ANGLE_TYPES else "position")
-            if j.type == "cylindrical":
-                want(j.name, "position")
-    return wanted
 
 
 def _substitutions(model, frames: _Frames, system: EventSystem) -> dict:

@@ -252,7 +252,12 @@ class _Walker:
         return sympy.Integer(value) if isinstance(value, int) else sympy.Float(value)
 
     def dotted(self, node: ast.Attribute) -> str:
-        """``Known.quantity``: a name, a dot and an attribute name, nothing deeper."""
+        """``Known.quantity``: a name, a dot and an attribute name; or a cable node's
+        point quantity ``member.node.x`` (two dots) when the table holds it."""
+        value = node.value
+        if (isinstance(value, ast.Attribute) and isinstance(value.value, ast.Name)
+                and f"{value.value.id}.{value.attr}.{node.attr}" in self.symbols):
+            return f"{value.value.id}.{value.attr}.{node.attr}"
         if not isinstance(node.value, ast.Name):
             raise self.fail("attribute access is only Joint.quantity (a name, a dot and "
                             "a quantity, such as A.angle)")

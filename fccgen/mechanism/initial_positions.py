@@ -19,6 +19,14 @@ turn; a slide is walked in at most MAX_STEPS steps (longer ones when it is far).
 Values the mechanism cannot take (beyond a four-bar's limit position, two angles on
 one degree of freedom that disagree, a joint that cannot move) leave Newton without
 convergence and are refused with the nearest values reached.
+
+Angle drivers. A driver's row sin(theta - f) vanishes at theta = f and at f + pi, so
+the first projection, which starts from the written angle, meets the nearer root: a
+driver with f(0) more than a quarter turn from the written angle would be assembled
+on the other branch and follow f - pi for the whole run. When a driven angle is on
+that branch, the mechanism is assembled again from the written configuration by the
+same continuation, the angle drivers' rows left out and their joints taken to f(0)
+(with the ``initial: joints`` values), so the run starts on f(0).
 """
 from __future__ import annotations
 
@@ -61,13 +69,58 @@ def _refuse(wanted: dict, reached: np.ndarray, aim: np.ndarray, why: str) -> Mod
                       f"it assembles up to {near} and fails on the way to {aimed}", given)
 
 
+def driven_angles(plan) -> list[tuple[str, float, object, int]]:
+    """(joint, f(0), where, constraint row) of every angle driver."""
+    lowering = getattr(plan.model, "mechanism", None)
+    drivers = [d for d in (getattr(lowering, "drivers", None) or [])
+               if d.quantity == "angle"]
+    if not drivers:
+        return []
+    from ..numeric.time_jets import time_function
+    from .lowering import driver_label
+    rows, start = {}, 0
+    for el in plan.elements:
+        rows[el.label] = start
+        start += el.cls.n_g
+    return [(d.joint, float(time_function(d.function)(0.0)[0]), d.where,
+             rows[driver_label(d)]) for d in drivers]
+
+
+def _flipped(plan, q: np.ndarray, driven: list) -> list:
+    """The angle drivers whose joint at q sits on the branch f(0) + pi (module
+    docstring): cos(theta - f(0)) < 0, theta measured from the written angle."""
+    if not driven:
+        return []
+    wanted = {j: ("angle", f0, where) for j, f0, where, _ in driven}
+    theta = _values(plan, np.asarray(plan.q0, float), q, wanted)
+    return [d for d, th in zip(driven, theta) if math.cos(th - d[1]) < 0.0]
+
+
 def assemble_at_joints(solver, q: np.ndarray) -> np.ndarray:
     """q (assembled at the written configuration) moved to the model's initial joint
-    angles and positions; q itself when it gives none (module docstring)."""
+    angles and positions, and to the angle drivers' f(0) where the first projection
+    met the other branch; q itself when none of these applies (module docstring)."""
     plan = solver.plan
     wanted = dict(getattr(plan.model.initial, "joint_positions", None) or {})
+    driven = driven_angles(plan)
+    flipped = _flipped(plan, q, driven)
+    keep = None
+    if flipped:
+        keep = np.ones(plan.n_g, bool)
+        for joint, f0, where, row in driven:
+            keep[row] = False
+            wanted.setdefault(joint, ("angle", f0, where))
+        q = np.array(plan.q0, float)
     if not wanted:
         return q
+    return _continue(solver, q, wanted, keep)
+
+
+def _continue(solver, q: np.ndarray, wanted: dict, keep) -> np.ndarray:
+    """The continuation of the module docstring from q (assembled, or the written
+    configuration) to the ``wanted`` values ({joint: (quantity, value, where)});
+    keep: the constraint rows it holds (None: all)."""
+    plan = solver.plan
     length = solver.length_scale
     rates = {j: (RATE_OF[qty], 0.0, where) for j, (qty, _, where) in wanted.items()}
     is_angle = np.array([qty == "angle" for qty, _, _ in wanted.values()])
@@ -83,28 +136,32 @@ def assemble_at_joints(solver, q: np.ndarray) -> np.ndarray:
     n_steps = min(MAX_STEPS, max(1, math.ceil(float(np.max(np.abs(target - start)
                                                            / step)))))
     q, accumulated = q_ref.copy(), start.copy()
+    keep = np.ones(plan.n_g, bool) if keep is None else keep
     for k in range(1, n_steps + 1):
         d = start + (target - start) * k / n_steps
         q, value = _newton(solver, q, q_ref if k == 1 else q_prev, accumulated, d,
-                           wanted, rates, is_angle, scale, length)
+                           wanted, rates, is_angle, scale, length, keep)
         q_prev, accumulated = q.copy(), value
     return q
 
 
-def _newton(solver, q, q_prev, accumulated, d, wanted, rates, is_angle, scale, length):
-    """(q, values) with g(q) = 0 and the joint values d, from q; ModelError if not."""
+def _newton(solver, q, q_prev, accumulated, d, wanted, rates, is_angle, scale, length,
+            keep):
+    """(q, values) with g(q) = 0 (the rows kept) and the joint values d, from q;
+    ModelError if not."""
     plan = solver.plan
     for _ in range(MAX_NEWTON):
         rel = _values(plan, q_prev, q, wanted)
         value = np.where(is_angle, accumulated + rel, rel)
-        g = solver.constraints(q)
+        g = solver.constraints(q)[keep]
         miss = (value - d) / scale
         if np.max(np.abs(g), initial=0.0) <= solver.position_tol and \
                 np.max(np.abs(miss)) <= JOINT_TOL:
             return q, value
         if not np.all(np.isfinite(g)) or np.max(np.abs(g), initial=0.0) > 10 * length:
             break
-        A = np.vstack([solver.constraint_jacobian(q), speed_rows(solver, q, rates)[0]])
+        A = np.vstack([solver.constraint_jacobian(q)[keep],
+                       speed_rows(solver, q, rates)[0]])
         q = q + np.linalg.lstsq(A, -np.concatenate([g, value - d]), rcond=None)[0]
     raise _refuse(wanted, accumulated, d,
                   "a value beyond the mechanism's reach, values that contradict each "

@@ -30,6 +30,7 @@ from ..model.types import (GROUND, Angle, Attached, BodyPoint, Distance, DriverR
                            TorsionSpring, Vector)
 from ..plan.geometry import body_rotation
 from .bodies import choose_frame, typical_body
+from .cables import lower_cables
 from .joint_loads import with_joint_uses
 
 # |nu3| (the component of a tied vector along the body's e3) from which its two-row
@@ -110,10 +111,11 @@ def _label(jl: JointLowering, what: str) -> str:
 
 def lower(model: Model) -> Model:
     """The section-2 model of ``model`` (itself when it has no mechanism level), with
-    ``model.mechanism`` the :class:`Lowering`."""
-    if not model.pose_bodies and not model.joints and not model.drivers:
-        return model
-    return _Lowerer(model).run()
+    ``model.mechanism`` the :class:`Lowering`, and its cables lowered
+    (fccgen.mechanism.cables)."""
+    if model.pose_bodies or model.joints or model.drivers:
+        model = _Lowerer(model).run()
+    return lower_cables(model)             # flexible members, on typical bodies
 
 
 def two_rows(nu, fixed: bool) -> str | None:

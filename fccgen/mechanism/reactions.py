@@ -194,7 +194,8 @@ def _spring(plan, motion, held, ld, k, add):
 
 def _torsion(plan, motion, ld, k, add):
     """Torque -T u on body B and +T u on body A, T = k phi + c phi' with phi as the
-    element computes it (docs/elements.md) and phi' = (w_B - w_A) . u."""
+    element computes it (docs/elements.md), its turns counted along the records
+    (unwrapped from the initial angle), and phi' = (w_B - w_A) . u."""
     p = _params(plan, k)
     u = motion.triple(ld.axis)[0]
     sides = ld.sides or tuple((plan.model.bodies[b].i, plan.model.bodies[b].j)
@@ -204,7 +205,8 @@ def _torsion(plan, motion, ld, k, add):
         perp.append(motion.triple(j)[0] - motion.triple(i)[0] - lam * u)
     D = np.einsum("ni,ni->n", u, np.cross(perp[0], perp[1]))
     P = np.einsum("ni,ni->n", perp[0], perp[1])
-    phi = np.arctan2(p["cos0"] * D - p["sin0"] * P, p["cos0"] * P + p["sin0"] * D)
+    turned = np.arctan2(p["cos0"] * D - p["sin0"] * P, p["cos0"] * P + p["sin0"] * D)
+    phi = np.unwrap(np.concatenate([[0.0], turned]))[1:] - p["free"]
     w = [motion.body(b).omega if _moving(plan, b) else 0.0 for b in ld.bodies]
     rate = np.einsum("ni,ni->n", w[1] - w[0] + np.zeros_like(u), u)
     torque = (p["k"] * phi + p["c"] * rate)[:, None] * u

@@ -72,9 +72,11 @@ def quantity_symbols(points, joints) -> dict:
 class EventReader(Reader):
     """Reads ``events:`` against the model's points and joints."""
 
-    def __init__(self, source: str, points, joints: list[Joint]):
+    def __init__(self, source: str, points, joints: list[Joint], drivers=()):
         super().__init__(source)
         self.joints = {j.name: j for j in joints}
+        # joint -> the driver that prescribes its motion (no lock, bounce or limit on it)
+        self.driven = {d.joint: d.name for d in drivers if d.joint in self.joints}
         self.points = points
         self.symbols_cache = None
         self.names: set[str] = set()
@@ -106,6 +108,12 @@ class EventReader(Reader):
             direction = self.choice(e["direction"], child(item, "direction"), DIRECTIONS,
                                     "direction")
         action = self.choice(e["do"], child(item, "do"), ACTIONS, "action")
+        if action == "bounce" and s.free_symbols & self.speed_symbols():
+            raise self.fail(when.line, child(item, "when"),
+                            "reads speeds, but a bounce needs an event function of "
+                            "positions and time (its gradient gives the impact's "
+                            "direction); use do: log or stop, or a function of positions",
+                            text)
         joint = self.joint(m, item, action)
         restitution = 0.0
         if "restitution" in e:
@@ -130,12 +138,22 @@ class EventReader(Reader):
                            f"applies only to lock, unlock and bounce, not to {action}")
         name = self.name_in(e["joint"], child(item, "joint"), self.joints, "joint",
                             "joints")
+        if name in self.driven:
+            raise self.fail(e["joint"].line, child(item, "joint"),
+                            f"is driven by driver {self.driven[name]!r}, which prescribes "
+                            f"its motion: a {action} cannot act on it; remove the driver "
+                            f"or the event", name)
         if self.joints[name].type not in LIMIT_TYPES:
             raise self.fail(e["joint"].line, child(item, "joint"),
                             f"names a {self.joints[name].type} joint, which has no "
                             f"angle or slide to {action}; joints with one are: "
                             f"{', '.join(LIMIT_TYPES)}", name)
         return name
+
+    def speed_symbols(self) -> set:
+        """The symbols of speeds: joint rates and speeds, point velocities."""
+        return {sym for name, sym in self.symbols.items()
+                if name.rsplit(".", 1)[-1] in ("rate", "speed", "vx", "vy", "vz")}
 
     def restitution(self, node: YNode, item: str) -> float:
         e = self.number(node, item)
@@ -153,6 +171,11 @@ class EventReader(Reader):
         for j in self.joints.values():
             if j.limits is None:
                 continue
+            if j.name in self.driven:
+                raise self.fail(j.where.line, f"joints.{j.name}.limits",
+                                f"the joint is driven by driver {self.driven[j.name]!r}, "
+                                f"which prescribes its motion: limits cannot act on it; "
+                                f"remove the driver or the limits", list(j.limits))
             q = f"{j.name}.angle" if j.type in ANGLE_TYPES else f"{j.name}.position"
             lo, hi = j.limits
             sym = self.symbols[q]

@@ -11,7 +11,7 @@ from ..run_settings import LINEAR_SOLVERS, RunSettingError, schedule
 from .fields import Reader, child, listing
 from .types import (Angle, AngularVelocity, Body, BodyPoint, Constraint, Distance, Force,
                     Initial, JointSpring, Load, Point, PointOnLine, PointOnPlane,
-                    PointRef,
+                    PointForce, PointRef,
                     SimulateDefaults, Spring, Torque, TorsionSpring, Where)
 from .yamlnodes import YMap, YNode, YScalar, YSeq
 
@@ -147,6 +147,8 @@ class ItemReader(Reader):
         return [self.load(n, f"loads[{k}]") for k, n in enumerate(seq.items)]
 
     def load(self, node: YNode, item: str) -> Load:
+        if _point_form(node):
+            return self.point_force(node, item)
         if self.joint_form(node):
             return self.joint_spring(self.typed(node, item, JOINT_LOAD_KEYS), item)
         m = self.typed(node, item, LOAD_KEYS)
@@ -171,10 +173,10 @@ class ItemReader(Reader):
                    if "damping" in e else 0.0)
         return Spring(ends, stiffness, length, damping, where)
 
-    def load_value(self, node: YNode, item: str) -> tuple[np.ndarray, str]:
+    def load_value(self, node: YNode, item: str, names=None) -> tuple[np.ndarray, str]:
         """(value, "") for three numbers; (zeros, "ex;ex;ex") when a component is
         text: expressions of the time t and the joints' quantities (restricted grammar,
-        docs/expressions.md)."""
+        docs/expressions.md); ``names``: the quantities allowed, if fewer."""
         if not (isinstance(node, YSeq) and any(
                 isinstance(n, YScalar) and isinstance(n.value, str) for n in node.items)):
             return self.vec3(node, item), ""
@@ -183,7 +185,8 @@ class ItemReader(Reader):
         from ..mechanism.expressions import parse_expression
         from .events import joint_quantities
         seq = self.sequence(node, item, 3)
-        names = ["t", *(q for j in self.joints.values() for q in joint_quantities(j))]
+        if names is None:
+            names = ["t", *(q for j in self.joints.values() for q in joint_quantities(j))]
         t = {n: sympy.Symbol(n, real=True) for n in names}
         parts = []
         for k, n in enumerate(seq.items):
@@ -219,6 +222,18 @@ class ItemReader(Reader):
                             f"every joint quantity 0: {sympy.sstr(value)}); 1/A.angle, "
                             "log(t), sin(t)/t are not", text)
 
+    def point_force(self, node: YNode, item: str) -> PointForce:
+        """``{type: force, point: P, value: [x, y, z]}``: a force on a moving point (a
+        cable node, docs/flexible.md), its components numbers or expressions of t."""
+        e = self.mapping(node, item, ("type", "point", "value"), ()).entries
+        point = self.name_in(e["point"], child(item, "point"), self.points, "point",
+                             "points")
+        if self.points[point].fixed:
+            raise self.fail(e["point"].line, child(item, "point"), "is a fixed point; a "
+                            "force on it would do nothing", point)
+        value, function = self.load_value(e["value"], child(item, "value"), ("t",))
+        return PointForce(point, value, Where(self.source, node.line), function)
+
     @staticmethod
     def joint_form(node: YNode) -> bool:
         """A torsion spring with ``joint:``, or a linear spring (always on a joint)."""
@@ -243,10 +258,8 @@ class ItemReader(Reader):
                             f"freedom of a {' or '.join(JOINT_SPRING_TYPES[kind])} joint",
                             name)
         free_key = "angle" if kind == "torsion_spring" else "length"
+        # any free angle: the spring's angle is counted over turns (docs/elements.md)
         free = self.number(e[free_key], child(item, free_key)) if free_key in e else 0.0
-        if kind == "torsion_spring" and not abs(free) < math.pi:
-            raise self.bad(e[free_key], child(item, free_key),
-                           "must be a free angle in radians within (-pi, pi)")
         stiffness = self.nonnegative(e["stiffness"], child(item, "stiffness"))
         damping = (self.nonnegative(e["damping"], child(item, "damping"))
                    if "damping" in e else 0.0)
@@ -271,9 +284,6 @@ class ItemReader(Reader):
                                 f"{self.bodies[name].u}", axis)
         stiffness = self.nonnegative(e["stiffness"], child(item, "stiffness"))
         angle = self.number(e["angle"], child(item, "angle")) if "angle" in e else 0.0
-        if not abs(angle) < math.pi:      # the spring starts within half a turn
-            raise self.bad(e["angle"], child(item, "angle"),
-                           "must be a free angle in radians within (-pi, pi)")
         damping = (self.nonnegative(e["damping"], child(item, "damping"))
                    if "damping" in e else 0.0)
         return TorsionSpring((a, b), axis, stiffness, angle, damping, where)
@@ -398,3 +408,9 @@ class ItemReader(Reader):
         if out.output_dt is not None and out.output_dt < out.dt:
             raise self.bad(e["output_dt"], "simulate.output_dt",
                            f"must be at least dt ({out.dt:g})")
+
+
+def _point_form(node: YNode) -> bool:
+    """A force given on a point (``point:``) instead of a body."""
+    return (isinstance(node, YMap) and isinstance(node.entries.get("type"), YScalar)
+            and node.entries["type"].text == "force" and "point" in node.entries)

@@ -16,6 +16,7 @@ from . import checks
 from .events import EventReader
 from .fields import IDENTIFIER, IDENTIFIER_RULE, Reader, child, listing
 from .items import ItemReader
+from .cables import CableReader
 from .drivers import DriverReader
 from .joints import MechanismReader
 from .names import reserved_model_name
@@ -31,7 +32,7 @@ MAX_NAME_LENGTH = 64          # the model name becomes a module name and a C sym
 # Keys of each kind of mapping: (required, optional).
 TOP_KEYS = (("name", "points", "bodies"),
             ("gravity", "vectors", "constraints", "loads", "initial", "simulate", "joints",
-             "drivers", "events"))
+             "drivers", "events", "cables"))
 POINT_KEYS = (("at",), ("fixed",))
 VECTOR_KEYS = (("along",), ("fixed",))
 BODY_KEYS = (("points", "vector", "mass", "inertia"), ("center",))
@@ -90,6 +91,9 @@ class _ModelReader(Reader):
             # mechanism level: points are optional (bodies may be in pose form)
             required = tuple(k for k in required if k != "points")
             optional = ("points", *optional)
+        if "cables" in root.entries:         # flexible members need no body or point
+            optional = (*(k for k in required if k != "name"), *optional)
+            required = ("name",)
         top = self.mapping(root, "", required, optional)
         e = top.entries
         self.top_keys = set(e)
@@ -99,8 +103,13 @@ class _ModelReader(Reader):
             self.read_points(e["points"])
         if "vectors" in e:
             self.read_vectors(e["vectors"])
-        self.read_bodies(e["bodies"])
+        if "bodies" in e or "cables" not in e:
+            self.read_bodies(e["bodies"], allow_none="cables" in e)
         self.check_membership()
+        cables = {}
+        if "cables" in e:                  # before the sections that name the nodes
+            cables = CableReader(self.source, self.claim, self.points, self.bodies,
+                                 self.pose_bodies, self.vectors).cables(e["cables"])
         joints = []
         if "joints" in e:
             joints = self.mechanism.joints(e["joints"], [*self.bodies, *self.pose_bodies])
@@ -113,15 +122,17 @@ class _ModelReader(Reader):
         constraints = items.constraints(e["constraints"]) if "constraints" in e else []
         loads = items.loads(e["loads"]) if "loads" in e else []
         initial = items.initial(e["initial"], joints) if "initial" in e else Initial()
-        simulate = items.simulate(e.get("simulate"), METHODS, self.values_per_output())
-        events = EventReader(self.source, self.points, joints).events(e.get("events"))
+        simulate = items.simulate(e.get("simulate"), METHODS,
+                                  self.values_per_output(cables))
+        events = EventReader(self.source, self.points, joints, drivers).events(
+            e.get("events"))
         self.check_event_method(events, simulate, e.get("simulate"))
         return Model(name=name, source=self.source, gravity=gravity, points=self.points,
                      vectors=self.vectors, bodies=self.bodies, constraints=constraints,
                      loads=loads, initial=initial, simulate=simulate,
                      where={k: self.where(line) for k, line in top.key_lines.items()},
                      pose_bodies=self.pose_bodies, joints=joints, drivers=drivers,
-                     events=events)
+                     events=events, cables=cables)
 
     def check_event_method(self, events, simulate, node) -> None:
         """Events are located by the rk4 and dopri5 methods only (the compiled run
@@ -134,13 +145,15 @@ class _ModelReader(Reader):
                         f"in a model with events (events are located by those methods "
                         f"only; this model has {len(events)})", simulate.method)
 
-    def values_per_output(self) -> int:
+    def values_per_output(self, cables=None) -> int:
         """Numbers one output row of a run records (docs/design.md §4): t, 6 per moving
         point and vector, 6 per body (an upper bound: ground bodies have none),
-        energy and constraint_error."""
+        energy and constraint_error; per cable node (a point, counted above) 6 for
+        its slope and its strain and curvature."""
         moving = sum(not x.fixed for table in (self.points, self.vectors)
                      for x in table.values())
-        return 3 + 6 * (moving + len(self.bodies))
+        nodes = sum(len(c.nodes) for c in (cables or {}).values())
+        return 3 + 6 * (moving + len(self.bodies)) + 8 * nodes
 
     # -- names ---------------------------------------------------------------------
     def model_name(self, node: YNode) -> str:
@@ -195,9 +208,9 @@ class _ModelReader(Reader):
             self.vectors[name] = Vector(name, along, fixed, self.where(line))
 
     # -- bodies ----------------------------------------------------------------------------
-    def read_bodies(self, node: YNode):
+    def read_bodies(self, node: YNode, allow_none: bool = False):
         bodies = self.mapping_any(node, "bodies")
-        if not bodies.entries:
+        if not bodies.entries and not allow_none:
             raise self.bad(bodies, "bodies", "must name at least one body")
         for name, line, value, item in self.entries(bodies, "bodies"):
             self.claim(name, "body", line, item)

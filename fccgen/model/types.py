@@ -317,6 +317,8 @@ class Model:
     drivers: list[Driver] = field(default_factory=list)
     mechanism: object = None          # fccgen.mechanism.Lowering, once lowered
     events: list = field(default_factory=list)    # fccgen.model.events.Event
+    cables: dict = field(default_factory=dict)    # name -> fccgen.model.cables.Cable
+    slopes: dict = field(default_factory=dict)    # name -> Slope (cable nodes, lowered)
 
     @property
     def moving_points(self) -> list[Point]:
@@ -325,3 +327,37 @@ class Model:
     @property
     def moving_vectors(self) -> list[Vector]:
         return [v for v in self.vectors.values() if not v.fixed]
+
+
+# -- flexible members (docs/flexible.md; fccgen.model.cables, fccgen.mechanism.cables) --
+
+@dataclass
+class Slope:
+    """The slope r' = dr/dx of a cable node: a coordinate triple that is not a unit
+    vector (|r'| = 1 + axial strain), so it has no u.u - 1 row."""
+    name: str
+    along: np.ndarray         # (3,) initial value
+    fixed: bool
+    where: Where
+
+
+@dataclass
+class SlopeNormal:
+    """d . n = 0: the slope triple ``slope`` perpendicular to the unit vector
+    ``normal`` (one row of a clamp, fccgen.mechanism.cables)."""
+    slope: str
+    normal: str
+    where: Where
+    label: str | None = None
+    type: str = "slope_normal"
+
+
+@dataclass
+class PointForce:
+    """A force on a point (a cable node or any moving point), global frame: constant
+    ``value``, or ``function`` "ex;ex;ex", its components as expressions of t."""
+    point: str
+    value: np.ndarray
+    where: Where
+    function: str = ""
+    type: str = "point_force"

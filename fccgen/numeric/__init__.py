@@ -3,7 +3,7 @@ docs/elements.md independently of the symbolic path (no SymPy). It is the cross-
 of the compiled kernels and the baseline in benchmarks."""
 from .constrained import constrained_solve
 from .elements import ElementKernels, element_kernel, element_kernels
-from . import joint_loads, mechanism_kernels  # noqa: F401  (registers drivers, loads)
+from . import cables, joint_loads, mechanism_kernels  # noqa: F401  (registers kinds)
 from .solver import INTEGRATORS, NumericSolver
 
 __all__ = ["ElementKernels", "INTEGRATORS", "NumericSolver", "constrained_solve",

@@ -15,6 +15,7 @@ import time
 import numpy as np
 
 from ..errors import SimulationError
+from .runs import locate
 
 A = [[],
      [1 / 5],
@@ -52,30 +53,45 @@ def _stages(f, y, k1, h, t=0.0):
     return k, y1
 
 
-def simulate_dopri5(solver, q, v, sched, opts, project, progress=None):
+def simulate_dopri5(solver, q, v, sched, opts, project, progress=None, ctx=None):
     """DOPRI5 from (q, v) to sched.t_end, outputs at multiples of sched.output_dt;
     sched.dt: the first step (None: automatic); progress(t) about every 0.5 s
-    of wall time. Returns (arrays, stats)."""
-    from .solver import _check_finite, _project, _Recorder
+    of wall time; ctx: a numeric.runs.RunContext (events located on the continuous
+    extension, the work integrated by the fifth-order weights, bounds). Returns
+    (arrays, stats)."""
+    from .runs import Recorder, RunContext
+    from .runs import project as _project
+    ctx = ctx or RunContext()
+    ev = ctx.events
     n, rtol, atol, t_end = len(q), opts["rtol"], opts["atol"], sched.t_end
     stats = dict(steps=0, rejected_steps=0, rhs_evaluations=0, newton_iterations=0,
                  max_newton_iterations=0)
     constraint_max = [0.0]
-
     set_time = getattr(solver, "set_time", lambda _t: None)   # models with drivers
+    accelerations = ev.accelerations if ev is not None else solver.accelerations
+    power = ctx.power or (lambda *_: 0.0)
+    stage_power: list[float] = []
 
     def f(y, t):
         stats["rhs_evaluations"] += 1
         set_time(t)
-        return np.concatenate([y[n:], solver.accelerations(y[:n], y[n:])])
+        a = accelerations(y[:n], y[n:])
+        stage_power.append(power(y[:n], y[n:], a))
+        return np.concatenate([y[n:], a])
 
     t_req = _output_times(t_end, sched.output_dt)
-    record = _Recorder(solver)
+    record = Recorder(solver, ctx.power is not None)
     record(0.0, q, v)
-    y, t, last_rejected = np.concatenate([q, v]), 0.0, False
+    y, t, last_rejected, work = np.concatenate([q, v]), 0.0, False, 0.0
+    if ev is not None:
+        ev.start(q)
+        ev.s0 = ev.watch(q, v, 0.0)
     deadline = time.monotonic() + 0.5
+    stop = None
     try:
+        stage_power.clear()
         k1 = f(y, 0.0)
+        p1 = stage_power[-1]
         h = sched.dt if sched.dt else _initial_step(f, y, k1, t_end, rtol, atol)
         j = 1
         while t < t_end:
@@ -84,6 +100,8 @@ def simulate_dopri5(solver, q, v, sched, opts, project, progress=None):
                 raise SimulationError(f"DOPRI5 step size underflow (h = {h:.3g})")
             if hasattr(solver, "_rank"):       # step start, for the rank log
                 solver._rank.t = t
+            stage_power.clear()
+            stage_power.append(p1)
             k, y1 = _stages(f, y, k1, h, t)
             d = h * sum(e * kj for e, kj in zip(E, k) if e != 0.0)
             err = np.sqrt(np.mean((d / (atol + rtol * np.maximum(abs(y), abs(y1)))) ** 2))
@@ -95,39 +113,94 @@ def simulate_dopri5(solver, q, v, sched, opts, project, progress=None):
             fac = FACMAX if err == 0.0 else min(FACMAX, max(FACMIN, SAFETY * err ** -0.2))
             fac = min(fac, 1.0) if last_rejected else fac
             rc = _dense(y, y1, k, h)
-            t_old = t
+            rw = _dense(np.array([work]), np.array([work + h * sum(
+                a * p for a, p in zip(A[6], stage_power) if a != 0.0)]),
+                [np.array([p]) for p in stage_power], h)
+            t_old, th, first = t, 1.0, -1
             t = t + h if t_end - (t + h) > 4 * UROUND * t_end else t_end
+            if ev is not None:
+                first, th = _first_event(ev, rc, h, t_old, y1[:n], y1[n:], t)
+                if first >= 0:                 # the step ends at the event
+                    t = t_old + th * h
+                    y1 = _interpolate(rc, th)
             stats["steps"] += 1
-            while j < len(t_req) and t_req[j] <= t * (1 + 4 * UROUND):
-                yo = _interpolate(rc, (t_req[j] - t_old) / h)
+            # a record at an event's time shows the state after it: the next step's
+            while j < len(t_req) and (t_req[j] < t if first >= 0 else
+                                      t_req[j] <= t * (1 + 4 * UROUND)):
+                x = (t_req[j] - t_old) / h
+                yo = _interpolate(rc, x)
                 qo, vo = yo[:n], yo[n:]
                 set_time(t_req[j])
                 if project:
-                    qo, vo = _project(solver, qo, vo, stats)
-                record(t_req[j], qo, vo)
+                    qo, vo = _project(solver, qo, vo, stats, ev)
+                record(t_req[j], qo, vo, float(_interpolate(rw, x)[0]))
                 j += 1
-            y = y1
-            _check_finite(y[:n], y[n:])
+            y, work = y1, float(_interpolate(rw, th)[0])
+            ctx.check(y[:n], y[n:])
             set_time(t)
             if project:
-                qp, vp = _project(solver, y[:n], y[n:], stats)
+                qp, vp = _project(solver, y[:n], y[n:], stats, ev)
                 y = np.concatenate([qp, vp])
-                k1 = f(y, t)
             else:
-                k1 = k[6]
                 constraint_max[0] = max(constraint_max[0],
                                         float(np.max(np.abs(solver.constraints(y[:n])),
                                                      initial=0.0)))
+            if first >= 0:
+                qe, ve, _ = ev.apply(first, y[:n], y[n:], t)
+                y = np.concatenate([qe, ve])
+                if ev.stopped:
+                    stop = t
+                    record(t, y[:n], y[n:], work)
+                    break
+            ctx.after_step(y[:n])
+            if ev is not None:
+                before = ev.s0[first] if first >= 0 else 0.0
+                ev.s0 = ev.watch(y[:n], y[n:], t)
+                if first >= 0:
+                    ev.s0[first] = ev.leaving(first, y[:n], y[n:], t, before)
+            if project or first >= 0:
+                stage_power.clear()
+                k1 = f(y, t)
+                p1 = stage_power[-1]
+            else:
+                k1, p1 = k[6], stage_power[6]
             h, last_rejected = h * fac, False
             if progress is not None and time.monotonic() >= deadline:
                 progress(t)
                 deadline = time.monotonic() + 0.5
+        while stop is None and j < len(t_req):      # an event at t_end: after it
+            record(t_req[j], y[:n], y[n:], work)
+            j += 1
     except SimulationError as exc:
         raise SimulationError(f"simulation stopped at t = {t:.10g}: {exc}") from None
     arrays = record.arrays()
     stats["max_constraint_error"] = max(float(arrays["constraint_error"].max()),
                                         constraint_max[0])
+    if stop is not None:
+        stats["stopped_at"] = stop
     return arrays, stats
+
+
+def _first_event(ev, rc, h, t0, q1, v1, t1):
+    """(the earliest watched value that crosses in the step t0 -> t1, or -1; the
+    fraction of the step where, located on the continuous extension)."""
+    n = len(q1)
+    s1 = ev.watch(q1, v1, t1)
+    k = ev.first_crossing(ev.s0, s1)
+    if k < 0:
+        return -1, 1.0
+    theta, first = 1.0, k
+
+    def value(x, j):
+        y = _interpolate(rc, x)
+        return ev.watch(y[:n], y[n:], t0 + x * h)[j]
+    for j in range(k, 2 * ev.ne):
+        if j > k and not ev.watched(j, ev.s0, s1):
+            continue
+        x = locate(ev, j, lambda x, j=j: value(x, j), s1[j], 1.0, ev.tol / h)
+        if x < theta or j == k:
+            theta, first = x, j
+    return first, theta
 
 
 def _dense(y, y1, k, h):

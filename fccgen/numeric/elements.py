@@ -289,14 +289,23 @@ class SpringKernels(ElementKernels):
         return -self.x.s["c"] * np.outer(Dn, Dn)
 
 
+def turned(s: dict, prefix: str) -> tuple[float, float]:
+    """cos and sin of the initial angle (prefix cos0, sin0) plus the angle reference
+    th (prefix cr, sr, its cosine and sine)."""
+    c0, s0, cr, sr = (s[prefix + n] for n in ("cos0", "sin0", "cr", "sr"))
+    return c0 * cr - s0 * sr, s0 * cr + c0 * sr
+
+
 class TorsionSpringKernels(ElementKernels):
     """A torsion spring-damper about the shared unit vector u of bodies A and B
     (docs/elements.md), in the variables x = (p_A, p_B, u), which are linear in q:
     p_A = r_ij,A - lA u, p_B = r_ij,B - lB u, so dx/dq = L is constant.
 
     D = u.(p_A x p_B) (a triple product) and P = p_A.p_B (a dot product) have simple
-    gradients and Hessians in x; (C, S) = (P, D) turned by the free position,
-    C = cos0 P + sin0 D, S = cos0 D - sin0 P, and phi = atan2(S, C)."""
+    gradients and Hessians in x; (C, S) = (P, D) turned back by the initial angle and
+    the angle reference th (:func:`turned`), C = c P + s D, S = c D - s P, and the
+    deflection phi = th - free + atan2(S, C), counted over turns while the solver
+    keeps th at the joint angle of the last accepted state (NumericSolver)."""
 
     @cached_property
     def x_map(self) -> np.ndarray:
@@ -324,14 +333,14 @@ class TorsionSpringKernels(ElementKernels):
         P = pa @ pb
         dP = np.concatenate([pb, pa, np.zeros(3)])
         hP = np.block([[Z, EYE, Z], [EYE, Z, Z], [Z, Z, Z]])
-        c0, s0 = s["cos0"], s["sin0"]
+        c0, s0 = turned(s, "")
         S, dS, hS = c0 * D - s0 * P, c0 * dD - s0 * dP, c0 * hD - s0 * hP
         C, dC, hC = c0 * P + s0 * D, c0 * dP + s0 * dD, c0 * hP + s0 * hD
         N = S * S + C * C
         g = (C * dS - S * dC) / N
         H = ((np.outer(dS, dC) - np.outer(dC, dS) + C * hS - S * hC) / N
              - np.outer(g, 2.0 * (S * dS + C * dC)) / N)
-        return float(np.arctan2(S, C)), g, H, x_dot
+        return float(s["th"] - s["free"] + np.arctan2(S, C)), g, H, x_dot
 
     @cached_property
     def _torque(self):

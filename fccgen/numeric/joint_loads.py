@@ -12,7 +12,8 @@ the first term being the constant-load Jacobian at the current F. dF/dz comes fr
 first-order forward differentiation of the expression's syntax tree; the gradients
 of z are written out by hand:
 
-* angle = atan2(S, C) (see fccgen.derive.joint_loads); with the vectors u, p_A, p_B,
+* angle = th + atan2(S, C) (see fccgen.derive.joint_loads; th the solver's turn
+  reference); with the vectors u, p_A, p_B,
   dD = (p_A x p_B, p_B x u, u x p_A) and dP = (0, p_B, p_A) on (u, p_A, p_B), and
   p = r_j - r_i - lam u chained to the triples. rate = (C S' - S C') / N with
   d rate/dq' = d angle/dq and d rate/dq from the gradients of S', C':
@@ -29,7 +30,7 @@ from functools import cached_property, lru_cache
 
 import numpy as np
 
-from .elements import KIND_KERNELS, ForceKernels, TorqueKernels
+from .elements import KIND_KERNELS, ForceKernels, TorqueKernels, turned
 from .kinematics import cross
 
 # -- first-order forward differentiation over several variables -----------------------
@@ -96,7 +97,8 @@ def _angle(x, prefix: str):
     pos = {n: x.pos[prefix + n] for n in ("A.ri", "A.rj", "B.ri", "B.rj", "u")}
     vel = {n: x.vel[prefix + n] for n in pos}
     s = x.s
-    la, lb, c0, s0 = (s[prefix + n] for n in ("lA", "lB", "cos0", "sin0"))
+    la, lb = s[prefix + "lA"], s[prefix + "lB"]
+    c0, s0 = turned(s, prefix)
     u, du = pos["u"], vel["u"]
     pa, pb = pos["A.rj"] - pos["A.ri"] - la * u, pos["B.rj"] - pos["B.ri"] - lb * u
     va, vb = vel["A.rj"] - vel["A.ri"] - la * du, vel["B.rj"] - vel["B.ri"] - lb * du
@@ -124,7 +126,7 @@ def _angle(x, prefix: str):
     g_angle = (C * dS - S * dC) / N
     g_rate = ((dC * Sd + C * dSd - dS * Cd - S * dCd) / N
               - rate * 2.0 * (S * dS + C * dC) / N)
-    return math.atan2(S, C), rate, g_angle, g_rate
+    return s[prefix + "th"] + math.atan2(S, C), rate, g_angle, g_rate
 
 
 def _position(x, prefix: str):

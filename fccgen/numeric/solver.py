@@ -7,13 +7,12 @@ slots (``Element.q_index()``); constraint rows follow the elements' order.
 """
 from __future__ import annotations
 
-import time
-
 import numpy as np
 
 from .. import methods as registry
 from .. import rank as rank_rule
 from ..diagnose import explained
+from ..mechanism.driver_branch import check_driver_branches
 from ..mechanism.driver_forces import add_driver_columns, driver_rows
 from ..mechanism.initial_positions import assemble_at_joints
 from ..mechanism.initial_speeds import initial_speeds
@@ -22,10 +21,15 @@ from ..run_settings import linear_solver_choice, solver_tolerances
 from ..errors import SimulationError
 from ..progress import run_reporter
 from ..plan import Plan
-from ..results import InitialState, Result, keep_rows, timed_run
+from ..results import InitialState, Result, timed_run
 from .constrained import RankKeeper, constrained_solve, scaled_residual
+from ..runtime.energy_check import check_energy, kinetic_peak
+from ..runtime.guards import check_constraint_drift, divergence_bounds
 from .dopri5 import simulate_dopri5
+from .runs import RunContext, simulate_baumgarte, simulate_rk4, simulate_scipy
+from .work import work_power
 from .elements import element_kernels
+from .references import AngleReferences
 from . import sparse_projection
 
 
@@ -58,6 +62,14 @@ class NumericSolver:
                             for k, el in enumerate(plan.elements)
                             if "t" in el.cls.param_names]
         self.t = 0.0
+        # turn counting of springs and loads of joint angles (numeric/references.py)
+        self.references = AngleReferences(plan, self._params, self._index)
+
+    def rebase_angles(self, q) -> None:
+        """Move the elements' angle references to their angles at q (after every
+        accepted step of a run; numeric/references.py)."""
+        if self.references:
+            self.references.rebase(q)
 
     def set_time(self, t) -> None:
         """Evaluate the kernels at the time t from now on (models with drivers)."""
@@ -264,13 +276,15 @@ class NumericSolver:
 
     def simulate(self, t_end=None, dt=None, method=None, output_dt=None, project=True,
                  q0=None, v0=None, progress=None, rtol=None, atol=None,
-                 reactions=True, error=None, error_on=None, **method_options) -> Result:
+                 reactions=True, event_tol=1e-12, rest_speed=1e-6, error=None,
+                 error_on=None, **method_options) -> Result:
         """Integrate from (q0, v0), used as given; when q0 is None the consistent
         initial state is used, and when only v0 is None plan.v_target is projected at
         q0. The arguments mean what they mean for
         :meth:`fccgen.runtime.CompiledSolver.simulate`; defaults of t_end, dt, method
         and output_dt come from the model file; error, error_on: an error target
-        (fccgen.target_error)."""
+        (fccgen.target_error). Events (numeric/events.py) are located by rk4 and dopri5
+        with projection, as in the compiled runtime."""
         if error is not None:
             from ..target_error import simulate_to_error
             return simulate_to_error(self, error, error_on, t_end=t_end, output_dt=output_dt,
@@ -292,20 +306,65 @@ class NumericSolver:
         project = bool(project) and m.projects
         decision = self.decide_rank(q0)
         report = run_reporter(progress, sched.t_end)
+        ctx, untracked = self._context(m, sched, project, q0, v0, event_tol, rest_speed)
+        kept = {}
+
+        def run():
+            arrays, stats = INTEGRATORS[m.name](self, np.array(q0, float),
+                                                np.array(v0, float), sched, opts,
+                                                project, report, ctx=ctx)
+            kept["work"] = arrays.pop("work", None) if ctx.power is not None else None
+            return arrays, stats
+        self.references.start()
         try:
-            result = timed_run(self.plan, m, sched, opts, project,
-                               lambda: INTEGRATORS[m.name](
-                                   self, np.array(q0, float), np.array(v0, float), sched,
-                                   opts, project, report),
+            result = timed_run(self.plan, m, sched, opts, project, run,
                                settings=self.settings())
         except SimulationError as exc:
             raise explained(exc, self, q0) from None
+        finally:
+            turn = self.references.largest_turn
+            self.references.restore()          # direct kernel calls: as planned
+        numeric_turn_check(result, turn)
         if report is not None:
             report.finish(result.t[-1])          # the run's end: 100%
+        if ctx.events is not None:
+            finish_events(result, ctx.events)
         add_driver_columns(self, result)
+        check_driver_branches(self.plan, result)
         rank_rule.report_run(result, decision, self._rank.stats,
                              driven=bool(driver_rows(self.plan)))
+        if ctx.events is not None:
+            from ..events.table import final_dof
+            result.info["final_dof"] = final_dof(result.info, result.events)
+        check_constraint_drift(self, result, project)
+        check_energy(result, self.plan, kinetic_peak(self, result, None), kept.get("work"),
+                     untracked)
         return add_reactions(self, result) if reactions else result
+
+    def _context(self, m, sched, project, q0, v0, event_tol, rest_speed):
+        """(the numeric.runs.RunContext of a run of method m, why its work is not
+        tracked or None)."""
+        events = None
+        if self.plan.model.events:
+            if m.name not in ("rk4", "dopri5") or not project:
+                raise ValueError(f"events are located by the rk4 and dopri5 methods with "
+                                 f"projection, not by {m.name}"
+                                 + ("" if project else " without projection"))
+            from .events import NumericEvents
+            events = NumericEvents(self, event_tol, rest_speed)
+        power, untracked = work_power(self)
+        q_bound, v_bound = divergence_bounds(q0, v0, sched.t_end,
+                                             sched.dt if m.kind == "fixed" else None)
+        return RunContext(events, power, q_bound, v_bound, self.rebase_angles), untracked
+
+    def kinetic_energy(self, q, v) -> float:
+        """The kinetic energy (the elements' energy kernels' first entry)."""
+        total = 0.0
+        for _, _, _, k in self._kernels(q, v):
+            e = k.evaluate("energy")
+            if e is not None:
+                total += float(e[0])
+        return total
 
     def settings(self) -> dict:
         """The solver's tolerances, as result.info["solver"] records them."""
@@ -326,119 +385,37 @@ class NumericSolver:
         return decision
 
 
-class _Recorder:
-    """Records t, q, v, body outputs, energy and max |g| of output states."""
-
-    def __init__(self, solver: NumericSolver):
-        self.solver = solver
-        self.rows: dict[str, list] = {k: [] for k in ("t", "q", "v", "body", "energy",
-                                                      "constraint_error")}
-
-    def __call__(self, t, q, v):
-        s, out = self.solver, self.rows
-        out["t"].append(t)
-        out["q"].append(np.array(q))
-        out["v"].append(np.array(v))
-        out["body"].append(s.body_outputs(q, v))
-        out["energy"].append(s.energy(q, v))
-        out["constraint_error"].append(_amax(s.constraints(q)))
-
-    def arrays(self) -> dict[str, np.ndarray]:
-        a = {k: np.array(v, float) for k, v in self.rows.items()}
-        a["body"] = a["body"].reshape(len(a["t"]), len(self.solver.plan.bodies), 6)
-        return a
-
-
-def _rk4_step(accelerations, q, v, h, t=0.0, set_time=None):
-    """One classical Runge-Kutta step of q' = v, v' = accelerations(q, v) from t;
-    set_time(t) (if given) before each stage, leaving it at t + h."""
-    set_time = set_time or (lambda _t: None)
-    set_time(t)
-    a1 = accelerations(q, v)
-    v2 = v + 0.5 * h * a1
-    set_time(t + 0.5 * h)
-    a2 = accelerations(q + 0.5 * h * v, v2)
-    v3 = v + 0.5 * h * a2
-    a3 = accelerations(q + 0.5 * h * v2, v3)
-    v4 = v + h * a3
-    set_time(t + h)
-    a4 = accelerations(q + h * v3, v4)
-    return (q + h / 6.0 * (v + 2.0 * v2 + 2.0 * v3 + v4),
-            v + h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4))
-
-
-def _project(solver: NumericSolver, q, v, stats: dict):
-    """Position then velocity projection; counts the Newton iterations in stats."""
-    q, iterations = solver.project_positions(q)
-    stats["newton_iterations"] += iterations
-    stats["max_newton_iterations"] = max(stats["max_newton_iterations"], iterations)
-    return q, solver.project_velocities(q, v)
-
-
-def _check_finite(q, v):
-    if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
-        raise SimulationError("the state is not finite (the solution diverged)")
-
-
-def simulate_rk4(solver: NumericSolver, q, v, sched, opts, project, progress=None,
-                 accelerations=None):
-    """Fixed-step RK4, the last step shortened to land on t_end; after each step the
-    positions and then the speeds are projected onto the constraints (if ``project``).
-    progress(t) about every 0.5 s of wall time. Returns (arrays, stats)."""
-    accelerations = accelerations or solver.accelerations
-    n_steps, every, dt, t_end = sched.n_steps, sched.every, sched.dt, sched.t_end
-    record = _Recorder(solver)
-    record(0.0, q, v)
-    deadline = time.monotonic() + 0.5
-    stats = dict(steps=n_steps, rhs_evaluations=4 * n_steps, rejected_steps=0,
-                 newton_iterations=0, max_newton_iterations=0)
-    for k in range(1, n_steps + 1):
-        t = k * dt if k < n_steps else t_end
-        solver._rank.t = (k - 1) * dt          # step start, as the compiled loop logs it
-        try:
-            q, v = _rk4_step(accelerations, q, v, dt if k < n_steps else t_end - (k - 1) * dt,
-                             (k - 1) * dt, getattr(solver, "set_time", None))
-            _check_finite(q, v)
-            solver._rank.t = t                 # the projected state is at the step's end
-            if project:
-                q, v = _project(solver, q, v, stats)
-        except SimulationError as exc:
-            stopped = SimulationError(f"simulation stopped at t = {t:.10g} (step {k}): "
-                                      f"{exc}")
-            rows = record.arrays()
-            keep_rows(stopped, rows, len(rows["t"]),
-                      dict(stats, steps=k - 1, max_constraint_error=float(
-                          rows["constraint_error"].max())))
-            raise stopped from None
-        if k % every == 0 or k == n_steps:
-            record(t, q, v)
-        if progress is not None and time.monotonic() >= deadline:
-            progress(t)
-            deadline = time.monotonic() + 0.5
-    arrays = record.arrays()
-    stats["max_constraint_error"] = float(arrays["constraint_error"].max())
-    return arrays, stats
-
-
-def simulate_baumgarte(solver: NumericSolver, q, v, sched, opts, project, progress=None):
-    """RK4 on the Baumgarte-stabilised index-1 equations, without projection."""
-    alpha, beta = opts["alpha"], opts["beta"]
-    return simulate_rk4(solver, q, v, sched, opts, False, progress,
-                        lambda q, v: solver.baumgarte_accelerations(q, v, alpha, beta))
-
-
-def simulate_scipy(method: str):
-    """The integrator of SciPy's ``method`` on the numeric right-hand side."""
-    def run(solver, q, v, sched, opts, project, progress=None):
-        from ..runtime import scipy_ivp           # pure Python; SciPy loaded on use
-        return scipy_ivp.run(solver, method, sched, opts, q, v, progress)
-    return run
-
-
 INTEGRATORS = {"rk4": simulate_rk4, "dopri5": simulate_dopri5,
                "baumgarte": simulate_baumgarte,
                **{f"scipy-{m}": simulate_scipy(m)
                   for m in ("RK45", "DOP853", "Radau", "BDF", "LSODA")}}
+
+
+def finish_events(result, events) -> None:
+    """The event table of a run with events (as the compiled runtime's), its switch
+    warnings and the energy drift with the impacts' losses added back."""
+    from ..events.table import energy_balance, event_rows, report_switches
+    from .events import ACTIONS, NOTES
+    log = events.table()
+    result.events = event_rows(events.names, ACTIONS, log)
+    result.info["events"] = result.events
+    report_switches(result, log, NOTES)
+    result.info["energy_drift"], result.info["event_energy_loss"] = energy_balance(
+        result.t, result["energy"], result.events)
+
+
+def numeric_turn_check(result, turn: tuple[float, str]) -> None:
+    """Warn when an element's angle moved more than a quarter turn between two
+    re-basings (the compiled runtime's turn_check, on the NumPy references)."""
+    import warnings
+
+    from ..errors import RunWarning
+    if turn[0] > 0.5 * np.pi:
+        text = (f"the angle of {turn[1]} turned {turn[0]:.3g} rad within one step: angles "
+                f"are counted over turns from step to step and need less than half a turn "
+                f"per step; rerun with a smaller dt (or tighter rtol) and compare")
+        result.info.setdefault("warnings", []).append(text)
+        warnings.warn(text, RunWarning, stacklevel=3)
 
 
 def _amax(x) -> float:
@@ -447,7 +424,8 @@ def _amax(x) -> float:
 
 
 def _length_scale(plan: Plan) -> float:
-    """The largest body length l of the plan, 1 if it has no body."""
+    """The largest body length l (or cable length) of the plan, 1 if it has none."""
     lengths = [el.params[el.cls.scalar_names.index("l")]
                for el in plan.elements if el.cls.kind == "body"]
+    lengths += [c.length for c in plan.model.cables.values()]
     return float(max(lengths)) if lengths else 1.0

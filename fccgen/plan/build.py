@@ -8,9 +8,11 @@ import numpy as np
 
 from ..errors import ModelError
 from ..model.types import (Angle, Attached, BodyPoint, Distance, DriverRow, Force,
-                           LinearSpring, Model,
+                           LinearSpring, Model, PointForce, SlopeNormal,
                            PointOnLine, PointOnPlane, PointRef, Spring, Torque,
                            TorsionSpring, Where)
+from .cables import (cable_columns, cable_elements, point_force_element,
+                     slope_normal_element)
 from .classes import END_FOLDABLE, FOLDABLE, ElementClass
 from .geometry import body_frame_numbers, body_rotation, point_coefficients
 from .joint_loads import joint_load_element
@@ -33,7 +35,8 @@ class Element:
 @dataclass
 class Plan:
     model: Model
-    triples: list[tuple[str, str]]          # moving triples: (name, "point"|"vector")
+    triples: list[tuple[str, str]]          # moving triples: (name, "point"|"vector"|
+                                            # "slope", a cable node's, not unit)
     index: dict[str, int]                   # triple name -> triple index
     elements: list[Element]
     classes: list[ElementClass]             # distinct classes, first-appearance order
@@ -73,9 +76,13 @@ class Plan:
         for name, _ in self.bodies:
             cols += [f"{name}.{c}" for c in ("cx", "cy", "cz", "wx", "wy", "wz")]
         cols += ["energy", "constraint_error"]
+        mechanism = []
         if self.model.mechanism is not None:          # joints (fccgen.mechanism)
-            cols += self.model.mechanism.columns()
-        return cols
+            mechanism = self.model.mechanism.columns()
+        # the members' strain and curvature come before the reactions, which a run
+        # adds last (fccgen.mechanism.reactions): 6 per joint, at the end
+        end = len(mechanism) - 6 * len(getattr(self.model.mechanism, "joints", ()))
+        return cols + mechanism[:end] + cable_columns(self.model) + mechanism[end:]
 
 
 class _Builder:
@@ -91,6 +98,10 @@ class _Builder:
             if not v.fixed:
                 self.index[v.name] = len(self.triples)
                 self.triples.append((v.name, "vector"))
+        for d in model.slopes.values():              # cable nodes' slopes (not unit)
+            if not d.fixed:
+                self.index[d.name] = len(self.triples)
+                self.triples.append((d.name, "slope"))
         self.frames = {b.name: body_frame_numbers(model.points[b.i].at, model.points[b.j].at,
                                                   model.vectors[b.u].along)
                        for b in model.bodies.values()}
@@ -98,6 +109,8 @@ class _Builder:
     # -- triples -----------------------------------------------------------------
     def value(self, name: str) -> np.ndarray:
         m = self.model
+        if name in m.slopes:
+            return m.slopes[name].along
         return m.points[name].at if name in m.points else m.vectors[name].along
 
     def triple(self, name: str):
@@ -229,6 +242,8 @@ def make_plan(model: Model) -> Plan:
             continue
         bodies.append((body.name, len(elements)))
         elements.append(el)
+    for cable in model.cables.values():            # flexible members (plan/cables.py)
+        elements += cable_elements(b, cable)
     # an attached vector is a unit vector through its body's frame: no u.u - 1 row
     attached = {c.target for c in model.constraints
                 if isinstance(c, Attached) and c.kind == "vector"}
@@ -247,6 +262,8 @@ def make_plan(model: Model) -> Plan:
         elif isinstance(c, Distance):
             el = b.with_ends("distance", label, c.where, {"L": float(c.length)},
                              c.points, ("A", "B"))
+        elif isinstance(c, SlopeNormal):
+            el = slope_normal_element(b, c, label)
         else:  # pragma: no cover - the loader admits no other type
             raise TypeError(type(c))
         _require_moving(el, model, f"this {c.type} constraint")
@@ -285,6 +302,8 @@ def make_plan(model: Model) -> Plan:
                               "c": float(ld.damping)}, ld.ends, ("A", "B"))
         elif isinstance(ld, TorsionSpring):
             el = _torsion_spring(b, ld, label)
+        elif isinstance(ld, PointForce):
+            el = point_force_element(b, ld, label)
         elif isinstance(ld, LinearSpring):
             el = b.element("linear_spring", label, ld.where,
                            {"k": float(ld.stiffness), "L": float(ld.free),
@@ -314,8 +333,11 @@ def _torsion_spring(b: _Builder, ld: TorsionSpring, label: str) -> Element:
     """The torsion spring element (docs/elements.md). With p = r_ij - (l beta) u, the
     reference direction of a body perpendicular to the axis u, the angle of body B
     relative to body A is atan2(u.(p_A x p_B), p_A.p_B); it is theta_init at the
-    initial positions, and the free position is theta_init + angle, whose cosine and
-    sine are the parameters cos0, sin0."""
+    initial positions (cos0, sin0 its cosine and sine). The free position is
+    theta_init + angle (free = angle, from the initial configuration). The reference
+    th, cr, sr is the free angle outside runs, so that a kernel called alone measures
+    the deflection within half a turn of the free angle; a run moves it from the
+    start's angle on (turn counting)."""
     m = b.model
     sides = ld.sides or tuple((m.bodies[n].i, m.bodies[n].j) for n in ld.bodies)
     u = np.asarray(m.vectors[ld.axis].along, float)
@@ -325,9 +347,11 @@ def _torsion_spring(b: _Builder, ld: TorsionSpring, label: str) -> Element:
         lam.append(float(rij @ u))                   # l beta
         ref.append(rij - lam[-1] * u)
     theta_init = float(np.arctan2(u @ np.cross(ref[0], ref[1]), ref[0] @ ref[1]))
-    free = theta_init + ld.angle
     scalars = {"k": float(ld.stiffness), "c": float(ld.damping), "lA": lam[0],
-               "lB": lam[1], "cos0": float(np.cos(free)), "sin0": float(np.sin(free))}
+               "lB": lam[1], "cos0": float(np.cos(theta_init)),
+               "sin0": float(np.sin(theta_init)), "free": float(ld.angle),
+               "th": float(ld.angle), "cr": float(np.cos(ld.angle)),
+               "sr": float(np.sin(ld.angle))}
     (a_i, a_j), (b_i, b_j) = sides
     triples = [("A.ri", a_i), ("A.rj", a_j), ("B.ri", b_i), ("B.rj", b_j), ("u", ld.axis)]
     return b.element("torsion_spring", label, ld.where, scalars, triples)

@@ -24,6 +24,8 @@ import json
 from dataclasses import dataclass
 from functools import cached_property
 
+from .cable_kinds import CABLE_KINDS, TIMED_POINT_KINDS
+
 # Scalars of a point end that sits on a body ("body point"): the body's frame numbers
 # and the point's coefficients b1..b3 (r = r_i + b1 r_ij + b2 u + b3 (r_ij x u)/(alpha l)).
 BODY_POINT_SCALARS = ("l", "alpha", "beta", "b1", "b2", "b3")
@@ -32,10 +34,17 @@ BODY_TRIPLES = ("ri", "rj", "u")
 # A torsion spring between bodies A and B about their shared unit vector u
 # (docs/elements.md): the points i, j of both bodies and u. Scalars: stiffness k,
 # damping c, lA = l_A beta_A and lB = l_B beta_B (the reference directions
-# p = r_ij - (l beta) u, perpendicular to u), and cos/sin of the free angle
-# measured from p_A to p_B (cos0, sin0).
+# p = r_ij - (l beta) u, perpendicular to u), cos/sin of the initial angle from p_A to
+# p_B (cos0, sin0), the free angle measured from the initial configuration (free), and
+# the turn-counting reference the runtime writes (REFERENCE_SCALARS).
 TORSION_SPRING_TRIPLES = ("A.ri", "A.rj", "B.ri", "B.rj", "u")
-TORSION_SPRING_SCALARS = ("k", "c", "lA", "lB", "cos0", "sin0")
+# The angle reference theta_r and its cosine and sine: the joint angle (from the
+# initial configuration) at the last accepted state, written by the runtime as it
+# re-bases the event kernels' angle references (fccgen.events.references), so that an
+# angle theta_r + atan2(...) counts turns. Outside a run: a torsion spring's free
+# angle, a load's 0 (the start). Never folded.
+REFERENCE_SCALARS = ("th", "cr", "sr")
+TORSION_SPRING_SCALARS = ("k", "c", "lA", "lB", "cos0", "sin0", "free", *REFERENCE_SCALARS)
 
 # Per kind: own scalars, names of point ends, own triples.
 KIND_SCALARS = {
@@ -71,7 +80,7 @@ FOLDABLE = {
     "force": {"beta", "b1", "b2", "b3", "Fx", "Fy", "Fz"},
     "torque": {"beta", "Tx", "Ty", "Tz"},
     "spring": {"L0", "c"},
-    "torsion_spring": {"c", "lA", "lB", "cos0", "sin0"},
+    "torsion_spring": {"c", "lA", "lB", "cos0", "sin0", "free"},
 }
 END_FOLDABLE = {"beta", "b1", "b2", "b3"}
 
@@ -129,12 +138,17 @@ MECHANISM_KINDS["linear_spring"] = (("k", "L", "c"), (), ("u", "ra", "rb"), {"L"
 JOINT_LOAD_KINDS = {"force_q": "force_t", "torque_q": "torque_t"}
 for _kind, _base in JOINT_LOAD_KINDS.items():
     MECHANISM_KINDS[_kind] = MECHANISM_KINDS[_base]
-# angle: the two sides' points i, j and the axis u, with lA, lB, cos0, sin0 as the
-# torsion spring's (free angle: the initial one); position: u.(r_b - r_a) - s0.
+# angle: the two sides' points i, j and the axis u, with lA, lB, cos0, sin0 and the
+# reference th, cr, sr as the torsion spring's; position: u.(r_b - r_a) - s0.
 JOINT_FAMILIES = {
-    "angle": (("lA", "lB", "cos0", "sin0"), ("A.ri", "A.rj", "B.ri", "B.rj", "u")),
+    "angle": (("lA", "lB", "cos0", "sin0", *REFERENCE_SCALARS),
+              ("A.ri", "A.rj", "B.ri", "B.rj", "u")),
     "position": (("s0",), ("u", "ra", "rb")),
 }
+# Flexible members (fccgen/plan/cable_kinds.py): cable elements, clamp rows, point forces.
+TIMED_LOAD_KINDS.update(TIMED_POINT_KINDS)
+MECHANISM_KINDS.update(CABLE_KINDS)
+MECHANISM_KINDS.update(TIMED_POINT_KINDS)
 FUNCTION_KINDS = (*DRIVER_KINDS, *TIMED_LOAD_KINDS, *JOINT_LOAD_KINDS)
 for _kind, (_scalars, _ends, _triples, _foldable, _rows) in MECHANISM_KINDS.items():
     KIND_SCALARS[_kind] = _scalars

@@ -8,7 +8,9 @@ the initial configuration:
 * angle: with p = r_ij - lam u (lam = r_ij . u, so p is perpendicular to the axis u)
   on both sides, theta_init = atan2(u.(p_A x p_B), p_A.p_B); cos0, sin0 = cos, sin
   theta_init, so that the angle atan2(S, C) with S = cos0 D - sin0 P,
-  C = cos0 P + sin0 D (D = u.(p_A x p_B), P = p_A.p_B) is theta - theta_init;
+  C = cos0 P + sin0 D (D = u.(p_A x p_B), P = p_A.p_B) is theta - theta_init; the
+  reference th, cr, sr (0, 1, 0; the runtime moves it) counts turns, as the torsion
+  spring's;
 * position: s0 = u.(r_b - r_a) at the start.
 """
 from __future__ import annotations
@@ -40,7 +42,8 @@ def joint_scalars(model, use) -> dict[str, float]:
         ref.append(rij - lam[-1] * u)
     theta = float(np.arctan2(u @ np.cross(ref[0], ref[1]), ref[0] @ ref[1]))
     return {prefix + "lA": lam[0], prefix + "lB": lam[1],
-            prefix + "cos0": float(np.cos(theta)), prefix + "sin0": float(np.sin(theta))}
+            prefix + "cos0": float(np.cos(theta)), prefix + "sin0": float(np.sin(theta)),
+            prefix + "th": 0.0, prefix + "cr": 1.0, prefix + "sr": 0.0}
 
 
 ROLES = {"angle": ("A.ri", "A.rj", "B.ri", "B.rj", "u"), "position": ("u", "ra", "rb")}

@@ -27,9 +27,11 @@ class KernelSpec:
 
 
 _LOADED = ("body", "force", "torque", "spring", "torsion_spring", "force_t",
-           "torque_t", "linear_spring", "force_q", "torque_q")        # applied forces
+           "torque_t", "linear_spring", "force_q", "torque_q",       # applied forces
+           "cable", "point_force", "point_force_t")
 _DAMPED = ("spring", "torsion_spring", "linear_spring",   # forces that read speeds
-           "force_q", "torque_q")
+           "force_q", "torque_q", "cable")
+_MASSIVE = ("body", "cable")                               # kinds with a mass matrix
 
 
 def _body_only(n: int):
@@ -38,8 +40,8 @@ def _body_only(n: int):
 
 KERNELS: tuple[KernelSpec, ...] = (
     KernelSpec("mass_matrix", False,
-               lambda c: c.n_q * c.n_q if c.kind == "body" else 0,
-               "M = m Dhat^T Dhat + Phi_b^T I_b Phi_b"),
+               lambda c: c.n_q * c.n_q if c.kind in _MASSIVE else 0,
+               "M = m Dhat^T Dhat + Phi_b^T I_b Phi_b (cable: rhoA int S^T S dx)"),
     KernelSpec("h_vector", True, lambda c: c.n_q if c.kind == "body" else 0,
                "h = m Dhat^T (2c r_ij' x u') + Phi_b^T (I_b c_w + w_b x I_b w_b)"),
     KernelSpec("applied_forces", True,
@@ -51,7 +53,7 @@ KERNELS: tuple[KernelSpec, ...] = (
                "g'' - B q'' = q'^T (d2g/dq2) q' (+ 2 (d2g/dq dt) q' + d2g/dt2)"),
     KernelSpec("energy", True,
                lambda c: 2 if c.kind in ("body", "force", "spring", "torsion_spring",
-                                         "linear_spring") else 0,
+                                         "linear_spring", "cable", "point_force") else 0,
                "[kinetic, potential]"),
     KernelSpec("body_outputs", True, _body_only(6), "[r_G, w] (global frame)"),
     # f of a spring-damper depends on q' only linearly, so df/dq' needs no speeds;

@@ -355,6 +355,9 @@ cdef extern from "fcc_events.h":
         int stop
         long n_log
         double *log
+        int nm
+        double max_turn
+        int max_turn_j
 
     ctypedef struct fcc_bracket:
         double a, b
@@ -372,6 +375,9 @@ cdef extern from "fcc_events.h":
     void fcc_events_free(fcc_events *ev) nogil
     int fcc_events_rank_work(fcc_events *ev, const fcc_lapack *lapack, int m) nogil
     void fcc_events_reset(fcc_events *ev) nogil
+    int fcc_events_mirror(fcc_events *ev, fcc_assembly *a, int n, const int *slots,
+                          const int *angles) nogil
+    void fcc_events_restore(fcc_events *ev) nogil
     void fcc_ev_bracket(fcc_events *ev, int k, fcc_bracket *br, double b) noexcept nogil
     int fcc_ev_bracket_open(fcc_events *ev, fcc_bracket *br, double scale) noexcept nogil
     double fcc_ev_bracket_trial(fcc_bracket *br) noexcept nogil
@@ -383,6 +389,8 @@ cdef extern from "fcc_events.h":
     int fcc_ev_watch(fcc_engine *e, fcc_events *ev, const double *q, const double *v,
                      double t, double *out) noexcept nogil
     int fcc_ev_crossed(fcc_events *ev, const double *a, const double *b) noexcept nogil
+    int fcc_ev_watched(fcc_events *ev, int k, const double *a,
+                       const double *b) noexcept nogil
     int fcc_ev_crosses(fcc_events *ev, int k, double a, double b) noexcept nogil
     int fcc_ev_constrain(fcc_engine *e, fcc_events *ev, const double *q,
                          const double *v, double t, double *a) noexcept nogil
@@ -391,6 +399,19 @@ cdef extern from "fcc_events.h":
                      double t) noexcept nogil
     double fcc_ev_leaving(fcc_events *ev, int k, const double *q, const double *v,
                           double t) noexcept nogil
+
+
+cdef extern from "fcc_power.h":
+    ctypedef struct fcc_power:
+        fcc_assembly *nc
+        int n_params, n_zero, constraints, n
+
+    int fcc_power_init(fcc_power *w, fcc_assembly *nc, int n, const int *src,
+                       int n_zero, const int *zero, int constraints) nogil
+    void fcc_power_free(fcc_power *w) nogil
+    int fcc_power_fits(const fcc_power *w, const fcc_engine *e) nogil
+    double fcc_stage_power(fcc_engine *e, fcc_power *w, const double *q,
+                           const double *v, const double *a) noexcept nogil
 
 
 cdef extern from "fcc_run.h":
@@ -421,6 +442,9 @@ cdef extern from "fcc_rk4.h":
         double max_cerr
         int stopped
         double t_stop
+        fcc_power *pw
+        double *w_out
+        double w
 
     int fcc_rk4_start(fcc_rk4 *r, fcc_engine *e, const double *q0,
                       const double *v0) noexcept nogil
@@ -445,6 +469,10 @@ cdef extern from "fcc_dopri5.h":
         long n_out
         int stopped
         double t_stop
+        fcc_power *pw
+        double *w_out
+        double w
+        double q_bound, v_bound
 
     int fcc_dopri5_start(fcc_dopri5 *r, fcc_engine *e, const double *q0,
                          const double *v0) noexcept nogil

@@ -8,6 +8,7 @@ optional progress callback, and turns the engine's error record into a
 SimulationError.
 """
 from cpython.exc cimport PyErr_CheckSignals
+from libc.string cimport memset
 
 import numpy as np
 
@@ -18,6 +19,7 @@ from ._cengine cimport (FCC_RUN_DONE, FCC_RUN_ERROR, FCC_RUN_UNDERFLOW,
                         fcc_run_finish)
 from ._engine cimport Engine
 from ._events cimport ev_state
+from ._power cimport power_state
 from ._runloop cimport array_data, now, past_deadline
 
 from ._messages import error_message
@@ -36,21 +38,26 @@ def output_times(double t_end, double output_dt):
 
 def simulate_dopri5(Engine engine, q0, v0, double t_end, double output_dt, double rtol,
                     double atol, double h0, bint project, progress=None,
-                    double progress_interval=0.5, events=None):
+                    double progress_interval=0.5, events=None, work=None):
     """DOPRI5 from (q0, v0) (used as given) to t_end; records at 0, every output_dt and
-    t_end by dense output. h0: the first step (0: Hairer's automatic choice).
+    t_end by dense output. h0: the first step (0: Hairer's automatic choice). work: a
+    _power.WorkTracker (None: none), whose work each record gets (array work).
 
     Returns (arrays, stats) like simulate_rk4, with stats steps (accepted),
     rejected_steps, rhs_evaluations, newton_iterations, projection_failures,
     max_constraint_error. Raises SimulationError on a singular mass matrix, a
-    non-finite state, or a step size below the rounding of t.
+    non-finite state or one past the divergence bound of the positions, or a step size
+    below the rounding of t.
     """
     if engine.c.running:
         raise RuntimeError("this engine is already running a simulation")
     if not (t_end > 0 and output_dt > 0 and rtol > 0 and atol > 0 and h0 >= 0):
         raise ValueError("need t_end, output_dt, rtol, atol > 0 and h0 >= 0")
-    if events is not None and not project:
+    # a set without event functions only re-bases angle references (springs)
+    if events is not None and not project and events.n_events:
         raise ValueError("events need the projected DOPRI5 (projection on)")
+    if work is not None:
+        work.fits(engine)
     cdef double[::1] qv = engine.vector(q0, "q0"), vv = engine.vector(v0, "v0")
     engine.reset_warm_start()           # a run does not depend on earlier solves
     if not (np.all(np.isfinite(qv)) and np.all(np.isfinite(vv))):
@@ -61,18 +68,24 @@ def simulate_dopri5(Engine engine, q0, v0, double t_end, double output_dt, doubl
     arrays = dict(t=t_req, q=np.zeros((n_out, n)), v=np.zeros((n_out, n)),
                   body=np.zeros((n_out, engine.asm.n_bodies, 6)), energy=np.zeros(n_out),
                   constraint_error=np.zeros(n_out))
-    work = np.zeros((WORK_ARRAYS, 2 * n))
+    work_out = np.zeros(n_out)
+    if work is not None:                # the work at the records (array "work")
+        arrays["work"] = work_out
+    stage_work = np.zeros((WORK_ARRAYS, 2 * n))
     cdef double deadline = 0.0
     cdef fcc_dopri5 r
+    memset(&r, 0, sizeof(r))
     r.project, r.rtol, r.atol, r.t_end, r.h0 = project, rtol, atol, t_end, h0
     r.n_req = n_out
     r.out.t, r.out.q, r.out.v = (array_data(t_req), array_data(arrays["q"]),
                                  array_data(arrays["v"]))
     r.out.body, r.out.energy = array_data(arrays["body"]), array_data(arrays["energy"])
     r.out.cerr = array_data(arrays["constraint_error"])
-    r.work = array_data(work)
+    r.work = array_data(stage_work)
     r.pause, r.pause_ctx = past_deadline, &deadline
     r.ev = ev_state(events)
+    r.pw = power_state(work)
+    r.w_out = array_data(work_out)
     r.n_out = r.accepted = r.rejected = r.n_rhs = r.newton_total = 0
     r.max_cerr = 0.0
     if events is not None:

@@ -8,6 +8,7 @@ cdef class EventSet:
     cdef bint live
     cdef object module
     cdef readonly object names
+    cdef object mirrored          # the Assembler whose parameters hold the copies
 
 
 cdef fcc_events *ev_state(object events) except? NULL

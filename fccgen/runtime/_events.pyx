@@ -14,10 +14,13 @@ import numpy as np
 
 from ._cengine cimport (FCC_ACT_BOUNCE, FCC_ACT_LOCK, FCC_ACT_LOG, FCC_ACT_RELEASE,
                         FCC_ACT_REST, FCC_ACT_STOP, FCC_ACT_UNLOCK, FCC_ERR_MEMORY,
-                        FCC_LOG_COLS, FCC_NOTE_REDUNDANT, FCC_NOTE_UNCERTAIN, FCC_OK,
-                        fcc_event_spec_free, fcc_event_spec_init, fcc_event_table,
-                        fcc_events_free, fcc_events_init, fcc_events_rank_work,
-                        fcc_events_reset, fcc_ev_values)
+                        FCC_ERR_ARGUMENT, FCC_LOG_COLS, FCC_NOTE_REDUNDANT,
+                        FCC_NOTE_UNCERTAIN, FCC_OK, fcc_event_spec_free,
+                        fcc_event_spec_init, fcc_event_table, fcc_events_free,
+                        fcc_events_init, fcc_events_mirror, fcc_events_rank_work,
+                        fcc_events_reset, fcc_events_restore, fcc_ev_refresh,
+                        fcc_ev_values)
+from ._assemble cimport Assembler
 from ._engine cimport Engine
 
 ACTIONS = ("stop", "log", "lock", "unlock", "bounce", "rest", "release")
@@ -82,9 +85,52 @@ cdef class EventSet:
             fcc_events_free(&self.c)
             fcc_event_spec_free(&self.spec)
 
+    def mirror(self, Assembler asm, slots, angles):
+        """Copy the angle references into ``asm``'s element parameters at every
+        re-basing and reset (fcc_events_mirror): the reference of angle ``angles[i]``
+        (its index among the angle quantities) to the parameters slots[i], slots[i] +
+        1, slots[i] + 2 (th, cr, sr; fccgen.events.references.reference_slots). Their
+        values now are kept for :meth:`restore`."""
+        if len(angles) != len(slots):
+            raise ValueError("need one angle per slot")
+        cdef int[::1] sl = _ints(slots), an = _ints(angles)
+        rc = fcc_events_mirror(&self.c, &asm.a, sl.shape[0], _ip(sl), _ip(an))
+        if rc == FCC_ERR_ARGUMENT:
+            raise ValueError(f"reference copy out of range: angles {list(angles)}, "
+                             f"slots {list(slots)}")
+        if rc != FCC_OK:
+            raise MemoryError("cannot allocate the reference copies")
+        self.mirrored = asm
+
+    def restore(self):
+        """Put back the element parameters' values from before the run (outside
+        runs a torsion spring's reference is its free angle)."""
+        fcc_events_restore(&self.c)
+
+    def refresh(self, q):
+        """Move the angle references (and their copies) to the angles at q: for loops
+        that step in Python (fccgen.runtime.scipy_ivp), after each accepted step."""
+        qa = np.ascontiguousarray(q, float)
+        cdef double[::1] qv = qa
+        if qa.shape[0] != self.spec.n:
+            raise ValueError(f"q must hold {self.spec.n} numbers")
+        if self.spec.n:
+            fcc_ev_refresh(&self.c, &qv[0])
+
+    @property
+    def largest_turn(self):
+        """(|angle - theta_r| at the largest re-basing of the last run, the index of
+        its angle among the angle quantities; -1 before any)."""
+        return self.c.max_turn, self.c.max_turn_j
+
+    @property
+    def n_events(self):
+        return self.spec.ne
+
     def reset(self, q, Engine engine=None):
         """Start a run at q: angle references 0 (the start's angles are 0 by
-        definition), no rows active or resting, an empty log. ``engine``: the run's
+        definition) and their copies in the element parameters, no rows active or
+        resting, an empty log. ``engine``: the run's
         engine, for the rank decision at switches (fcc_ev_decide; None: every active
         row is used)."""
         fcc_events_reset(&self.c)

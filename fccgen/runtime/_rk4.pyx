@@ -8,6 +8,7 @@ optional progress callback, and turns the engine's error record into a
 SimulationError.
 """
 from cpython.exc cimport PyErr_CheckSignals
+from libc.string cimport memset
 
 import numpy as np
 
@@ -17,6 +18,7 @@ from ._cengine cimport (FCC_RUN_DONE, FCC_RUN_ERROR, fcc_rk4, fcc_rk4_advance,
                         fcc_rk4_record, fcc_rk4_start, fcc_run_finish)
 from ._engine cimport Engine
 from ._events cimport ev_state
+from ._power cimport power_state
 from ._runloop cimport array_data, now, past_deadline
 
 from ._messages import error_message
@@ -25,37 +27,39 @@ from fccgen.results import keep_rows
 
 def simulate_rk4(Engine engine, q0, v0, double t_end, double dt, long n_steps,
                  long output_every, bint project, progress=None,
-                 double progress_interval=0.5, events=None):
+                 double progress_interval=0.5, events=None, work=None):
     """Classical RK4 from (q0, v0) (used as given) over n_steps steps of dt, the last
     one shortened to end at t_end; after each step, if project, position then velocity
     projection. Records t = 0, every output_every steps and t_end.
 
     progress(t) is called when the run pauses, at most every progress_interval seconds
-    of wall time. Returns (arrays, stats): fresh arrays t, q, v, body, energy,
-    constraint_error; stats steps, rhs_evaluations, newton_iterations (total),
-    max_newton_iterations, projection_failures, max_constraint_error. Raises
-    SimulationError (with the time and what failed) on a singular mass matrix or a
-    non-finite state.
+    of wall time. work: a _power.WorkTracker (None: no work to track). Returns
+    (arrays, stats): fresh arrays t, q, v, body, energy, constraint_error (and with a
+    tracker work, of the forces without potential); stats steps, rhs_evaluations,
+    newton_iterations (total), max_newton_iterations, projection_failures,
+    max_constraint_error. Raises SimulationError (with the time and what failed) on a
+    singular mass matrix, a non-finite state or one past the divergence bounds.
     """
     return _simulate(engine, q0, v0, t_end, dt, n_steps, output_every, project, False,
-                     0.0, 0.0, progress, progress_interval, events)
+                     0.0, 0.0, progress, progress_interval, events, work)
 
 
 def simulate_baumgarte(Engine engine, q0, v0, double t_end, double dt, long n_steps,
                        long output_every, double alpha, double beta, progress=None,
-                       double progress_interval=0.5):
+                       double progress_interval=0.5, events=None, work=None):
     """RK4 on the index-1 equations with Baumgarte stabilisation,
     B q'' = -(dB/dt) q' - 2 alpha B q' - beta^2 g, without projection; otherwise as
-    :func:`simulate_rk4` (same arguments, records and stats)."""
+    :func:`simulate_rk4` (same arguments, records and stats; events: a set without
+    event functions, whose angle references it re-bases after every step)."""
     if not (alpha >= 0 and beta >= 0):
         raise ValueError("Baumgarte alpha and beta must be non-negative")
     return _simulate(engine, q0, v0, t_end, dt, n_steps, output_every, False, True,
-                     alpha, beta, progress, progress_interval)
+                     alpha, beta, progress, progress_interval, events, work)
 
 
 def _simulate(Engine engine, q0, v0, double t_end, double dt, long n_steps,
               long output_every, bint project, bint baumgarte, double alpha, double beta,
-              progress, double progress_interval, events=None):
+              progress, double progress_interval, events=None, work=None):
     """The shared driver of simulate_rk4 and simulate_baumgarte."""
     if engine.c.running:
         raise RuntimeError("this engine is already running a simulation")
@@ -63,8 +67,11 @@ def _simulate(Engine engine, q0, v0, double t_end, double dt, long n_steps,
         raise ValueError("need n_steps >= 1, output_every >= 1, dt > 0, t_end > 0")
     if not (0 < t_end - (n_steps - 1) * dt <= dt * (1 + 1e-9)):
         raise ValueError(f"{n_steps} steps of {dt!r} do not end at t_end = {t_end!r}")
-    if events is not None and (baumgarte or not project):
+    # a set without event functions only re-bases angle references (springs)
+    if events is not None and (baumgarte or not project) and events.n_events:
         raise ValueError("events need the projected RK4 (method rk4, projection on)")
+    if work is not None:
+        work.fits(engine)
     cdef double[::1] qv = engine.vector(q0, "q0"), vv = engine.vector(v0, "v0")
     engine.reset_warm_start()           # a run does not depend on earlier solves
     if not (np.all(np.isfinite(qv)) and np.all(np.isfinite(vv))):
@@ -74,9 +81,13 @@ def _simulate(Engine engine, q0, v0, double t_end, double dt, long n_steps,
     arrays = dict(t=np.zeros(n_out), q=np.zeros((n_out, n)), v=np.zeros((n_out, n)),
                   body=np.zeros((n_out, engine.asm.n_bodies, 6)), energy=np.zeros(n_out),
                   constraint_error=np.zeros(n_out))
+    work_out = np.zeros(n_out)
+    if work is not None:                # the work at the records (array "work")
+        arrays["work"] = work_out
     saved = np.zeros(2 * n)             # an event's step start
     cdef double deadline = 0.0
     cdef fcc_rk4 r
+    memset(&r, 0, sizeof(r))
     r.project, r.n_steps, r.every, r.dt, r.t_end = project, n_steps, output_every, dt, t_end
     r.baumgarte, r.alpha, r.beta = baumgarte, alpha, beta
     r.out.t, r.out.q, r.out.v = (array_data(arrays["t"]), array_data(arrays["q"]),
@@ -86,6 +97,8 @@ def _simulate(Engine engine, q0, v0, double t_end, double dt, long n_steps,
     r.saved = array_data(saved)
     r.pause, r.pause_ctx = past_deadline, &deadline
     r.ev = ev_state(events)
+    r.pw = power_state(work)
+    r.w_out = array_data(work_out)
     if events is not None:
         events.reset(qv, engine)
     cdef int status

@@ -14,6 +14,7 @@ import numpy as np
 from .. import methods as registry
 from .. import rank as rank_rule
 from ..diagnose import explained
+from ..mechanism.driver_branch import check_driver_branches
 from ..mechanism.driver_forces import add_driver_columns, driver_rows
 from ..mechanism.initial_positions import assemble_at_joints
 from ..mechanism.initial_speeds import initial_speeds
@@ -27,7 +28,9 @@ from ._dopri5 import simulate_dopri5
 from .paths import (SPARSE_MIN_COORDINATES, make_engine, pattern_samples,
                     reduced_mass_spread, small_model_path, use_sparse)
 from ._rk4 import simulate_baumgarte, simulate_rk4
-from .energy_check import check_energy
+from .energy_check import check_energy, kinetic_peak, work_tracker
+from .guards import check_constraint_drift
+from .turns import REBASING, turn_check
 
 
 def _available_methods() -> tuple[str, ...]:
@@ -52,9 +55,11 @@ OFF_MANIFOLD_SEED = 20261123
 
 
 def length_scale(plan) -> float:
-    """The largest body length ``l`` of the plan (1 if it has no body)."""
+    """The largest body length ``l`` (or cable length) of the plan (1 if it has
+    none)."""
     lengths = [el.params[el.cls.param_names.index("l")] for el in plan.elements
                if el.cls.kind == "body"]
+    lengths += [c.length for c in plan.model.cables.values()]
     return float(max(lengths)) if lengths else 1.0
 
 
@@ -193,6 +198,9 @@ class CompiledSolver:
         """Total energy, kinetic plus potential."""
         kinetic, potential = self._get("energy", q, v)
         return float(kinetic + potential)
+
+    def kinetic_energy(self, q, v) -> float:
+        return float(self._get("energy", q, v)[0])
 
     def body_outputs(self, q, v) -> np.ndarray:
         """(n_bodies, 6): mass centre and angular velocity (global frame) per body."""
@@ -345,19 +353,31 @@ class CompiledSolver:
         report = run_reporter(progress, sched.t_end)
         decision = self.decide_rank(q0)
         events = self._event_set(event_tol, rest_speed)
+        tracker, untracked = work_tracker(self.plan, self.module, m.name, self.sparse)
+        kept = {}
+
+        def run():
+            arrays, stats = self._run(m, sched, opts, project, q0, v0, report, events,
+                                      tracker)
+            kept["work"] = arrays.get("work") if tracker is not None else None
+            return arrays, stats
         try:
-            result = timed_run(self.plan, m, sched, opts, project,
-                               lambda: self._run(m, sched, opts, project, q0, v0, report,
-                                                 events),
+            result = timed_run(self.plan, m, sched, opts, project, run,
                                settings=self.settings())
         except SimulationError as exc:
             raise explained(exc, self, q0) from None
+        finally:
+            if events is not None:
+                log, turn = events.log(), events.largest_turn
+                events.restore()          # direct kernel calls: references as planned
         if report is not None:
             report.finish(result.t[-1])          # the run's end: 100%
         if events is not None:
+            turn_check(result, self.plan, self.events_module, events,
+                       turn if m.name in REBASING else None)
+        if events is not None and events.n_events:
             from ..events.table import energy_balance, event_rows, report_switches
             from ._events import ACTIONS, NOTES
-            log = events.log()
             result.events = event_rows(events.names, ACTIONS, log)
             result.info["events"] = result.events
             report_switches(result, log, NOTES)
@@ -365,14 +385,18 @@ class CompiledSolver:
              result.info["event_energy_loss"]) = energy_balance(result.t, result["energy"],
                                                                 result.events)
         add_driver_columns(self, result)
+        check_driver_branches(self.plan, result)
         used = self.dense_engine() if m.name == "ali3p" else self._engine
         stats = used.rank_statistics()
         rank_rule.report_run(result, decision, stats,
                              driven=bool(driver_rows(self.plan)))
-        if events is not None:
+        if events is not None and events.n_events:
             from ..events.table import final_dof
             result.info["final_dof"] = final_dof(result.info, result.events)
-        check_energy(result, self.plan, stats.get("kinetic_energy_peak"))
+        check_constraint_drift(self, result, project)
+        check_energy(result, self.plan,
+                     kinetic_peak(self, result, stats.get("kinetic_energy_peak")),
+                     kept.get("work"), untracked)
         return add_reactions(self, result) if reactions else result
 
     def dense_engine(self):
@@ -389,13 +413,15 @@ class CompiledSolver:
                 "path": "sparse" if self.sparse else "dense"}
 
     def _event_set(self, tol, rest_speed):
-        """The compiled events of the model (None: it has none)."""
+        """The compiled events of the model, with the copies of their angle references
+        in the element kernels that count turns (fccgen.events.references); None: it
+        has neither (or, without events, no event module was given)."""
         model = self.plan.model
-        if not model.events:
-            return None
         if self.events_module is None:
-            raise ValueError(f"model {model.name!r} has events: give the solver its "
-                             "event module (fccgen.events.build.load_events)")
+            if model.events:
+                raise ValueError(f"model {model.name!r} has events: give the solver its "
+                                 "event module (fccgen.events.build.load_events)")
+            return None
         from ..events.constants import values
         from ._events import EventSet
         qty = list(self.events_module.QUANTITY_NAMES)
@@ -410,10 +436,18 @@ class CompiledSolver:
                  else -1 for e, r in zip(model.events, rows)]
         angle_rows = [k for k, name in enumerate(qty) if name.endswith(".angle")]
         constants = values(self.plan, [qty[k].split(".")[0] for k in angle_rows])
-        return EventSet(self.events_module, self.n_q, [e.direction for e in model.events],
-                        [e.action for e in model.events], rows, rows2,
-                        [e.restitution for e in model.events], angle_rows, tol=tol,
-                        v_rest=rest_speed, constants=constants)
+        events = EventSet(self.events_module, self.n_q,
+                          [e.direction for e in model.events],
+                          [e.action for e in model.events], rows, rows2,
+                          [e.restitution for e in model.events], angle_rows, tol=tol,
+                          v_rest=rest_speed, constants=constants)
+        from ..events.references import reference_slots
+        slots = reference_slots(self.plan)
+        if slots:
+            names = [qty[k].split(".")[0] for k in angle_rows]
+            events.mirror(self._asm, [slot for slot, _ in slots],
+                          [names.index(name) for _, name in slots])
+        return events
 
     def decide_rank(self, q) -> rank_rule.RankDecision:
         """Decide the rank of B at q by the SVD gap test (fccgen.rank) and keep it in
@@ -479,29 +513,37 @@ class CompiledSolver:
             v0 = self.project_velocities(q0, self.plan.v_target)
         return q0, v0
 
-    def _run(self, m, sched, opts, project, q0, v0, report, events=None):
+    def _run(self, m, sched, opts, project, q0, v0, report, events=None, work=None):
         """(arrays, stats) of one run of method m."""
         s, e = sched, self._engine
-        if events is not None and m.name not in ("rk4", "dopri5"):
+        if model_events(self.plan) and m.name not in ("rk4", "dopri5"):
             raise ValueError(f"events are located by the rk4 and dopri5 methods, not "
                              f"by {m.name}")
         if m.name == "rk4":
             return simulate_rk4(e, q0, v0, s.t_end, s.dt, s.n_steps, s.every, project,
-                                report, events=events)
+                                report, events=events, work=work)
         if m.name == "baumgarte":
             return simulate_baumgarte(e, q0, v0, s.t_end, s.dt, s.n_steps, s.every,
-                                      opts["alpha"], opts["beta"], report)
+                                      opts["alpha"], opts["beta"], report, events=events,
+                                      work=work)
         if m.name == "dopri5":
             return simulate_dopri5(e, q0, v0, s.t_end, s.output_dt, opts["rtol"],
                                    opts["atol"], s.dt or 0.0, project, report,
-                                   events=events)
+                                   events=events, work=work)
         if m.name == "ali3p":                # assembles dense M and B itself
             from ._ali3p import simulate_ali3p
             return simulate_ali3p(self.dense_engine(), q0, v0, s.t_end, s.dt, s.n_steps, s.every, opts,
                                   report, length_scale=self.length_scale)
         if m.name.startswith("scipy-"):
             from . import scipy_ivp              # imports scipy.integrate: only when used
-            return scipy_ivp.run(self, m.name[len("scipy-"):], s, opts, q0, v0, report)
+            if events is not None:               # references from the start's angles
+                events.reset(q0)
+            return scipy_ivp.run(self, m.name[len("scipy-"):], s, opts, q0, v0, report,
+                                 refresh=None if events is None else events.refresh,
+                                 power=None if work is None else (
+                                     lambda q, v, a: work.power(self._engine, q, v, a)),
+                                 restart=None if events is None else (
+                                     lambda: events.reset(q0)))
         raise AssertionError(f"no compiled dispatch for method {m.name!r}")
 
     # -- other numbers, pickling (fccgen.runtime.params) --------------------------------
@@ -537,6 +579,11 @@ class CompiledSolver:
         """Seconds per evaluation of the accelerations (assembly, factorisation, solve)."""
         self._engine_call(lambda e: e.accelerations(q, v))    # the pattern holds at q, v
         return _median_time(lambda b: self._engine.time_accelerations(q, v, b), repeats)
+
+
+def model_events(plan) -> bool:
+    """The model has event functions (not only angle references to keep)."""
+    return bool(plan.model.events)
 
 
 def _amax(x) -> float:

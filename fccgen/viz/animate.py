@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from . import scene
+from .cables import cable_trace
 
 DEFAULT_MAX_FRAMES = 300
 JUMP_SCRIPT = """
@@ -62,6 +63,7 @@ def named_points(model) -> list[str]:
         return list(model.points)
     made = {t.name for jl in mech.joints for t in jl.triples}
     made |= {n for i, j, _ in mech.frames.values() for n in (i, j)}
+    made |= set(mech.internal())          # e.g. the end points of lowered springs
     return [p for p in model.points if p not in made]
 
 
@@ -84,6 +86,7 @@ class _Scene:
 
     def __init__(self, model, result):
         self.model = model
+        self.result = result
         self.tracks = scene.triple_tracks(model, result)
         self.frames = scene.body_frames(model, self.tracks)
         self.solids = scene.body_solids(model, self.frames)
@@ -129,8 +132,8 @@ class _Scene:
         return traces
 
     def moving_traces(self, go, k: int, full: bool = False) -> list:
-        """The traces that move, at row k: solids, skeletons, body names at the mass
-        centres, joints, named moving points."""
+        """The traces that move, at row k: solids, flexible members (curves),
+        skeletons, body names at the mass centres, joints, named moving points."""
         segments = [s for b in self.skeletons.values() for s in b]
         x, y, z = _lines(segments, k)
         hover = [b for b, segs in self.skeletons.items() for _ in segs for _ in range(3)]
@@ -138,7 +141,9 @@ class _Scene:
         cx, cy, cz = _xyz([self.centres[b][k] for b in bodies])
         jx, jy, jz = _xyz([self.tracks[p][k] for _, p in self.joints])
         px, py, pz = _xyz([self.tracks[p][k] for p in self.moving])
+        members = cable_trace(self.model, self.result, k, go)
         return [*self.meshes(go, k, full),
+                *([members] if members is not None else []),
                 go.Scatter3d(x=x, y=y, z=z, mode="lines", name="body segments",
                              text=hover, hoverinfo="text",
                              line=dict(width=5, color="#1f4e79")),

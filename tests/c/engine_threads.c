@@ -12,6 +12,7 @@
 #include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "fcc_rk4.h"
 #include "kernels.h"
@@ -68,6 +69,7 @@ static void set_up(instance *in)
         die("set-up failed");
     in->e.sp.beyond_quotient = BEYOND_QUOTIENT;
     fcc_engine_decide_rank(&in->e, RANK);
+    memset(&in->r, 0, sizeof(in->r));       /* settings not named below: none (NULL) */
     in->r.project = 1;
     in->r.baumgarte = 0;
     in->r.alpha = in->r.beta = 0.0;

@@ -57,8 +57,10 @@ static int f(fcc_engine *e, fcc_dopri5 *r, int stage, double t, const double *y,
     memcpy(k, y + n, (size_t)n * sizeof(double));
     if (fcc_accelerations(e, y, y + n, k + n, reuse) < 0)
         return -1;
-    if (r->ev != NULL)                        /* active lock rows (events) */
-        return fcc_ev_constrain(e, r->ev, y, y + n, r->t, k + n);
+    if (r->ev != NULL && fcc_ev_constrain(e, r->ev, y, y + n, r->t, k + n) < 0)
+        return -1;                            /* active lock rows (events) */
+    if (r->pw != NULL)                        /* the stage's power (fcc_power.h) */
+        r->p[stage - 1] = fcc_stage_power(e, r->pw, y, y + n, k + n);
     return 0;
 }
 
@@ -131,6 +133,28 @@ static void dense(fcc_dopri5 *r, double h)
     }
 }
 
+/* The work over the step by the fifth-order weights, and its continuous extension
+ * (the one of dense(), with the stage powers for the stage derivatives). */
+static void dense_work(fcc_dopri5 *r, double h)
+{
+    double dw = h * (A71 * r->p[0] + A73 * r->p[2] + A74 * r->p[3] + A75 * r->p[4]
+                     + A76 * r->p[5]);
+    r->rw[0] = r->w;
+    r->rw[1] = dw;
+    r->rw[2] = h * r->p[0] - dw;
+    r->rw[3] = dw - h * r->p[6] - r->rw[2];
+    r->rw[4] = h * (D1 * r->p[0] + D3 * r->p[2] + D4 * r->p[3] + D5 * r->p[4]
+                    + D6 * r->p[5] + D7 * r->p[6]);
+}
+
+/* The work at the fraction th of the last step. */
+static double work_at(const fcc_dopri5 *r, double th)
+{
+    double th1 = 1.0 - th;
+    return r->rw[0] + th * (r->rw[1] + th1 * (r->rw[2] + th * (r->rw[3]
+                                                               + th1 * r->rw[4])));
+}
+
 /* Position then velocity projection of y = (q, v), in place; reuse: M, B and the
  * factorisation held are the last stage's, at y (fcc_project_positions). */
 static int project(fcc_engine *e, fcc_dopri5 *r, double *y, int reuse)
@@ -196,7 +220,7 @@ static int first_event(fcc_engine *e, fcc_dopri5 *r, double h, double t1, double
     *theta = 1.0;
     first = k;
     for (j = k; j < 2 * ev->spec->ne; j++) {
-        if (j > k && !fcc_ev_crosses(ev, j, ev->s0[j], ev->s1[j]))
+        if (j > k && !fcc_ev_watched(ev, j, ev->s0, ev->s1))     /* a held lock */
             continue;
         if (locate(e, r, j, h, &th) < 0)
             return -2;
@@ -223,6 +247,8 @@ static int after_event(fcc_engine *e, fcc_dopri5 *r, int k)
             r->t_stop = r->t;
             if (r->n_out < r->n_req) {               /* the last record: the stop */
                 r->out.t[r->n_out] = r->t;
+                if (r->w_out != NULL)
+                    r->w_out[r->n_out] = r->w;
                 fcc_write_record(e, &r->out, r->n_out, r->y, r->y + n);
                 r->n_out++;
             }
@@ -242,6 +268,9 @@ static int record(fcc_engine *e, fcc_dopri5 *r)
 {
     long j = r->n_out, n = r->n2 / 2;
     double cerr;
+    if (r->w_out != NULL)
+        r->w_out[j] = j > 0 && r->pw != NULL ? work_at(r, (r->out.t[j] - r->t0) / r->h)
+                                             : r->w;
     if (j > 0) {
         dense_at(r, (r->out.t[j] - r->t0) / r->h, r->yt);
         if (r->project) {
@@ -267,6 +296,8 @@ static int accept(fcc_engine *e, fcc_dopri5 *r, double h)
     long recorded;
     double th = 1.0, t1;
     dense(r, h);
+    if (r->pw != NULL)
+        dense_work(r, h);
     r->t0 = r->t;
     t1 = r->t_end - (r->t + h) > 4 * UROUND * r->t_end ? r->t + h : r->t_end;
     if (r->ev != NULL) {
@@ -281,19 +312,30 @@ static int accept(fcc_engine *e, fcc_dopri5 *r, double h)
     r->t = t1;
     r->accepted++;
     recorded = r->n_out;
-    while (r->n_out < r->n_req && r->out.t[r->n_out] <= r->t * (1 + 4 * UROUND))
+    /* a record at an event's time shows the state after it (as RK4's do): the next
+     * step, starting there, writes it (flush() at the end of the run) */
+    while (r->n_out < r->n_req && (k >= 0 ? r->out.t[r->n_out] < r->t
+                                          : r->out.t[r->n_out] <= r->t * (1 + 4 * UROUND)))
         if (record(e, r) < 0)
             return -1;
     memcpy(r->y, r->y1, (size_t)r->n2 * sizeof(double));
+    if (r->pw != NULL)
+        r->w = work_at(r, th);                /* th: 1, or the event's fraction */
     e->err_t = r->t;
     if (!fcc_finite(r->y, r->n2)) {
         e->err_where = FCC_AT_STEP;
         return fcc_fail(e, FCC_ERR_NONFINITE_INPUT, 0, !fcc_finite(r->y, n) ? 1 : 2);
     }
+    if (fcc_diverged(e, r->y, r->q_bound) || fcc_diverged(e, r->y + n, r->v_bound)) {
+        e->err_where = FCC_AT_STEP;
+        return fcc_fail(e, FCC_ERR_DIVERGED, 0, e->err_bound == r->q_bound ? 1 : 2);
+    }
     if (r->project) {
         fcc_put_time(e->asmb, r->t);
-        /* stage 7's M, B and factorisation are at y1, unless a record projected since */
-        if (project(e, r, r->y, r->n_out == recorded && r->ev == NULL) < 0)
+        /* stage 7's M, B and factorisation are at y1, unless a record projected since
+         * (or an event function moved y1: with events, a set with some) */
+        if (project(e, r, r->y, r->n_out == recorded
+                    && (r->ev == NULL || r->ev->spec->ne == 0)) < 0)
             return -1;
         if (r->ev != NULL) {
             if (after_event(e, r, k) < 0)
@@ -305,10 +347,28 @@ static int accept(fcc_engine *e, fcc_dopri5 *r, double h)
         return f(e, r, 1, r->t, r->y, r->k[0], e->factor_valid);
     }
     memcpy(r->k[0], r->k[6], (size_t)r->n2 * sizeof(double));        /* FSAL */
+    r->p[0] = r->p[6];
+    if (r->ev != NULL)                        /* angle references only (no projection) */
+        fcc_ev_refresh(r->ev, r->y);
     fcc_assemble(e->asmb, r->y, NULL, FCC_ASM_G);
     if (!(fcc_max_abs_g(e->asmb) <= r->max_cerr))
         r->max_cerr = fcc_max_abs_g(e->asmb);
     return 0;
+}
+
+/* Records left at the end of the run (an event at t_end): the state there. */
+static void flush(fcc_engine *e, fcc_dopri5 *r)
+{
+    int n = r->n2 / 2;
+    double cerr;
+    while (r->n_out < r->n_req) {
+        if (r->w_out != NULL)
+            r->w_out[r->n_out] = r->w;
+        cerr = fcc_write_record(e, &r->out, r->n_out, r->y, r->y + n);
+        if (!(cerr <= r->max_cerr))
+            r->max_cerr = cerr;
+        r->n_out++;
+    }
 }
 
 int fcc_dopri5_advance(fcc_engine *e, fcc_dopri5 *r)
@@ -348,6 +408,7 @@ int fcc_dopri5_advance(fcc_engine *e, fcc_dopri5 *r)
         if (r->t < r->t_end && r->pause != NULL && r->pause(r->pause_ctx))
             return FCC_RUN_PAUSE;
     }
+    flush(e, r);
     return FCC_RUN_DONE;
 }
 
@@ -384,6 +445,7 @@ static double initial_step(fcc_engine *e, fcc_dopri5 *r)
 int fcc_dopri5_start(fcc_dopri5 *r, fcc_engine *e, const double *q0, const double *v0)
 {
     int i, n = e->n, status;
+    double big = 0.0;
     r->n2 = 2 * n;
     r->t = 0.0;
     r->h = r->h0;
@@ -405,6 +467,19 @@ int fcc_dopri5_start(fcc_dopri5 *r, fcc_engine *e, const double *q0, const doubl
     r->stopped = 0;
     r->t_stop = r->t_end;
     r->t0 = 0.0;
+    r->w = 0.0;
+    for (i = 0; i < 7; i++)
+        r->p[i] = 0.0;
+    for (i = 0; i < 5; i++)
+        r->rw[i] = 0.0;
+    fcc_divergence_bounds(n, q0, v0, r->t_end, 0.0, &r->q_bound, &r->v_bound);
+    if (r->project) {
+        /* a step that leaves the constraints by 1% of the model's size diverged */
+        for (i = 0; i < n; i++)
+            if (fabs(q0[i]) > big)
+                big = fabs(q0[i]);
+        e->diverge_residual = 1e-2 * (big > 1e-300 ? big : 1e-300);
+    }
     if (r->ev != NULL)
         fcc_ev_watch(e, r->ev, r->y, r->y + n, 0.0, r->ev->s0);
     e->running = 1;

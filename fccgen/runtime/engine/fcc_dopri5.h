@@ -4,6 +4,7 @@
 #define FCC_DOPRI5_H
 
 #include "fcc_events.h"
+#include "fcc_power.h"
 #include "fcc_run.h"
 
 #define FCC_DOPRI5_WORK 15      /* work arrays of 2 n numbers each */
@@ -33,11 +34,24 @@ typedef struct fcc_dopri5 {
     double t0;                /* start of the last accepted step */
     int stopped;              /* a stop event ended the run at t_stop */
     double t_stop;
+    /* the work of the forces without potential (settings: pw NULL, none; w_out, W at
+     * each record, with pw) */
+    fcc_power *pw;
+    double *w_out;
+    double w;                 /* W done up to t */
+    double p[7];              /* the stages' powers */
+    double rw[5];             /* W's continuous extension over the last step */
+    double q_bound, v_bound;  /* max |q|, max |v| past these: diverged (v: infinity) */
 } fcc_dopri5;
 
 /* Start a run from (q0, v0) with the settings in r: the first record, the first
- * stage and (h0 = 0) the starting step. The events are reset by the caller
- * (fcc_events_reset). Returns 0 or FCC_RUN_ERROR (the engine's error record). */
+ * stage and (h0 = 0) the starting step, the divergence bounds (fcc_divergence_bounds
+ * without a speed bound). The settings are project, rtol, atol, t_end, h0, n_req,
+ * out, ev, work, pause, pause_ctx, pw and w_out (zero the struct first: NULL pointers
+ * are "none"). The events are reset by the caller (fcc_events_reset); events without
+ * event functions (ne = 0) only re-base the angle references after every step, with
+ * event functions they need project. A record at an event's time shows the state
+ * after the event. Returns 0 or FCC_RUN_ERROR (the engine's error record). */
 int fcc_dopri5_start(fcc_dopri5 *r, fcc_engine *e, const double *q0, const double *v0);
 /* Steps until the end (FCC_RUN_DONE), an error (FCC_RUN_ERROR, FCC_RUN_UNDERFLOW:
  * e->err_t, err_h say where) or a pause (FCC_RUN_PAUSE). */

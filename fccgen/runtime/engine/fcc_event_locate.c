@@ -4,11 +4,24 @@
  * (fcc_rk4.c, fcc_dopri5.c) drive these with their own states at the trial times. */
 #include <math.h>
 
+#include <string.h>
+
 #include "fcc_events.h"
+
+void fcc_ev_mirror(fcc_events *ev)
+{
+    /* Copy the angle references into the element kernels' parameters (theta, cos,
+     * sin of torsion springs and loads of joint angles; fcc_events_mirror). */
+    int i;
+    for (i = 0; i < ev->nm; i++)
+        memcpy(ev->mdst + ev->mslot[i], ev->p + 3 * ev->mang[i], 3 * sizeof(double));
+}
 
 void fcc_ev_refresh(fcc_events *ev, const double *q)
 {
-    /* Move the angle references to the angles at q (turn counting). */
+    /* Move the angle references to the angles at q (turn counting), and their copies
+     * in the element kernels; keep the largest move (a turn near half a turn between
+     * two re-basings leaves the atan2's branch in doubt). */
     const fcc_event_spec *c = ev->spec;
     int j, row;
     double th;
@@ -18,10 +31,15 @@ void fcc_ev_refresh(fcc_events *ev, const double *q)
     for (j = 0; j < c->nang; j++) {
         row = c->angle_row[j];
         th = ev->r[row];
+        if (fabs(th - ev->p[3 * j]) > ev->max_turn) {
+            ev->max_turn = fabs(th - ev->p[3 * j]);
+            ev->max_turn_j = j;
+        }
         ev->p[3 * j] = th;
         ev->p[3 * j + 1] = cos(th);
         ev->p[3 * j + 2] = sin(th);
     }
+    fcc_ev_mirror(ev);
 }
 
 void fcc_ev_values(fcc_events *ev, const double *q, const double *v, double t,
@@ -112,16 +130,26 @@ int fcc_ev_rests(fcc_events *ev, int k)
     return ev->rested[k] && ev->spec->row[k] >= 0 && ev->active[ev->spec->row[k]];
 }
 
+int fcc_ev_watched(fcc_events *ev, int k, const double *a, const double *b)
+{
+    /* Watched value k (event function k < ne, or release function of resting bounce
+     * k - ne) crosses from a to b and counts: a lock or rest whose rows hold hovers
+     * at zero by the position tolerance, and its crossings are that noise, not
+     * events. */
+    int ne = ev->spec->ne;
+    if (k < ne)
+        return fcc_ev_crosses(ev, k, a[k], b[k]) && !locked(ev, k);
+    return fcc_ev_rests(ev, k - ne) && fcc_ev_crosses(ev, k, a[k], b[k]);
+}
+
 int fcc_ev_crossed(fcc_events *ev, const double *a, const double *b)
 {
-    /* The first watched value that crosses from a to b, or -1: an event function
-     * k < ne, or the release function ne + k of a resting bounce k. */
-    int k, ne = ev->spec->ne;
-    for (k = 0; k < ne; k++)
-        if (fcc_ev_crosses(ev, k, a[k], b[k]) && !locked(ev, k))
+    /* The first watched value that crosses from a to b and counts (fcc_ev_watched),
+     * or -1: an event function k < ne, or the release function ne + k of a resting
+     * bounce k. */
+    int k;
+    for (k = 0; k < 2 * ev->spec->ne; k++)
+        if (fcc_ev_watched(ev, k, a, b))
             return k;
-    for (k = 0; k < ne; k++)
-        if (fcc_ev_rests(ev, k) && fcc_ev_crosses(ev, ne + k, a[ne + k], b[ne + k]))
-            return ne + k;
     return -1;
 }

@@ -101,8 +101,11 @@ int fcc_events_init(fcc_events *ev, const fcc_event_spec *c, const double *const
         fcc_events_free(ev);
         return FCC_ERR_MEMORY;
     }
+    for (j = 0; j < c->nang; j++)             /* references 0: cos 1, sin 0 */
+        ev->p[3 * j + 1] = 1.0;
     for (j = 0; j < c->np - 3 * c->nang; j++)
         ev->p[3 * c->nang + j] = constants[j];
+    ev->max_turn_j = -1;
     return FCC_OK;
 }
 
@@ -113,7 +116,7 @@ void fcc_events_free(fcc_events *ev)
     FCC_FREE(ev->gz); FCC_FREE(ev->mu); FCC_FREE(ev->held); FCC_FREE(ev->active);
     FCC_FREE(ev->used); FCC_FREE(ev->rested); FCC_FREE(ev->rel_sign); FCC_FREE(ev->acc);
     FCC_FREE(ev->log); FCC_FREE(ev->aug); FCC_FREE(ev->svm); FCC_FREE(ev->sig);
-    FCC_FREE(ev->svw);
+    FCC_FREE(ev->svw); FCC_FREE(ev->mslot); FCC_FREE(ev->mang); FCC_FREE(ev->mkeep);
     memset(ev, 0, sizeof(*ev));
 }
 
@@ -148,12 +151,48 @@ void fcc_events_reset(fcc_events *ev)
     memset(ev->p, 0, 3 * (size_t)c->nang * sizeof(double));
     for (j = 0; j < c->nang; j++)
         ev->p[3 * j + 1] = 1.0;
+    fcc_ev_mirror(ev);
+    ev->max_turn = 0.0;
+    ev->max_turn_j = -1;
     memset(ev->active, 0, (size_t)c->nr * sizeof(int));
     memset(ev->used, 0, (size_t)c->nr * sizeof(int));
     ev->n_used = 0;
     memset(ev->rested, 0, (size_t)c->ne * sizeof(int));
     ev->n_log = 0;
     ev->stop = 0;
+}
+
+int fcc_events_mirror(fcc_events *ev, fcc_assembly *a, int n, const int *slots,
+                      const int *angles)
+{
+    int i;
+    for (i = 0; i < n; i++)
+        if (!(0 <= angles[i] && angles[i] < ev->spec->nang && 0 <= slots[i]
+              && slots[i] + 3 <= a->model->n_p))
+            return FCC_ERR_ARGUMENT;
+    FCC_FREE(ev->mslot); FCC_FREE(ev->mang); FCC_FREE(ev->mkeep);
+    ev->nm = 0;
+    ev->mdst = NULL;
+    ev->mslot = zalloc((size_t)n + 1, sizeof(int));
+    ev->mang = zalloc((size_t)n + 1, sizeof(int));
+    ev->mkeep = zalloc(3 * (size_t)n + 1, sizeof(double));
+    if (!ev->mslot || !ev->mang || !ev->mkeep)
+        return FCC_ERR_MEMORY;
+    for (i = 0; i < n; i++) {
+        ev->mslot[i] = slots[i];
+        ev->mang[i] = angles[i];
+        memcpy(ev->mkeep + 3 * i, a->params + slots[i], 3 * sizeof(double));
+    }
+    ev->nm = n;
+    ev->mdst = a->params;
+    return FCC_OK;
+}
+
+void fcc_events_restore(fcc_events *ev)
+{
+    int i;
+    for (i = 0; i < ev->nm; i++)
+        memcpy(ev->mdst + ev->mslot[i], ev->mkeep + 3 * i, 3 * sizeof(double));
 }
 
 /* b <- A^-1 b for a k x k A (row-major, destroyed), partial pivoting; -1 if singular

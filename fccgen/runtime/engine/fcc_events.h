@@ -76,6 +76,15 @@ typedef struct fcc_events {
     int stop;                 /* a stop event happened */
     long n_log;
     double *log;              /* cap_log x FCC_LOG_COLS */
+    /* the element kernels' copies of the angle references (torsion springs and loads
+     * of joint angles count turns through them; fcc_events_mirror) */
+    int nm;                   /* how many copies, */
+    int *mslot;               /* ... where (the index of theta in mdst; cos, sin follow) */
+    int *mang;                /* ... and of which angle (its parameter triple) */
+    double *mdst;             /* the element parameters (an assembly's; not owned) */
+    double *mkeep;            /* ... their values outside runs (3 nm) */
+    double max_turn;          /* the largest re-basing |angle - theta_r| of the run */
+    int max_turn_j;           /* ... its angle (parameter triple), -1: none yet */
 } fcc_events;
 
 /* Illinois (modified regula falsi) on one watched value. */
@@ -99,19 +108,35 @@ int fcc_events_init(fcc_events *ev, const fcc_event_spec *c, const double *const
 void fcc_events_free(fcc_events *ev);
 /* The rank work for an engine with m rows (needs the engine's LAPACK table). */
 int fcc_events_rank_work(fcc_events *ev, const fcc_lapack *lapack, int m);
-/* Start a run: angle references 0, no rows active or resting, an empty log. */
+/* Start a run: angle references 0 (and their copies), no rows active or resting, an
+ * empty log, no turn yet. */
 void fcc_events_reset(fcc_events *ev);
+/* Copy the angle references into the assembly a's element parameters at every
+ * re-basing (fcc_ev_refresh) and reset: the reference of angle angles[i] (its index
+ * among the angle quantities) to a->params[slots[i] .. slots[i] + 3) (theta, cos,
+ * sin). Their present values are kept for fcc_events_restore. Set-up: allocates.
+ * Returns FCC_OK, FCC_ERR_ARGUMENT (an index out of range) or FCC_ERR_MEMORY. */
+int fcc_events_mirror(fcc_events *ev, fcc_assembly *a, int n, const int *slots,
+                      const int *angles);
+/* Put back the element parameters' values kept by fcc_events_mirror (outside runs a
+ * torsion spring's reference is its free angle). */
+void fcc_events_restore(fcc_events *ev);
 
 void fcc_ev_bracket(fcc_events *ev, int k, fcc_bracket *br, double b);
 int fcc_ev_bracket_open(fcc_events *ev, fcc_bracket *br, double scale);
 double fcc_ev_bracket_trial(fcc_bracket *br);
 void fcc_ev_bracket_update(fcc_events *ev, int k, fcc_bracket *br, double c, double fc);
 void fcc_ev_refresh(fcc_events *ev, const double *q);
+/* The angle references' copies into the element parameters (after a change of p). */
+void fcc_ev_mirror(fcc_events *ev);
 void fcc_ev_values(fcc_events *ev, const double *q, const double *v, double t,
                    double *out);
 int fcc_ev_watch(fcc_engine *e, fcc_events *ev, const double *q, const double *v,
                  double t, double *out);
 int fcc_ev_crossed(fcc_events *ev, const double *a, const double *b);
+/* Watched value k crosses from a[k] to b[k] and counts: not a held lock or rest
+ * (whose function hovers at zero by the position tolerance). */
+int fcc_ev_watched(fcc_events *ev, int k, const double *a, const double *b);
 int fcc_ev_crosses(fcc_events *ev, int k, double a, double b);
 int fcc_ev_constrain(fcc_engine *e, fcc_events *ev, const double *q, const double *v,
                      double t, double *a);

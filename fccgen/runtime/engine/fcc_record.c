@@ -33,3 +33,19 @@ int fcc_diverged(fcc_engine *e, const double *x, double bound)
     }
     return 0;
 }
+
+void fcc_divergence_bounds(int n, const double *q0, const double *v0, double t_end,
+                           double dt, double *q_bound, double *v_bound)
+{
+    int i;
+    double q_ref = 0.0, v_ref = 0.0;
+    for (i = 0; i < n; i++) {
+        if (fabs(q0[i]) > q_ref)
+            q_ref = fabs(q0[i]);
+        if (fabs(v0[i]) > v_ref)
+            v_ref = fabs(v0[i]);
+    }
+    q_ref = q_ref > 0.0 ? q_ref : 1.0;
+    *q_bound = 1e6 * (q_ref + v_ref * t_end);
+    *v_bound = dt > 0.0 ? 1e6 * (v_ref + q_ref / dt) : INFINITY;
+}

@@ -16,15 +16,19 @@
 static int stage(fcc_engine *e, fcc_rk4 *r, int k, const double *q, const double *v,
                  double *a, int reuse)
 {
+    int rc;
     e->err_stage = k;
     r->n_rhs++;
-    if (r->baumgarte)
-        return fcc_baumgarte(e, q, v, a, r->alpha, r->beta);
-    if (fcc_accelerations(e, q, v, a, reuse) < 0)
-        return -1;
-    if (r->ev != NULL)                        /* active lock rows (events) */
-        return fcc_ev_constrain(e, r->ev, q, v, r->t0, a);
-    return 0;
+    if (r->baumgarte) {
+        rc = fcc_baumgarte(e, q, v, a, r->alpha, r->beta);
+    } else {
+        rc = fcc_accelerations(e, q, v, a, reuse);
+        if (rc == 0 && r->ev != NULL)         /* active lock rows (events) */
+            rc = fcc_ev_constrain(e, r->ev, q, v, r->t0, a);
+    }
+    if (rc == 0 && r->pw != NULL)             /* the stage's power (fcc_power.h) */
+        r->p[k - 1] = fcc_stage_power(e, r->pw, q, v, a);
+    return rc;
 }
 
 /* One classical RK4 step of (q' = v, v' = a(t, q, v)) of size h from t, in place;
@@ -32,7 +36,7 @@ static int stage(fcc_engine *e, fcc_rk4 *r, int k, const double *q, const double
 static int step(fcc_engine *e, fcc_rk4 *r, double t, double h)
 {
     int i, n = e->n;
-    double h2 = 0.5 * h, h6 = h / 6.0;
+    double h2 = 0.5 * h, h6 = h / 6.0, w0 = r->w;
     fcc_put_time(e->asmb, t);
     if (stage(e, r, 1, r->q, r->v, r->a1, e->factor_valid) < 0) return -1;
     for (i = 0; i < n; i++) {
@@ -56,6 +60,8 @@ static int step(fcc_engine *e, fcc_rk4 *r, double t, double h)
         r->q[i] += h6 * (r->v[i] + 2.0 * r->v2[i] + 2.0 * r->v3[i] + r->v4[i]);
         r->v[i] += h6 * (r->a1[i] + 2.0 * r->a2[i] + 2.0 * r->a3[i] + r->a4[i]);
     }
+    if (r->pw != NULL)                        /* the work, by the step's own weights */
+        r->w = w0 + h6 * (r->p[0] + 2.0 * r->p[1] + 2.0 * r->p[2] + r->p[3]);
     return 0;
 }
 
@@ -102,6 +108,8 @@ void fcc_rk4_record(fcc_engine *e, fcc_rk4 *r, double t)
     double cerr;
     r->out.t[r->n_out] = t;
     cerr = fcc_write_record(e, &r->out, r->n_out, r->q, r->v);
+    if (r->w_out != NULL)
+        r->w_out[r->n_out] = r->w;
     if (!(cerr <= r->max_cerr))
         r->max_cerr = cerr;
     r->n_out++;
@@ -113,6 +121,7 @@ static int state_at(fcc_engine *e, fcc_rk4 *r, double t0, double tau)
 {
     memcpy(r->q, r->saved, (size_t)e->n * sizeof(double));
     memcpy(r->v, r->saved + e->n, (size_t)e->n * sizeof(double));
+    r->w = r->wsave;
     e->factor_valid = 0;
     r->t0 = t0;
     return step(e, r, t0, tau);
@@ -162,7 +171,7 @@ static int events(fcc_engine *e, fcc_rk4 *r, double t0, double h)
         best = h;
         first = k;
         for (j = k; j < 2 * ne; j++) {           /* the earliest of those that crossed */
-            if (j > k && !fcc_ev_crosses(ev, j, ev->s0[j], ev->s1[j]))
+            if (j > k && !fcc_ev_watched(ev, j, ev->s0, ev->s1))   /* a held lock */
                 continue;
             if (locate(e, r, j, t0, h, &tau) < 0)
                 return -1;
@@ -193,6 +202,7 @@ static int events(fcc_engine *e, fcc_rk4 *r, double t0, double h)
         h = h - best;
         memcpy(r->saved, r->q, (size_t)e->n * sizeof(double));
         memcpy(r->saved + e->n, r->v, (size_t)e->n * sizeof(double));
+        r->wsave = r->w;
         if (h <= 0.0)
             return 0;
         r->t0 = t0;
@@ -213,6 +223,7 @@ int fcc_rk4_advance(fcc_engine *e, fcc_rk4 *r)
         if (r->ev != NULL) {
             memcpy(r->saved, r->q, (size_t)e->n * sizeof(double));
             memcpy(r->saved + e->n, r->v, (size_t)e->n * sizeof(double));
+            r->wsave = r->w;
         }
         r->t0 = t;
         if (step(e, r, t, h) < 0)
@@ -241,7 +252,7 @@ int fcc_rk4_advance(fcc_engine *e, fcc_rk4 *r)
 int fcc_rk4_start(fcc_rk4 *r, fcc_engine *e, const double *q0, const double *v0)
 {
     int i, n = e->n;
-    double q_ref = 1.0, v_ref = 0.0, big = 0.0;
+    double big = 0.0;
     r->q = e->stages;
     r->v = e->stages + n;
     r->qs = e->stages + 2 * n;
@@ -260,23 +271,9 @@ int fcc_rk4_start(fcc_rk4 *r, fcc_engine *e, const double *q0, const double *v0)
     r->t0 = 0.0;
     r->stopped = 0;
     r->t_stop = r->t_end;
-    /* Divergence: 1e6 times the size the state can reach by moving at its initial
-     * speed, q_ref + |v0| t_end, and 1e6 times the speed that crosses the model's size
-     * in one step, |v0| + q_ref / dt (q_ref = max |q0|, or 1). An unstable explicit
-     * step grows the state by a constant factor per step, so it passes these within
-     * tens of steps, while no accurate run comes near them. */
-    if (n > 0) {
-        q_ref = 0.0;
-        for (i = 0; i < n; i++)
-            if (fabs(q0[i]) > q_ref)
-                q_ref = fabs(q0[i]);
-        for (i = 0; i < n; i++)
-            if (fabs(v0[i]) > v_ref)
-                v_ref = fabs(v0[i]);
-    }
-    q_ref = q_ref > 0.0 ? q_ref : 1.0;
-    r->q_bound = 1e6 * (q_ref + v_ref * r->t_end);
-    r->v_bound = 1e6 * (v_ref + q_ref / r->dt);
+    r->w = r->wsave = 0.0;
+    r->p[0] = r->p[1] = r->p[2] = r->p[3] = 0.0;
+    fcc_divergence_bounds(n, q0, v0, r->t_end, r->dt, &r->q_bound, &r->v_bound);
     e->factor_valid = 0;
     e->err = FCC_OK;
     fcc_put_time(e->asmb, 0.0);

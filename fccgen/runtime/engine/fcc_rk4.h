@@ -4,6 +4,7 @@
 #define FCC_RK4_H
 
 #include "fcc_events.h"
+#include "fcc_power.h"
 #include "fcc_run.h"
 
 typedef struct fcc_rk4 {
@@ -32,12 +33,22 @@ typedef struct fcc_rk4 {
     double t0;                /* time at the start of the step (stage times) */
     int stopped;              /* a stop event ended the run at t_stop */
     double t_stop;
+    /* the work of the forces without potential (settings: pw NULL, none; w_out, W at
+     * each record, with pw) */
+    fcc_power *pw;
+    double *w_out;
+    double w, wsave;          /* W done so far; at the saved step start (events) */
+    double p[4];              /* the stages' powers */
 } fcc_rk4;
 
 /* Start a run from (q0, v0) with the settings in r (the rest of r is set here): the
- * state in the engine's stage arrays, the divergence bounds from the initial state,
- * the events reset by the caller (fcc_events_reset) and watched here. Returns 0 or -1
- * (the engine's error record). */
+ * state in the engine's stage arrays, the divergence bounds from the initial state
+ * (fcc_divergence_bounds), the events reset by the caller (fcc_events_reset) and
+ * watched here. The settings are project, baumgarte, alpha, beta, n_steps, every, dt,
+ * t_end, out, ev, saved, pause, pause_ctx, pw and w_out (zero the struct first: NULL
+ * pointers are "none"). Events without event functions (ne = 0) only re-base the
+ * angle references after every step (springs count turns); with event functions they
+ * need project. Returns 0 or -1 (the engine's error record). */
 int fcc_rk4_start(fcc_rk4 *r, fcc_engine *e, const double *q0, const double *v0);
 /* Write record r->n_out at time t. */
 void fcc_rk4_record(fcc_engine *e, fcc_rk4 *r, double t);

@@ -20,6 +20,16 @@ typedef struct fcc_records {
  * outputs, energy and max |g|; returns that max |g|. */
 double fcc_write_record(fcc_engine *e, const fcc_records *out, long j, const double *q,
                         const double *v);
+/* The bounds past which a run has diverged (docs/reliability.md, "Runs that blow
+ * up"): *q_bound, 1e6 times the size the state can reach by moving at its initial
+ * speed, q_ref + |v0| t_end; *v_bound, 1e6 times the speed that crosses the model's
+ * size in one step dt, |v0| + q_ref / dt (q_ref = max |q0|, or 1), or infinity for
+ * adaptive methods (dt <= 0: no step to measure speeds by). An unstable explicit step
+ * grows the state by a constant factor per step, so it passes these within tens of
+ * steps, while no accurate run comes near them. (fccgen/runtime/guards.py holds the
+ * same rule for the runs that step in Python.) */
+void fcc_divergence_bounds(int n, const double *q0, const double *v0, double t_end,
+                           double dt, double *q_bound, double *v_bound);
 /* max |x_i| > bound (n numbers); the value and bound go to the error record. */
 int fcc_diverged(fcc_engine *e, const double *x, double bound);
 
