@@ -55,6 +55,10 @@ def refusal(plan) -> str:
     if plan.model.events:
         return ("the model has events; their joint rows are solved by the dense path "
                 "(LAPACK), which a standalone export does not have")
+    from ..events.references import angle_sources
+    if angle_sources(plan):
+        return ("angles counted over turns (torsion springs, loads of joint angles) "
+                "need the event kernels, which the export does not carry yet")
     method = plan.model.simulate.method
     if method != "rk4":
         return (f"its simulate: method is {method}; the export runs rk4 (set "
