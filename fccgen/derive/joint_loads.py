@@ -41,8 +41,8 @@ def _angle(s: ClassSymbols, prefix: str, inter: dict) -> tuple[sympy.Expr, sympy
     big_s, big_c, s_dot, c_dot = (_intermediate(inter, prefix + n, e) for n, e in (
         ("S", cos0 * big_d - sin0 * big_p), ("C", cos0 * big_p + sin0 * big_d),
         ("Sd", cos0 * d_dot - sin0 * p_dot), ("Cd", cos0 * p_dot + sin0 * d_dot)))
-    # th, a parameter, stands as a real intermediate: min, max and abs of the angle
-    # then differentiate to sign(), not to re() and im() of a complex th
+    # th enters as a real symbol (a parameter of the kernel): the loads' |.| (min, max)
+    # then differentiate to sign(), never to re() and im(), which C does not print
     th = _intermediate(inter, prefix + "th", s.scalar(prefix + "th"))
     return (th + sympy.atan2(big_s, big_c),
             (big_c * s_dot - big_s * c_dot) / (big_s ** 2 + big_c ** 2))

@@ -401,7 +401,7 @@ cdef extern from "fcc_events.h":
                           double t) noexcept nogil
 
 
-cdef extern from "fcc_power.h":
+cdef extern from "fcc_work.h":
     ctypedef struct fcc_power:
         fcc_assembly *nc
         int n_params, n_zero, constraints, n

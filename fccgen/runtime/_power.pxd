@@ -1,4 +1,4 @@
-# The Python face of the C engine's work tracking (engine/fcc_power.h; see _power.pyx).
+# The Python face of the C engine's work tracking (engine/fcc_work.h; see _power.pyx).
 from ._assemble cimport Assembler
 from ._cengine cimport fcc_power
 

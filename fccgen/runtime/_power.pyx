@@ -4,7 +4,7 @@ quadrature, so that the energy check holds for models that exchange energy
 (fccgen/runtime/energy_check.py, docs/reliability.md "Energy").
 
 The C engine computes the stage powers and adds them up in its integrators
-(engine/fcc_power.c says how); this wrapper sets up its fcc_power from a second
+(engine/fcc_work.c says how); this wrapper sets up its fcc_power from a second
 Assembler of the same kernels over the elements whose forces have no potential (or
 part of one: damped springs, with their stiffness set to zero), and hands the powers
 to loops that step in Python (fccgen.runtime.scipy_ivp).

@@ -59,7 +59,7 @@ static int f(fcc_engine *e, fcc_dopri5 *r, int stage, double t, const double *y,
         return -1;
     if (r->ev != NULL && fcc_ev_constrain(e, r->ev, y, y + n, r->t, k + n) < 0)
         return -1;                            /* active lock rows (events) */
-    if (r->pw != NULL)                        /* the stage's power (fcc_power.h) */
+    if (r->pw != NULL)                        /* the stage's power (fcc_work.h) */
         r->p[stage - 1] = fcc_stage_power(e, r->pw, y, y + n, k + n);
     return 0;
 }

@@ -4,7 +4,7 @@
 #define FCC_DOPRI5_H
 
 #include "fcc_events.h"
-#include "fcc_power.h"
+#include "fcc_work.h"
 #include "fcc_run.h"
 
 #define FCC_DOPRI5_WORK 15      /* work arrays of 2 n numbers each */

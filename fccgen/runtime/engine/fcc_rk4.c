@@ -26,7 +26,7 @@ static int stage(fcc_engine *e, fcc_rk4 *r, int k, const double *q, const double
         if (rc == 0 && r->ev != NULL)         /* active lock rows (events) */
             rc = fcc_ev_constrain(e, r->ev, q, v, r->t0, a);
     }
-    if (rc == 0 && r->pw != NULL)             /* the stage's power (fcc_power.h) */
+    if (rc == 0 && r->pw != NULL)             /* the stage's power (fcc_work.h) */
         r->p[k - 1] = fcc_stage_power(e, r->pw, q, v, a);
     return rc;
 }

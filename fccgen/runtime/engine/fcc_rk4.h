@@ -4,7 +4,7 @@
 #define FCC_RK4_H
 
 #include "fcc_events.h"
-#include "fcc_power.h"
+#include "fcc_work.h"
 #include "fcc_run.h"
 
 typedef struct fcc_rk4 {

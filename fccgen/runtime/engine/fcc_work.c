@@ -1,7 +1,7 @@
-/* The power of the forces without potential at a stage (fcc_power.h). */
+/* The power of the forces without potential at a stage (fcc_work.h). */
 #include <string.h>
 
-#include "fcc_power.h"
+#include "fcc_work.h"
 
 int fcc_power_init(fcc_power *w, fcc_assembly *nc, int n, const int *src, int n_zero,
                    const int *zero, int constraints)

@@ -1,4 +1,4 @@
-/* The power of the forces without potential at an integrator's stage (fcc_power.c),
+/* The power of the forces without potential at an integrator's stage (fcc_work.c),
  * for the energy check with the work added back (docs/reliability.md, "Energy").
  *
  * Along a motion dE/dt = v . f_nc + (driven models) lambda . dg/dt: the applied forces
@@ -17,8 +17,8 @@
  * -v . (B^T lambda) = v . (M a + h - f), with the stage's M, h and f (M dense, or the
  * sparse path's element blocks).
  */
-#ifndef FCC_POWER_H
-#define FCC_POWER_H
+#ifndef FCC_WORK_H
+#define FCC_WORK_H
 
 #include "fcc_engine.h"
 
