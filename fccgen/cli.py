@@ -30,7 +30,7 @@ from .methods import names as method_names
 from .run_settings import LINEAR_SOLVERS
 
 COMMANDS = ("simulate", "bench", "check", "generate", "plot", "animate", "sweep",
-            "statics", "modes", "inverse", "examples")
+            "statics", "modes", "inverse", "examples", "export")
 EXIT_INTERRUPTED = 130      # 128 + SIGINT, as shells report it
 
 
@@ -223,6 +223,13 @@ def _viz_sweep_parsers(sub, common) -> None:
     an.add_argument("--build-dir", default="generated",
                     help="where compiled modules go (default: ./generated)")
     an.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
+    xp = sub.add_parser("export", help="write the model as a standalone C project "
+                        "(--c DIR) or an FMI 2.0 co-simulation FMU (--fmu FILE.fmu)")
+    common(xp)
+    xp.add_argument("--c", metavar="DIR", dest="c_dir",
+                    help="write the C project (Makefile, CMakeLists.txt, API) into DIR")
+    xp.add_argument("--fmu", metavar="FILE", help="write an FMU (.fmu) for linux64")
+
     sw = sub.add_parser("sweep", help="many runs of one compiled model with different "
                         "numbers, on Dask; one row of summary figures per run",
                         epilog="KEY is an item path of the model file: gravity[k], "
@@ -462,6 +469,9 @@ def _run(args, progress) -> int:
               f"    import sys; sys.path.insert(0, {str(built.directory)!r})\n"
               f"    import {built.module_name}")
         return 0
+    if args.command == "export":
+        from .export.cli import run_export
+        return run_export(args, progress)
     if args.command == "simulate":
         options = _method_options(args.method_option)
         options.update({k: v for k, v in (("alpha", args.baumgarte_alpha),

@@ -1,0 +1,124 @@
+"""``fccgen export model.yaml --fmu FILE.fmu``: an FMI 2.0 co-simulation FMU for
+linux64 with its sources inside (docs/export.md).
+
+The FMU is the C project of :mod:`fccgen.export.c_project` plus an FMI 2.0 layer
+(``<name>_fmu.c`` over the model's C API, ``fccgen_fmi2.h`` with the types and
+function declarations written from the FMI 2.0 standard) and ``modelDescription.xml``.
+Its variables: the outputs are the export's result columns (those of fccgen simulate
+but the joint reactions and driver forces), the parameters the with_parameters keys
+the export can set, the inputs the model file's ``inputs:``. The shared library is
+built with the system C compiler in a subprocess (cwd: a fresh folder; the compiler's
+output is shown when it fails) and cached by the hash of its sources.
+"""
+from __future__ import annotations
+
+import hashlib
+import re
+import shutil
+import subprocess
+import time
+import uuid
+import zipfile
+from pathlib import Path
+from xml.sax.saxutils import escape
+
+from .. import __version__
+from ..errors import BuildError
+from .c_project import ExportError, c_project_files, environment
+
+# what a variable name of the FMU may be: the result columns and parameter keys are
+# item names (identifiers) joined by dots, with [k] components
+VARIABLE_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(?:\.[A-Za-z_][A-Za-z0-9_]*|\[\d+\])*")
+CFLAGS = ["-std=c99", "-O2", "-fPIC", "-Wall", "-Wextra", "-pedantic"]
+
+
+def xml_name(name: str) -> str:
+    """A variable name checked against VARIABLE_NAME (never mended), XML-escaped."""
+    if not isinstance(name, str) or not VARIABLE_NAME.fullmatch(name):
+        raise ValueError(f"{name!r} cannot be an FMU variable name")
+    return escape(name, {'"': "&quot;"})
+
+
+def model_description(ctx: dict, columns, keys, inputs, t_end, output_dt) -> str:
+    """modelDescription.xml: outputs, parameters, inputs in value-reference order."""
+    variables = []
+    for k, name in enumerate(columns):
+        variables.append(dict(name=xml_name(name), vr=k, causality="output",
+                              variability="continuous", initial=None, start=None))
+    for k, (key, x0, _) in enumerate(keys):
+        variables.append(dict(name=xml_name(key), vr=len(columns) + k, causality="parameter",
+                              variability="fixed", initial="exact", start=repr(float(x0))))
+    for k, (name, x0, _) in enumerate(inputs):
+        variables.append(dict(name=xml_name(name), vr=len(columns) + len(keys) + k,
+                              causality="input", variability="continuous", initial=None,
+                              start=repr(float(x0))))
+    return environment().get_template("modelDescription.xml.jinja").render(
+        **ctx, variables=variables, outputs=list(range(1, len(columns) + 1)),
+        t_end=repr(float(t_end)), output_dt=repr(float(output_dt)),
+        date=time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()))
+
+
+def guid_of(files: dict) -> str:
+    digest = hashlib.sha256()
+    for name in sorted(files):
+        if name not in ("README.md",):
+            digest.update(name.encode() + b"\0" + files[name].encode() + b"\0")
+    return "{" + str(uuid.UUID(digest.hexdigest()[:32])) + "}"
+
+
+def build_library(name: str, files: dict, cache_root: Path) -> Path:
+    """The FMU's shared library, from the cache when its sources are unchanged."""
+    digest = hashlib.sha256()
+    for fname in sorted(files):
+        digest.update(fname.encode() + b"\0" + files[fname].encode() + b"\0")
+    digest.update(" ".join(CFLAGS).encode())
+    key = digest.hexdigest()[:16]
+    target = cache_root / key / f"{name}.so"
+    if target.exists():
+        return target
+    cc = shutil.which("cc") or shutil.which("gcc")
+    if cc is None:
+        raise BuildError("building an FMU needs a C compiler (cc or gcc on the PATH)")
+    work = cache_root / f"{key}.partial"
+    if work.exists():
+        shutil.rmtree(work)
+    work.mkdir(parents=True)
+    for fname, text in files.items():
+        (work / fname).write_text(text)
+    sources = sorted(f for f in files if f.endswith(".c") and f not in ("example.c",
+                                                                         "selftest.c"))
+    cmd = [cc, *CFLAGS, "-shared", "-I.", *sources, "-o", f"{name}.so", "-lm"]
+    done = subprocess.run(cmd, cwd=work, capture_output=True, text=True)
+    if done.returncode != 0:
+        raise BuildError(f"the FMU of {name} did not compile ({' '.join(cmd)}):\n"
+                         f"{done.stdout}{done.stderr}")
+    work.rename(cache_root / key)
+    return target
+
+
+def export_fmu(model_path, fmu_path, build_dir="generated", *, progress=None) -> Path:
+    """Write the FMU of the model to fmu_path (.fmu); returns its path."""
+    fmu_path = Path(fmu_path)
+    if fmu_path.suffix != ".fmu":
+        raise ExportError(f"{fmu_path}: an FMU file name ends in .fmu")
+    project = c_project_files(model_path, build_dir, progress=progress)
+    name, files = project.name, dict(project.files)
+    env = environment()
+    ctx = dict(n=name, version=__version__)
+    files["fccgen_fmi2.h"] = env.get_template("fmi2.h.jinja").render(ctx)
+    guid = guid_of({**files, f"{name}_fmu.c": env.get_template("fmu.c.jinja").render(
+        {**ctx, "guid": ""})})
+    ctx["guid"] = guid
+    files[f"{name}_fmu.c"] = env.get_template("fmu.c.jinja").render(ctx)
+    library = build_library(name, files, Path(build_dir) / "fmu")
+    description = model_description(ctx, project.columns, project.keys, project.inputs,
+                                     project.t_end, project.output_dt)
+    fmu_path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = fmu_path.with_name(fmu_path.name + ".partial")
+    with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as z:
+        z.writestr("modelDescription.xml", description)
+        z.write(library, f"binaries/linux64/{name}.so")
+        for fname in sorted(files):
+            z.writestr(f"sources/{fname}", files[fname])
+    tmp.replace(fmu_path)
+    return fmu_path
