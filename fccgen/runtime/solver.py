@@ -120,7 +120,11 @@ class CompiledSolver:
     model's simulate section, else fccgen.run_settings (1e-10, 1e-11 times the largest
     body length, 20). linear_solver: "dense", "sparse" or "auto" (by size;
     fccgen.runtime.paths), default the model's simulate.linear_solver, else "auto".
+
+    progress_interval: wall-clock seconds between a run's pauses, where it reports its
+    progress and sees Ctrl-C (0: after every step).
     """
+    progress_interval = 0.5
 
     def __init__(self, plan, module, *, rank_tol=None, position_tol=None, max_newton=None,
                  linear_solver=None, events_module=None):
@@ -532,19 +536,20 @@ class CompiledSolver:
                              f"by {m.name}")
         if m.name == "rk4":
             return simulate_rk4(e, q0, v0, s.t_end, s.dt, s.n_steps, s.every, project,
-                                report, events=events, work=work)
+                                report, self.progress_interval, events=events, work=work)
         if m.name == "baumgarte":
             return simulate_baumgarte(e, q0, v0, s.t_end, s.dt, s.n_steps, s.every,
-                                      opts["alpha"], opts["beta"], report, events=events,
-                                      work=work)
+                                      opts["alpha"], opts["beta"], report,
+                                      self.progress_interval, events=events, work=work)
         if m.name == "dopri5":
             return simulate_dopri5(e, q0, v0, s.t_end, s.output_dt, opts["rtol"],
                                    opts["atol"], s.dt or 0.0, project, report,
-                                   events=events, work=work)
+                                   self.progress_interval, events=events, work=work)
         if m.name == "ali3p":                # assembles dense M and B itself
             from ._ali3p import simulate_ali3p
             return simulate_ali3p(self.dense_engine(), q0, v0, s.t_end, s.dt, s.n_steps, s.every, opts,
-                                  report, length_scale=self.length_scale)
+                                  report, self.progress_interval,
+                                  length_scale=self.length_scale)
         if m.name.startswith("scipy-"):
             from . import scipy_ivp              # imports scipy.integrate: only when used
             if events is not None:               # references from the start's angles
