@@ -79,7 +79,7 @@ def test_the_set_up_run_and_the_solar_array_page_work_there(user_folder):
     done = cli(shlex.split(first)[1:], user_folder)
     assert done.returncode == 0, done.stderr
     assert "501 rows" in done.stdout
-    (animate,) = [c for c in command_lines() if "solar_array" in c]
+    (animate,) = [c for c in command_lines() if "examples/solar_array.yaml" in c]
     done = cli(shlex.split(animate)[1:] + ["-q"], user_folder)
     assert done.returncode == 0, done.stderr
     data = page_data((user_folder / "solar_array.html").read_text(encoding="utf-8"))
