@@ -490,9 +490,10 @@ def _run(args, progress) -> int:
         if "error_target" in result.info:
             print(_error_summary(result.info))
         reaction = result.info.get("reactions", {})
-        if reaction.get("note") or reaction.get("reason"):
-            print(f"fccgen: warning: {reaction.get('note') or reaction['reason']}",
-                  file=sys.stderr)
+        said = " ".join(result.info.get("warnings", []))     # already printed as warnings
+        text = reaction.get("note") or reaction.get("reason")
+        if text and text not in said:
+            print(f"fccgen: warning: {text}", file=sys.stderr)
         if "events" in result.info:                  # the model has events
             from .events.table import summary
             print(summary(result.events))
