@@ -14,6 +14,8 @@ Keys are item paths as in the model file and its error messages, a component wit
     gravity[1]   points.P.at   vectors.u.along   bodies.arm.mass   bodies.arm.center[0]
     bodies.arm.inertia[2]   constraints[0].length   loads[1].stiffness   loads[0].value[2]
     initial.points.P[0]   simulate.t_end   simulate.dt   simulate.output_dt
+    cables.boom.EA   cables.boom.EI   cables.boom.mass_per_length   cables.boom.damping
+    cables.boom.distributed_load[1]
 
 Pickling (:func:`reduce_solver`): a solver travels as its plan, the folder of its
 built module and its tolerances; the receiving process loads the module from that
@@ -35,11 +37,14 @@ SETTABLE = ("gravity", "points.NAME.at", "vectors.NAME.along", "bodies.NAME.mass
             "bodies.NAME.center", "bodies.NAME.inertia", "constraints[K].length",
             "loads[K].value", "loads[K].at", "loads[K].stiffness", "loads[K].length",
             "loads[K].damping", "initial.points.NAME", "simulate.t_end", "simulate.dt",
-            "simulate.output_dt")
+            "simulate.output_dt", "cables.NAME.EA", "cables.NAME.EI",
+            "cables.NAME.mass_per_length", "cables.NAME.damping",
+            "cables.NAME.distributed_load")
 # The rule of each scalar field: 'positive', 'nonnegative' or 'number'.
 SCALAR_RULES = {"mass": "positive", "length": "positive", "stiffness": "nonnegative",
                 "damping": "nonnegative", "t_end": "positive", "dt": "positive",
-                "output_dt": "positive"}
+                "output_dt": "positive", "EA": "positive", "EI": "positive",
+                "mass_per_length": "positive"}
 _TOKEN = re.compile(r"\.?([A-Za-z_][A-Za-z0-9_]*)|\[(\d+)\]")
 
 
@@ -110,6 +115,10 @@ def _target(model, tokens: list, key: str):
             return item, rest[1], item.where
         if rest[1] == "length" and hasattr(item, "length"):
             return item, "length", item.where       # a spring's default free length
+    if head == "cables" and len(rest) == 2 and isinstance(rest[0], str):
+        member = _named(getattr(model, "cables", {}), rest[0], "cable", key, src)
+        if rest[1] in ("EA", "EI", "mass_per_length", "damping", "distributed_load"):
+            return member, rest[1], member.where
     if head == "initial" and len(rest) == 2 and rest[0] == "points":
         _named(model.points, rest[1], "point", key, src)
         return model.initial.point_velocities, rest[1], None
