@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
 import tempfile
 import warnings
@@ -39,6 +40,12 @@ LADDERS = {
     "a02s": dict(n=(1, 60), rtol=(1e-4, 1e-12)),
 }
 
+
+
+def reason(exc: Exception) -> str:
+    """The failure's text with the model file named by its file name alone (the
+    folder it ran from belongs to the machine, not to the data)."""
+    return re.sub(r"^\S*/([^/\s]+\.yaml):", r"\1:", str(exc))
 
 def ladder(case: str):
     lo, hi = LADDERS[case]["n"]
@@ -65,7 +72,7 @@ def search(name: str, build_dir, model_dir) -> dict:
                                     method=method, reactions=False, **kwargs)
             err = case.error(solver, r, ref)
         except Exception as exc:          # noqa: BLE001  (a failed rung is recorded)
-            runs.append(dict(method=method, value=value, error=None, failure=str(exc)))
+            runs.append(dict(method=method, value=value, error=None, failure=reason(exc)))
             continue
         runs.append(dict(method=method, value=value, error=err,
                          evaluations=evaluations(r.info)))
