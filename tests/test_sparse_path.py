@@ -14,7 +14,6 @@ import pytest
 from conftest import EXAMPLES, example_module
 from fccgen.errors import ModelError, RunWarning
 from fccgen.runtime import CompiledSolver
-from fccgen.runtime.solver import dense_only_reason
 from fccgen.runtime._engine import Engine
 from fccgen.runtime._sparse import SparseEngine
 from fccgen.runtime.paths import SPARSE_MIN_COORDINATES
@@ -23,20 +22,12 @@ EXAMPLE_NAMES = sorted(p.stem for p in EXAMPLES.glob("*.yaml"))
 
 
 def both(solver):
-    """(dense, sparse) solvers of the same compiled module; None for a model that only
-    the dense path takes (drivers, events), after checking that forcing the sparse path
-    on it is refused with the reason and that auto takes the dense path."""
-    reason = dense_only_reason(solver.plan)
-    if reason:
-        with pytest.raises(ValueError, match=r"linear_solver='sparse' does not take"):
+    """(dense, sparse) solvers of the same compiled module (events included: both paths
+    run them, engine/fcc_events.c)."""
+    return (CompiledSolver(solver.plan, solver.module, linear_solver="dense",
+                           events_module=solver.events_module),
             CompiledSolver(solver.plan, solver.module, linear_solver="sparse",
-                           events_module=solver.events_module)
-        auto = CompiledSolver(solver.plan, solver.module, linear_solver="auto",
-                              events_module=solver.events_module)
-        assert type(auto._engine) is Engine
-        return None
-    return (CompiledSolver(solver.plan, solver.module, linear_solver="dense"),
-            CompiledSolver(solver.plan, solver.module, linear_solver="sparse"))
+                           events_module=solver.events_module))
 
 
 def rel(a, b) -> float:
@@ -49,10 +40,7 @@ def test_accelerations_and_projections_agree_with_the_dense_path(compiled, name)
     # 1e-15 of |x| (measured 1e-15 .. 2e-15 on every example), so 1e-10 leaves room for
     # the conditioning of the reduced mass matrix without hiding a wrong solve
     # (a missed constraint row changes the accelerations by O(1)).
-    pair = both(compiled(name))
-    if pair is None:                          # refused above, as it must be
-        return
-    dense, sparse = pair
+    dense, sparse = both(compiled(name))
     assert isinstance(sparse._engine, SparseEngine) and type(dense._engine) is Engine
     init = dense.initial_state()
     rng = np.random.default_rng(7)
@@ -76,10 +64,7 @@ def test_one_second_runs_agree_with_the_dense_path(compiled, name):
     # 1e-9 of each column's largest value (or of 1): both runs take the same RK4 steps
     # and projections; they differ by the solves' rounding, amplified by the motion
     # (measured up to 7e-12, A02's energy through the flat position at t = 0.75 s).
-    pair = both(compiled(name))
-    if pair is None:                          # refused above, as it must be
-        return
-    dense, sparse = pair
+    dense, sparse = both(compiled(name))
     # one second at 1 ms; the examples with flexible members state a smaller step,
     # within RK4's stable step for them (fccgen check says which); andrews, whose
     # motion needs 10 us steps (below 1e-4), runs its own 0.03 s
@@ -100,6 +85,11 @@ def test_one_second_runs_agree_with_the_dense_path(compiled, name):
             assert np.max(b) <= 1e-9 * max(1.0, scale)
             continue
         assert np.max(np.abs(a - b)) <= 1e-9 * max(1.0, np.max(np.abs(a))), column
+    # events (both paths run them): the same ones, at times 1e-10 s apart (located
+    # to event_tol 1e-12 s on functions that differ by the solves' rounding)
+    ed, es = rd.events or [], rs.events or []
+    assert [e["name"] for e in ed] == [e["name"] for e in es]
+    assert all(abs(x["t"] - y["t"]) <= 1e-10 for x, y in zip(ed, es))
 
 
 def test_a_projection_removing_kinetic_energy_is_flagged_on_the_sparse_path(compiled):

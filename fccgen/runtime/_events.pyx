@@ -132,9 +132,10 @@ cdef class EventSet:
         definition) and their copies in the element parameters, no rows active or
         resting, an empty log. ``engine``: the run's
         engine, for the rank decision at switches (fcc_ev_decide; None: every active
-        row is used)."""
+        row is used). The sparse path decides without the dense rank work."""
         fcc_events_reset(&self.c)
-        if engine is not None and (self.c.aug == NULL or self.c.m != engine.c.m):
+        if engine is not None and not engine.c.sparse and (
+                self.c.aug == NULL or self.c.m != engine.c.m):
             rc = fcc_events_rank_work(&self.c, engine.c.lapack, engine.c.m)
             if rc == FCC_ERR_MEMORY:
                 raise MemoryError("cannot allocate the rank work of the events")

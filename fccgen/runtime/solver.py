@@ -100,15 +100,6 @@ def time_slots(plan) -> np.ndarray:
     return np.array(slots, dtype=np.intc)
 
 
-def dense_only_reason(plan) -> str:
-    """What in the model only the dense path handles ("" if nothing): the lock and
-    bounce rows of events are solved through the dense path's factorisation
-    (fccgen/runtime/engine/fcc_events.c)."""
-    if plan.model.events:
-        return "events (lock and bounce rows)"
-    return ""
-
-
 class CompiledSolver:
     """Assembly, constrained solve, projections and the integration methods of
     :mod:`fccgen.methods` for one model, the per-step loops in compiled code.
@@ -140,17 +131,11 @@ class CompiledSolver:
         self.row_groups = plan.row_groups
         self.linear_solver = linear_solver_choice(plan.model.simulate, linear_solver)
         self.setup_store = SetupStore(self)      # set-ups kept per start (setup_reuse)
+        # events run on both paths (engine/fcc_events.c): auto chooses by size alone
         self.sparse = use_sparse(self.linear_solver, self.n_q)
-        dense_only = dense_only_reason(plan)
-        if self.sparse and dense_only:
-            if self.linear_solver == "sparse":
-                raise ValueError(f"{plan.model.name}: linear_solver='sparse' does not take "
-                                 f"{dense_only} yet; use 'dense' or 'auto' (auto takes the "
-                                 "dense path for such models)")
-            self.sparse = False
         # auto below SPARSE_MIN_COORDINATES: dense until a rank decision shows the
         # sparse solve well posed (paths.small_model_path), decided again every run
-        self._auto_small = (self.linear_solver == "auto" and not dense_only
+        self._auto_small = (self.linear_solver == "auto"
                             and self.n_q < SPARSE_MIN_COORDINATES)
         self._engine = self._new_engine(self.sparse)
         self._decided_at = None

@@ -19,6 +19,23 @@
  * (sigma_r > decide_tol sigma_1). A lock whose rows follow from B and the rows already
  * locked is held (its row error is reported) but adds no constraint: the degrees of
  * freedom after a switch are n - rank(B) - (the used rows).
+ *
+ * The sparse path decides without an SVD (and without LAPACK): each active row i, in
+ * order, is used when the mobility it keeps once B and the rows used before it hold,
+ * the pivot p_i = G_i z_i - y^T y of the rows' Schur complement G Z (z_i the response
+ * to G_i under B, L y = G_U z_i with L the Cholesky factor of G_U Z_U over the rows U
+ * used so far), is above PIVOT_TOL |G_i|^2 / m_ref (m_ref the largest diagonal entry of
+ * M). That is the rows' own system, which the switch needs anyway: nr responses, each
+ * one refinement with the factorisation held, instead of an SVD of the whole
+ * (m + nr) x n Jacobian. The number p_i m_ref / |G_i|^2 is about the squared sine of
+ * the angle between G_i and the rows before it, in M's metric (times a mass ratio at
+ * most 1): exactly dependent rows leave rounding of the refinement (measured 3e-17:
+ * the four-bar's rocker hinge locked after its crank), independent ones keep their
+ * geometry (measured 1e-3 at the scissor boom's latch, 0.02 .. 26 on the four-bar and
+ * the solar array): PIVOT_TOL sits seven decades from both. sqrt(p_i m_ref / |G_i|^2)
+ * is logged as the row's sigma when it falls in the uncertain band.
+ * The degrees of freedom: n - (B's rank decided at the run's start, or raised by the
+ * rank watch) - (the used rows).
  */
 #include <math.h>
 #include <string.h>
@@ -96,6 +113,66 @@ static void uncertain(fcc_engine *e, fcc_events *ev, double ratio)
     }
 }
 
+/* A row's pivot ratio p m_ref / |G|^2 above this: it is used (the file's docstring);
+ * in [PIVOT_LOW, PIVOT_HIGH]: the decision is noted as uncertain. */
+#define PIVOT_TOL 1e-10
+#define PIVOT_LOW 1e-12
+#define PIVOT_HIGH 1e-8
+
+/* The sparse path's decision (the file's docstring): ev->used, ev->n_used, and the
+ * responses of the used rows in ev->z (the factorisation must be the one at q). */
+static int decide_pivots(fcc_engine *e, fcc_events *ev, const double *q)
+{
+    const fcc_event_spec *c = ev->spec;
+    int i, j, b, k = 0, n = c->n, nr = c->nr;
+    double *L = ev->gz, *y = ev->mu, *z;
+    const double *g;
+    double d, gg, p, acc, ratio, mref = e->sp.mref > 0.0 ? e->sp.mref : 1.0;
+    c->tab->quantity_gradients(q, NULL, 0.0, ev->p, ev->rg);
+    ev->n_used = 0;
+    for (i = 0; i < nr; i++) {
+        ev->used[i] = 0;
+        if (!ev->active[i])
+            continue;
+        g = ev->rg + i * n;
+        z = ev->z + k * n;
+        fcc_ev_response(e, g, z);
+        d = 0.0;
+        gg = 0.0;
+        for (j = 0; j < n; j++) {
+            d += g[j] * z[j];
+            gg += g[j] * g[j];
+        }
+        if (!isfinite(d))
+            return fcc_fail(e, FCC_ERR_NONFINITE_RESULT, 0, 0);
+        p = d;
+        for (b = 0; b < k; b++) {              /* G_i z_b = G_b z_i: M's inverse on */
+            acc = 0.0;                          /* the constraints is symmetric */
+            for (j = 0; j < n; j++)
+                acc += g[j] * ev->z[b * n + j];
+            for (j = 0; j < b; j++)
+                acc -= L[b * nr + j] * y[j];
+            y[b] = acc / L[b * nr + b];
+            p -= y[b] * y[b];
+        }
+        ratio = gg > 0.0 ? p * mref / gg : 0.0;
+        if (PIVOT_LOW <= ratio && ratio <= PIVOT_HIGH) {
+            if (!(ev->note & FCC_NOTE_UNCERTAIN) || sqrt(ratio) < ev->note_sigma)
+                ev->note_sigma = sqrt(ratio);
+            ev->note |= FCC_NOTE_UNCERTAIN;
+        }
+        if (ratio > PIVOT_TOL) {
+            for (b = 0; b < k; b++)
+                L[k * nr + b] = y[b];
+            L[k * nr + k] = sqrt(p);
+            ev->used[i] = 1;
+            ev->n_used++;
+            k++;
+        }
+    }
+    return 0;
+}
+
 int fcc_ev_decide(fcc_engine *e, fcc_events *ev, const double *q)
 {
     /* Decide which active rows enter the solves (ev->used) at q, by the start's rank
@@ -103,9 +180,12 @@ int fcc_ev_decide(fcc_engine *e, fcc_events *ev, const double *q)
      * raises the rank by the SVD gap test. The singular value that decided a row (the
      * new last kept one, or the first dropped one) inside the uncertain band sets
      * FCC_NOTE_UNCERTAIN. Without the rank work (no engine at the reset) every active
-     * row is used. */
+     * row is used. The sparse path decides by the pivots of G Z instead
+     * (decide_pivots). */
     const fcc_event_spec *c = ev->spec;
     int i, rows, rank, r, n = c->n;
+    if (e->sparse)
+        return decide_pivots(e, ev, q);
     ev->n_used = 0;
     if (ev->aug == NULL) {
         for (i = 0; i < c->nr; i++) {
@@ -178,7 +258,7 @@ static int bounce(fcc_engine *e, fcc_events *ev, int k, double *q, double *v, do
     for (j = 0; j < n; j++)
         sd += g[j] * v[j];
     *speed = sd;
-    fcc_dense_apply(&e->sol, g, NULL, NULL, w);
+    fcc_ev_response(e, g, w);
     m = fcc_ev_responses(e, ev, q);
     if (m > 0 && fcc_ev_hold(e, ev, m, w, NULL, w) < 0)
         return -1;
@@ -323,7 +403,7 @@ int fcc_ev_apply(fcc_engine *e, fcc_events *ev, int k, double *q, double *v, dou
         rec[4] = ke0;
         rec[5] = fcc_ev_kinetic(e, q, v);
         rec[6] = cerr;
-        rec[7] = e->sol.nr - ev->n_used;
+        rec[7] = (e->sparse ? e->n - e->sol.rank_fixed : e->sol.nr) - ev->n_used;
         rec[8] = speed;
         rec[9] = ev->note;
         rec[10] = ev->note_sigma;

@@ -232,16 +232,28 @@ static int solve_small(double *A, double *b, int k)
     return 0;
 }
 
+void fcc_ev_response(fcc_engine *e, const double *g, double *z)
+{
+    /* z = argmin z^T M z / 2 - g z subject to B z = 0, with the factorisation the
+     * engine holds: the dense path's null-space solve, or the sparse path's
+     * augmented-Lagrangian refinement on its LDL^T (from zero multipliers: the
+     * accelerations' warm start is left as it was). */
+    if (e->sparse)
+        fcc_sp_solve_kkt(e, g, NULL, NULL, z, 0, 0);
+    else
+        fcc_dense_apply(&e->sol, g, NULL, NULL, z);
+}
+
 int fcc_ev_responses(fcc_engine *e, fcc_events *ev, const double *q)
 {
     /* Jacobian rows of the quantities at q, and z_j (rows of ev->z, used rows in
-     * order) with the engine's (dense) factorisation at q; the number of used rows. */
+     * order) with the engine's factorisation at q; the number of used rows. */
     const fcc_event_spec *c = ev->spec;
     int j, m = 0;
     c->tab->quantity_gradients(q, NULL, 0.0, ev->p, ev->rg);
     for (j = 0; j < c->nr; j++) {
         if (ev->used[j]) {
-            fcc_dense_apply(&e->sol, ev->rg + j * c->n, NULL, NULL, ev->z + m * c->n);
+            fcc_ev_response(e, ev->rg + j * c->n, ev->z + m * c->n);
             m++;
         }
     }

@@ -4,9 +4,11 @@
  * direction, action, joint rows, restitution, the settings); fcc_events one run's
  * state (angle references, active rows, work, the log).
  *
- * The events need the dense path today: the responses to the joint rows are solved
- * with the dense factorisation (fcc_dense_apply) and the rows that enter the solves
- * are decided by an SVD of [B; G_active] (LAPACK's dgesvd).
+ * The events run on both paths: the responses to the joint rows are solved with the
+ * factorisation the engine holds (fcc_ev_response). Which active rows enter the solves
+ * is decided on the dense path by an SVD of [B; G_active] (LAPACK's dgesvd), on the
+ * sparse path by the pivots of the rows' Schur complement G Z (no LAPACK, no SVD;
+ * fcc_event_actions.c says how).
  */
 #ifndef FCC_EVENTS_H
 #define FCC_EVENTS_H
@@ -146,6 +148,7 @@ double fcc_ev_leaving(fcc_events *ev, int k, const double *q, const double *v,
                       double t);
 
 /* Shared by fcc_events.c and fcc_event_actions.c. */
+void fcc_ev_response(fcc_engine *e, const double *g, double *z);
 int fcc_ev_responses(fcc_engine *e, fcc_events *ev, const double *q);
 int fcc_ev_multipliers(fcc_engine *e, fcc_events *ev, int m);
 int fcc_ev_hold(fcc_engine *e, fcc_events *ev, int m, const double *x,
