@@ -67,8 +67,8 @@ def model_text(structure: str, units: int) -> str:
     spec = importlib.util.spec_from_file_location(name, ROOT / "examples" / f"{name}.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
-    if structure == "boom":                 # the boom without its latch event (events
-        return module.model_text(units, latch=False)   # keep a model on the dense path)
+    if structure == "boom":                 # the boom without its latch event (its cost
+        return module.model_text(units, latch=False)   # is benchmarks/sparse_events.py's)
     return module.model_text(units)
 
 

@@ -7,8 +7,8 @@ those named): CPU per RK4 step (dt 1e-3, projection on, from the consistent init
 state) on the dense and on the sparse path, timed as benchmarks/peers/timing.py times
 (warm, interleaved, medians; the run's set-up removed), their ratio, and the path
 "auto" takes after its rank decision at that state (runtime/paths.py,
-small_model_path) with the signals it reads. Models with events take the dense path
-only and show no sparse time. Single-threaded BLAS, set here before NumPy loads.
+small_model_path) with the signals it reads (models with events too: both paths run
+them). Single-threaded BLAS, set here before NumPy loads.
 """
 from __future__ import annotations
 
@@ -77,12 +77,9 @@ def main(argv=None) -> int:
             if not args.examples and auto.n_q >= paths.SPARSE_MIN_COORDINATES:
                 continue
             auto.initial_state()
-            models = {"dense": Run(fccgen.load(path, build, linear_solver="dense"))}
-            if auto.plan.model.events:
-                kept = manifold = spread = float("nan")
-            else:
-                models["sparse"] = Run(fccgen.load(path, build, linear_solver="sparse"))
-                kept, manifold, spread = signals(models["sparse"].solver)
+            models = {"dense": Run(fccgen.load(path, build, linear_solver="dense")),
+                      "sparse": Run(fccgen.load(path, build, linear_solver="sparse"))}
+            kept, manifold, spread = signals(models["sparse"].solver)
             times = {tool: t.per_step * 1e6
                      for tool, t in time_interleaved(models, args.reps).items()}
             sparse = times.get("sparse", float("nan"))

@@ -53,8 +53,8 @@ def environment():
 def refusal(plan) -> str:
     """Why the export cannot take this model ("" if it can)."""
     if plan.model.events:
-        return ("the model has events; their joint rows are solved by the dense path "
-                "(LAPACK), which a standalone export does not have")
+        return ("the model has events; the engine runs them on the sparse path, but the "
+                "export does not carry the event kernels and their settings yet")
     from ..events.references import angle_sources
     if angle_sources(plan):
         return ("angles counted over turns (torsion springs, loads of joint angles) "

@@ -352,6 +352,7 @@ cdef extern from "fcc_events.h":
         double *rb
         int m
         double *aug
+        int mz
         int stop
         long n_log
         double *log
@@ -374,6 +375,7 @@ cdef extern from "fcc_events.h":
                         const double *constants) nogil
     void fcc_events_free(fcc_events *ev) nogil
     int fcc_events_rank_work(fcc_events *ev, const fcc_lapack *lapack, int m) nogil
+    int fcc_events_sparse_work(fcc_events *ev, int m) nogil
     void fcc_events_reset(fcc_events *ev) nogil
     int fcc_events_mirror(fcc_events *ev, fcc_assembly *a, int n, const int *slots,
                           const int *angles) nogil

@@ -18,6 +18,7 @@ from ._cengine cimport (FCC_ACT_BOUNCE, FCC_ACT_LOCK, FCC_ACT_LOG, FCC_ACT_RELEA
                         FCC_NOTE_UNCERTAIN, FCC_OK, fcc_event_spec_free,
                         fcc_event_spec_init, fcc_event_table, fcc_events_free,
                         fcc_events_init, fcc_events_mirror, fcc_events_rank_work,
+                        fcc_events_sparse_work,
                         fcc_events_reset, fcc_events_restore, fcc_ev_refresh,
                         fcc_ev_values)
 from ._assemble cimport Assembler
@@ -133,6 +134,9 @@ cdef class EventSet:
         resting, an empty log. ``engine``: the run's
         engine, for the rank decision at switches (fcc_ev_decide; None: every active
         row is used). The sparse path decides without the dense rank work."""
+        if engine is not None and engine.c.sparse and self.c.mz != engine.c.m:
+            if fcc_events_sparse_work(&self.c, engine.c.m) != FCC_OK:
+                raise MemoryError("cannot allocate the warm starts of the events")
         fcc_events_reset(&self.c)
         if engine is not None and not engine.c.sparse and (
                 self.c.aug == NULL or self.c.m != engine.c.m):

@@ -339,6 +339,21 @@ int fcc_sp_kkt_solve(fcc_engine *e, const double *Q, const double *w, const doub
      * solve, whose augmented-Lagrangian steps stop at NEWTON_STOP. Returns whether
      * the refinement converged. */
     fcc_sparse *s = &e->sp;
+    int status = fcc_sp_kkt_solve_from(e, Q, w, b, x, warm ? s->lam_warm : NULL,
+                                       warm && s->warm_valid, newton);
+    if (warm)
+        s->warm_valid = status;
+    return status;
+}
+
+int fcc_sp_kkt_solve_from(fcc_engine *e, const double *Q, const double *w,
+                          const double *b, double *x, double *lam_io, int valid,
+                          int newton)
+{
+    /* fcc_sp_kkt_solve with its own warm start: lambda starts from lam_io (m numbers)
+     * when valid, and lam_io receives the multipliers of a converged solve (lam_io
+     * NULL: from zero, nothing kept). Returns whether the refinement converged. */
+    fcc_sparse *s = &e->sp;
     const fcc_pattern *P = s->pat;
     int i, status, solves = 0, n = e->n, m = e->m;
     if (Q != NULL)
@@ -351,19 +366,16 @@ int fcc_sp_kkt_solve(fcc_engine *e, const double *Q, const double *w, const doub
         s->base[P->pinned[i]] = 0.0;
     s->n_solves++;
     status = -1;
-    if (warm && s->warm_valid) {
-        memcpy(s->lam, s->lam_warm, (size_t)m * sizeof(double));
+    if (lam_io != NULL && valid) {
+        memcpy(s->lam, lam_io, (size_t)m * sizeof(double));
         status = refine(e, b, x, 1, &solves, AL_STOP);
     }
     if (status < 0) {
         memset(s->lam, 0, (size_t)m * sizeof(double));
         status = refine(e, b, x, 0, &solves, newton ? NEWTON_STOP : AL_STOP);
     }
-    if (warm) {
-        s->warm_valid = status == 1;
-        if (status == 1)
-            memcpy(s->lam_warm, s->lam, (size_t)m * sizeof(double));
-    }
+    if (lam_io != NULL && status == 1)
+        memcpy(lam_io, s->lam, (size_t)m * sizeof(double));
     if (status != 1)
         s->n_unconverged++;
     s->n_iterations += solves;

@@ -136,7 +136,7 @@ static int decide_pivots(fcc_engine *e, fcc_events *ev, const double *q)
             continue;
         g = ev->rg + i * n;
         z = ev->z + k * n;
-        fcc_ev_response(e, g, z);
+        fcc_ev_row_response(e, ev, i, z);
         d = 0.0;
         gg = 0.0;
         for (j = 0; j < n; j++) {
@@ -289,11 +289,12 @@ double fcc_ev_leaving(fcc_events *ev, int k, const double *q, const double *v, d
 {
     /* The value s_k counts as at a state just after an event on k: a bounce that
      * leaves its surface is on the side before the crossing (so that a return within
-     * the same step is a new crossing), anything else where it is. After a release
+     * the same step is a new crossing), anything else where it is (a directed event
+     * at its zero at least: below). After a release
      * (k = ne + j) the bounce j is put on the side before its crossing in ev->s0 (it
      * leaves its limit) and its release function is -1. */
     const fcc_event_spec *c = ev->spec;
-    double sd;
+    double sd, value;
     if (k >= c->ne) {
         if (c->direction[k - c->ne] != 0)
             ev->s0[k - c->ne] = c->direction[k - c->ne] < 0 ? 1e-300 : -1e-300;
@@ -305,7 +306,16 @@ double fcc_ev_leaving(fcc_events *ev, int k, const double *q, const double *v, d
         if (sd * c->direction[k] < 0.0)
             return c->direction[k] < 0 ? 1e-300 : -1e-300;
     }
-    return ev->s1[2 * c->ne + k];
+    /* Located to event_tol past its crossing, s_k is O(rate x event_tol) there, and
+     * the projections after the location move q by up to the position tolerance: that
+     * can put s_k back before its crossing, and the rest of the step would find the
+     * same crossing again (a log event on the sparse path, whose projections round
+     * differently, did at dt 2e-3). A directed event that has just happened sits at
+     * its zero, then; a new crossing needs s_k to go back before it first. */
+    value = ev->s1[2 * c->ne + k];
+    if (value * c->direction[k] < 0.0)
+        return 0.0;
+    return value;
 }
 
 /* Mark bounce k as resting on its row (locked, ev->z its used rows' responses) and

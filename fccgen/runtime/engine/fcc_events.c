@@ -117,6 +117,7 @@ void fcc_events_free(fcc_events *ev)
     FCC_FREE(ev->used); FCC_FREE(ev->rested); FCC_FREE(ev->rel_sign); FCC_FREE(ev->acc);
     FCC_FREE(ev->log); FCC_FREE(ev->aug); FCC_FREE(ev->svm); FCC_FREE(ev->sig);
     FCC_FREE(ev->svw); FCC_FREE(ev->mslot); FCC_FREE(ev->mang); FCC_FREE(ev->mkeep);
+    FCC_FREE(ev->zlam); FCC_FREE(ev->zlam_ok);
     memset(ev, 0, sizeof(*ev));
 }
 
@@ -144,6 +145,18 @@ int fcc_events_rank_work(fcc_events *ev, const fcc_lapack *lapack, int m)
     return FCC_OK;
 }
 
+int fcc_events_sparse_work(fcc_events *ev, int m)
+{
+    FCC_FREE(ev->zlam); FCC_FREE(ev->zlam_ok);
+    ev->mz = 0;
+    ev->zlam = FCC_CALLOC((size_t)ev->spec->nr * m + 1, sizeof(double));
+    ev->zlam_ok = FCC_CALLOC((size_t)ev->spec->nr + 1, sizeof(int));
+    if (!ev->zlam || !ev->zlam_ok)
+        return FCC_ERR_MEMORY;
+    ev->mz = m;
+    return FCC_OK;
+}
+
 void fcc_events_reset(fcc_events *ev)
 {
     const fcc_event_spec *c = ev->spec;
@@ -158,6 +171,8 @@ void fcc_events_reset(fcc_events *ev)
     memset(ev->used, 0, (size_t)c->nr * sizeof(int));
     ev->n_used = 0;
     memset(ev->rested, 0, (size_t)c->ne * sizeof(int));
+    if (ev->zlam_ok != NULL)
+        memset(ev->zlam_ok, 0, (size_t)c->nr * sizeof(int));
     ev->n_log = 0;
     ev->stop = 0;
 }
@@ -244,6 +259,20 @@ void fcc_ev_response(fcc_engine *e, const double *g, double *z)
         fcc_dense_apply(&e->sol, g, NULL, NULL, z);
 }
 
+void fcc_ev_row_response(fcc_engine *e, fcc_events *ev, int j, double *z)
+{
+    /* fcc_ev_response to quantity row j's gradient (ev->rg). The sparse path starts
+     * from the multipliers of that row's last response (each row's moves by O(h)
+     * between stages, as the accelerations' do: two refinement steps instead of
+     * three, fcc_al_refine.c "Warm start"), when fcc_events_sparse_work made room. */
+    const double *g = ev->rg + j * ev->spec->n;
+    if (e->sparse && ev->mz == e->m && ev->zlam != NULL)
+        ev->zlam_ok[j] = fcc_sp_solve_kkt_from(e, g, z, ev->zlam + (size_t)j * e->m,
+                                               ev->zlam_ok[j]);
+    else
+        fcc_ev_response(e, g, z);
+}
+
 int fcc_ev_responses(fcc_engine *e, fcc_events *ev, const double *q)
 {
     /* Jacobian rows of the quantities at q, and z_j (rows of ev->z, used rows in
@@ -253,7 +282,7 @@ int fcc_ev_responses(fcc_engine *e, fcc_events *ev, const double *q)
     c->tab->quantity_gradients(q, NULL, 0.0, ev->p, ev->rg);
     for (j = 0; j < c->nr; j++) {
         if (ev->used[j]) {
-            fcc_ev_response(e, ev->rg + j * c->n, ev->z + m * c->n);
+            fcc_ev_row_response(e, ev, j, ev->z + m * c->n);
             m++;
         }
     }

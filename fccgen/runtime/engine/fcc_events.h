@@ -73,6 +73,9 @@ typedef struct fcc_events {
     double *aug;              /* (m + nr) x n: the row-scaled [B; G_active] (rank) */
     double *svm, *sig, *svw;  /* its copy for dgesvd; singular values; work */
     int lsvw;
+    int mz;                   /* the sparse engine's rows (0: no warm starts) */
+    double *zlam;             /* nr x mz: each row's response's last multipliers */
+    int *zlam_ok;             /* per quantity row: zlam holds converged ones */
     int note;                 /* FCC_NOTE_ bits of the last switch */
     double note_sigma;        /* the smallest relative singular value in the band */
     int stop;                 /* a stop event happened */
@@ -110,6 +113,9 @@ int fcc_events_init(fcc_events *ev, const fcc_event_spec *c, const double *const
 void fcc_events_free(fcc_events *ev);
 /* The rank work for an engine with m rows (needs the engine's LAPACK table). */
 int fcc_events_rank_work(fcc_events *ev, const fcc_lapack *lapack, int m);
+/* The warm starts of the sparse path's responses for an engine with m rows
+ * (set-up; without it the responses start from zero multipliers). */
+int fcc_events_sparse_work(fcc_events *ev, int m);
 /* Start a run: angle references 0 (and their copies), no rows active or resting, an
  * empty log, no turn yet. */
 void fcc_events_reset(fcc_events *ev);
@@ -149,6 +155,7 @@ double fcc_ev_leaving(fcc_events *ev, int k, const double *q, const double *v,
 
 /* Shared by fcc_events.c and fcc_event_actions.c. */
 void fcc_ev_response(fcc_engine *e, const double *g, double *z);
+void fcc_ev_row_response(fcc_engine *e, fcc_events *ev, int j, double *z);
 int fcc_ev_responses(fcc_engine *e, fcc_events *ev, const double *q);
 int fcc_ev_multipliers(fcc_engine *e, fcc_events *ev, int m);
 int fcc_ev_hold(fcc_engine *e, fcc_events *ev, int m, const double *x,

@@ -181,6 +181,9 @@ int fcc_sp_nonfinite_input(struct fcc_engine *e, const double *q, const double *
 void fcc_sp_first_pass(struct fcc_engine *e, const double *b, int warm, double *y);
 int fcc_sp_kkt_solve(struct fcc_engine *e, const double *Q, const double *w,
                      const double *b, double *x, int warm, int newton);
+int fcc_sp_kkt_solve_from(struct fcc_engine *e, const double *Q, const double *w,
+                          const double *b, double *x, double *lam_io, int valid,
+                          int newton);
 
 /* -- the sparse engine (fcc_sparse_engine.c, fcc_sparse_watch.c) ----------------- */
 int fcc_sp_accelerations(struct fcc_engine *e, const double *q, const double *v,
@@ -192,6 +195,8 @@ int fcc_sp_chord_ready(struct fcc_engine *e);
 int fcc_sp_chord_step(struct fcc_engine *e, double *q, double *res);
 void fcc_sp_solve_kkt(struct fcc_engine *e, const double *Q, const double *w,
                       const double *b, double *x, int warm, int newton);
+int fcc_sp_solve_kkt_from(struct fcc_engine *e, const double *Q, double *x,
+                          double *lam_io, int valid);
 int fcc_sp_project_velocities(struct fcc_engine *e, const double *q, double *v,
                               int have_B);
 void fcc_sp_watch_rank(struct fcc_engine *e);

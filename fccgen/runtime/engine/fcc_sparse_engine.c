@@ -58,20 +58,41 @@
 #define CHORD_GAIN 1e-2
 #define CHORD_DRIFT 1e-3
 
-void fcc_sp_solve_kkt(fcc_engine *e, const double *Q, const double *w, const double *b,
-                      double *x, int warm, int newton)
+/* The dense solve of an unconverged refinement, if the model is small enough, the
+ * engine has LAPACK and M, B factor there. */
+static void dense_fallback(fcc_engine *e, const double *Q, const double *w,
+                           const double *b, double *x)
 {
-    /* The refinement (warm: from the last accelerations' multipliers; newton: a Newton
-     * step's); when it did not converge, the dense solve instead if the model is small
-     * enough, the engine has LAPACK and M, B factor there. */
-    if (fcc_sp_kkt_solve(e, Q, w, b, x, warm, newton) || e->n > e->sp.dense_fallback_max
-            || e->lapack == NULL)
+    if (e->n > e->sp.dense_fallback_max || e->lapack == NULL)
         return;
     fcc_sp_gather_dense(e);
     if (fcc_dense_factor(&e->sol, e->asmb->M, e->asmb->B) == 0) {
         fcc_dense_apply(&e->sol, Q, w, b, x);
         e->sp.n_fallback++;
     }
+}
+
+void fcc_sp_solve_kkt(fcc_engine *e, const double *Q, const double *w, const double *b,
+                      double *x, int warm, int newton)
+{
+    /* The refinement (warm: from the last accelerations' multipliers; newton: a Newton
+     * step's); when it did not converge, the dense solve instead if the model is small
+     * enough, the engine has LAPACK and M, B factor there. */
+    if (fcc_sp_kkt_solve(e, Q, w, b, x, warm, newton))
+        return;
+    dense_fallback(e, Q, w, b, x);
+}
+
+int fcc_sp_solve_kkt_from(fcc_engine *e, const double *Q, double *x, double *lam_io,
+                          int valid)
+{
+    /* x of M x + B^T lambda = Q, B x = 0 from the multipliers lam_io (when valid),
+     * which receive the converged ones (fcc_sp_kkt_solve_from); the dense solve
+     * instead as fcc_sp_solve_kkt. Returns whether lam_io holds converged ones. */
+    if (fcc_sp_kkt_solve_from(e, Q, NULL, NULL, x, lam_io, valid, 0))
+        return 1;
+    dense_fallback(e, Q, NULL, NULL, x);
+    return 0;
 }
 
 int fcc_sp_accelerations(fcc_engine *e, const double *q, const double *v, double *a,
