@@ -25,6 +25,7 @@ from ..settings.run import linear_solver_choice, solver_tolerances
 from ..errors import SimulationError
 from ..progress import run_reporter
 from ..results.result import InitialState, Result, timed_run
+from ..threads import single_threaded_blas
 from ._assemble import FLAGS
 from ._dopri5 import simulate_dopri5
 from .paths import (SPARSE_MIN_COORDINATES, make_engine, pattern_samples,
@@ -332,10 +333,11 @@ class CompiledSolver:
         sched = registry.schedule(m, d, t_end, dt, output_dt, opts)
         self.set_time(0.0)
         self.setup_store.start_run()
-        q0, v0 = self._start_state(q0, v0)
+        with single_threaded_blas():      # the set-up's SVDs: as the run's solves
+            q0, v0 = self._start_state(q0, v0)
+            decision = self.decide_rank(q0)
         project = bool(project) and m.projects
         report = run_reporter(progress, sched.t_end)
-        decision = self.decide_rank(q0)
         events = self._event_set(event_tol, rest_speed)
         tracker, untracked = work_tracker(self.plan, self.module, m.name, self.sparse)
         kept = {}
