@@ -58,7 +58,7 @@ def ladder(solver, t_end: float, label: str) -> list[tuple[str, object, float]]:
 
 
 def report(runs, t_end: float, plan) -> str:
-    from fccgen.accuracy import reference_from_table
+    from fccgen.bench.accuracy import reference_from_table
     from fccgen.target_error.compare import compared, distance
     ok = [(n, r) for n, r, _ in runs if not isinstance(r, str)]
     what = compared(plan, 1.0)            # every moving point

@@ -3,7 +3,7 @@
     python benchmarks/accuracy_a01_a02.py [--only a01|a02] [--out-dir docs/accuracy]
 
 A01 (pendulum, 2000 s) and A02 (N-four-bar, N = 40, 20 s): every method of
-fccgen.methods over a ladder of steps or tolerances, with and without projection where
+fccgen.settings.methods over a ladder of steps or tolerances, with and without projection where
 the method offers it, in the compiled version; the numeric version at the coarsest rung
 only (it is slow): on A02 every method with its own integration loop (for SciPy's, the
 numeric/compiled ratio is that of the right-hand side, which rk4 already shows), on A01
@@ -27,10 +27,10 @@ import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import fccgen  # noqa: E402
-from fccgen import methods as registry  # noqa: E402
-from fccgen.accuracy import (Ladder, Variant, default_variants,  # noqa: E402
+from fccgen.settings import methods as registry
+from fccgen.bench.accuracy import (Ladder, Variant, default_variants,  # noqa: E402
                              published_reference, run_ladder)
-from fccgen.accuracy_report import AccuracyReport, read_csv, write_csv  # noqa: E402
+from fccgen.bench.accuracy_report import AccuracyReport, read_csv, write_csv  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 REFERENCE = ROOT / "tests" / "reference"

@@ -23,7 +23,7 @@ import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import fccgen  # noqa: E402
-from fccgen.bench import bench_model  # noqa: E402
+from fccgen.bench.speed import bench_model  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLES = ["a01_pendulum", "double_pendulum", "free_body", "spherical_pendulum",

@@ -36,7 +36,7 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 import fccgen  # noqa: E402
-from fccgen import methods as registry  # noqa: E402
+from fccgen.settings import methods as registry
 from fccgen.export import export_c  # noqa: E402
 from fccgen.runtime.solver import METHODS  # noqa: E402
 

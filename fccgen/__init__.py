@@ -6,12 +6,11 @@
 
 The runtime path (loading a cached module, simulating) never imports SymPy.
 """
-__version__ = "0.1.0"
-
+from .version import __version__
 from .api import generate, inverse_dynamics, load, load_numeric, simulate  # noqa: E402
 from .example_models import example_names, example_path  # noqa: E402
 from .progress import ProgressEvent  # noqa: E402
-from .results import Result  # noqa: E402
+from .results.result import Result  # noqa: E402
 
 __all__ = ["__version__", "generate", "load", "load_numeric", "simulate",
            "inverse_dynamics", "Result", "example_path", "example_names",

@@ -67,19 +67,19 @@ def simulate(path, *, t_end=None, dt=None, method=None, output_dt=None, project=
 
     rtol, atol: tolerances of adaptive methods; solver_options: rank_tol,
     position_tol, max_newton (see :func:`load`); method_options: the method's options
-    (e.g. alpha, beta for baumgarte; see :mod:`fccgen.methods`). ``out`` is checked
+    (e.g. alpha, beta for baumgarte; see :mod:`fccgen.settings.methods`). ``out`` is checked
     before anything runs (suffix, writable folder). When the run stops early (Ctrl-C,
     SimulationError) nothing is written, unless ``keep_partial``: then the rows
     recorded so far, if the integrator hands them back, go to ``<stem>.partial<suffix>``
     and the exception's ``partial_path`` says where. ``all_columns``: write the internal
-    columns too (:meth:`fccgen.results.Result.save`). error, error_on: an error target
+    columns too (:meth:`fccgen.results.result.Result.save`). error, error_on: an error target
     (the method and its setting chosen by a pilot; docs/accuracy.md). Returns
     ``(result, initial_state)``.
     """
-    from .method_limits import refuse
+    from .settings.limits import refuse
     if error is not None:
         method_options.update(error=error, error_on=error_on)
-    from .results import check_output, partial_path
+    from .results.result import check_output, partial_path
     out = None if out is None else check_output(out)
     refuse(lower(load_model(path)), method)          # before anything is built
     solver_options = solver_options or {}
@@ -107,7 +107,7 @@ def plot(result, columns=None, out=None, *, title=None):
     Returns the figure's path."""
     from pathlib import Path
 
-    from .results import Result
+    from .results.result import Result
     from .viz.plot import check_figure_path, save_plot
     if out is None:
         if isinstance(result, Result):
@@ -129,11 +129,11 @@ def animate(path, out, *, result=None, mode=None, t_end=None, max_frames=None,
     :func:`modes` with ``shapes=result``. At most ``max_frames`` frames (default 300),
     rows spread evenly. Returns ``(page path, number of frames, the result shown)``."""
     from .model import load_model
-    from .results import Result
+    from .results.result import Result
     from .viz.animate import DEFAULT_MAX_FRAMES, check_page_path, write_animation
     out = check_page_path(out)
     if mode is not None:
-        from .viz.animate import mode_file
+        from .results.files import mode_file
         result = mode_file(result, mode)
     model = load_model(path)
     if result is None:
@@ -159,7 +159,7 @@ def sweep(path, sets, out=None, *, scheduler=None, method=None, workers=None,
     Returns a :class:`fccgen.sweep.SweepTable`."""
     from .sweep import check_table_path, parse_sets, require_dask
     from .sweep import sweep as run_sweep
-    from .sweep_outputs import parse_outputs
+    from .sweep.outputs import parse_outputs
     require_dask()
     out = None if out is None else check_table_path(out, resume=resume)
     if not isinstance(sets, dict):
@@ -189,7 +189,7 @@ def equilibrium(path, *, out=None, numeric=False, build_dir=DEFAULT_BUILD_DIR,
     Returns ``(equilibrium, result)``."""
     from .analysis import statics as solve_statics
     from .analysis.statics_result import equilibrium_result
-    from .results import check_output
+    from .results.result import check_output
     out = None if out is None else check_output(out)
     solver = load_numeric(path) if numeric else load(path, build_dir, progress=progress)
     eq = solve_statics(solver)
@@ -201,11 +201,20 @@ def equilibrium(path, *, out=None, numeric=False, build_dir=DEFAULT_BUILD_DIR,
 
 def inverse_dynamics(path, *, t_end=None, dt=None, out=None, numeric=False,
                      build_dir=DEFAULT_BUILD_DIR, progress: Progress = None):
-    """The driver forces and joint reactions along a motion the drivers fix completely
-    (:func:`fccgen.analysis.inverse.inverse_dynamics`); returns a Result."""
-    from .analysis.inverse import inverse_dynamics as run
-    return run(path, t_end=t_end, dt=dt, out=out, numeric=numeric, build_dir=build_dir,
-               progress=progress)
+    """Inverse dynamics of the model file ``path`` (:mod:`fccgen.analysis.inverse`):
+    the driver forces and joint reactions along a motion the drivers fix completely,
+    as a Result with the positions, speeds, joint outputs, the drivers' forces and the
+    joint reactions at 0, dt, ..., t_end; written to ``out`` if given (any result
+    format)."""
+    from .analysis.inverse import solve_inverse
+    from .results import check_output
+    if out is not None:
+        out = check_output(out)
+    solver = load_numeric(path) if numeric else load(path, build_dir, progress=progress)
+    result = solve_inverse(solver, t_end=t_end, dt=dt, progress=progress)
+    if out is not None:
+        result.save(out)
+    return result
 
 
 def modes(path, *, about="equilibrium", out=None, shapes=None, amplitude=None,
@@ -220,7 +229,7 @@ def modes(path, *, about="equilibrium", out=None, shapes=None, amplitude=None,
     from .analysis import linearize
     from .analysis import modes as solve_modes
     from .analysis import statics as solve_statics
-    from .results import check_output
+    from .results.result import check_output
     if about not in ("equilibrium", "initial"):
         raise ValueError(f"about must be 'equilibrium' or 'initial' (got {about!r})")
     if out is not None:
@@ -238,7 +247,7 @@ def modes(path, *, about="equilibrium", out=None, shapes=None, amplitude=None,
         lin = linearize(solver, init.q, init.v)
     result = solve_modes(lin)
     if out is not None:
-        from .provenance import provenance
+        from .results.provenance import provenance
         info = provenance(solver.plan, getattr(solver, "settings", dict)())
         info.update(kind="modes", about=about, dof=int(lin.null_basis.shape[1]))
         if equilibrium is not None:

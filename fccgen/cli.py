@@ -19,15 +19,15 @@ import sys
 import time
 import warnings
 
-from . import __version__
-from .cli_progress import ProgressDisplay as _Progress
-from .cli_progress import write_line
+from .version import __version__
+from .progress.terminal import ProgressDisplay as _Progress
+from .progress.terminal import write_line
 from .errors import (CacheRepairWarning, FccgenError, ModelError, PartialResultWarning,
                      os_reason, shown_path,
                      RunWarning)
-from .methods import describe as describe_methods
-from .methods import names as method_names
-from .run_settings import LINEAR_SOLVERS
+from .settings.methods import describe as describe_methods
+from .settings.methods import names as method_names
+from .settings.run import LINEAR_SOLVERS
 
 COMMANDS = ("simulate", "bench", "check", "generate", "plot", "animate", "sweep",
             "statics", "modes", "inverse", "examples", "export")
@@ -508,7 +508,7 @@ def _run(args, progress) -> int:
     if args.command == "bench" and args.accuracy:
         return _accuracy(args, progress)
     if args.command == "bench":
-        from .bench import bench_model
+        from .bench.speed import bench_model
         report = bench_model(args.model, args.build_dir, repeats=args.repeats,
                              progress=progress)
         print(report.text())
@@ -542,7 +542,7 @@ def _run(args, progress) -> int:
               f"in {table.wall_time:.3g} s\ntable: {args.out}")
         return 0
     if args.command == "check":
-        from .check import check_model
+        from .diagnostics.check import check_model
         print(check_model(args.model, progress=progress,
                           generate=not args.no_generate).text())
         return 0
@@ -563,7 +563,8 @@ def _analysis(args, progress, api) -> int:
                   "columns; how it was made in its metadata)")
         return 0
     if args.command == "inverse":
-        from .analysis.inverse import inverse_dynamics, summary
+        from .analysis.inverse import summary
+        from .api import inverse_dynamics
         result = inverse_dynamics(args.model, t_end=args.t_end, dt=args.dt, out=args.out,
                                   numeric=args.numeric, build_dir=args.build_dir,
                                   progress=progress)
@@ -585,7 +586,7 @@ def _print_shape_files(args, n_modes: int) -> None:
     """Where fccgen modes --shapes wrote the shapes, and how to play one."""
     if not args.shapes or not n_modes:
         return
-    from .analysis.mode_shapes import mode_shape_path
+    from .results.files import mode_shape_path
     names = [str(mode_shape_path(args.shapes, k)) for k in range(1, n_modes + 1)]
     print(f"mode shapes: {', '.join(names)}\nplay one: fccgen animate {args.model} "
           f"--result {args.shapes} --mode 1 --out mode1.html")
@@ -593,9 +594,10 @@ def _print_shape_files(args, n_modes: int) -> None:
 
 def _accuracy(args, progress) -> int:
     """``fccgen bench MODEL --accuracy``: one call of
-    :func:`fccgen.accuracy.bench_accuracy`."""
-    from .accuracy import bench_accuracy, reference_from_table
-    from .results import check_output
+    :func:`fccgen.bench.accuracy.bench_accuracy`."""
+    from .bench.accuracy import reference_from_table
+    from .bench.accuracy_report import bench_accuracy
+    from .results.result import check_output
     check_output(f"{args.out_dir}/summary.csv", "--out-dir")    # writable, before the run
     reference = None
     if args.reference:

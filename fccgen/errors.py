@@ -103,7 +103,7 @@ class SimulationError(FccgenError, RuntimeError):
     failed assembly, non-finite state).
 
     :meth:`located` makes one that names the model item it comes from as a ModelError
-    does (``file``, ``line``, ``item``, ``rule``, ``value``; fccgen.locate)."""
+    does (``file``, ``line``, ``item``, ``rule``, ``value``; fccgen.runs.locate)."""
 
     file = line = item = rule = value = None
 

@@ -109,7 +109,7 @@ class Case:
         if self.name == "a01":
             return pendulum_exact(t)
         if self.name == "a02":
-            from fccgen.accuracy import reference_from_table
+            from fccgen.bench.accuracy import reference_from_table
             return reference_from_table(REFERENCE / "mbsbenchmark_A02_solution_data_B0.csv",
                                         "B0")
         if self.name == "top":

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from conftest import EXAMPLES, REFERENCE, example_module
-from fccgen.accuracy import reference_from_table
+from fccgen.bench.accuracy import reference_from_table
 
 MODEL = EXAMPLES / "a02_n_four_bar.yaml"
 DATA = REFERENCE / "mbsbenchmark_A02_solution_data_B0.csv"
@@ -37,7 +37,7 @@ def test_the_generator_scales_the_chain_with_n():
 
 
 def test_check_finds_one_degree_of_freedom_and_40_redundant_equations():
-    from fccgen.check import check_model
+    from fccgen.diagnostics.check import check_model
     report = check_model(MODEL)
     assert (report.n_q, report.n_g, report.rank) == (123, 162, 122)
     assert report.dof == 1

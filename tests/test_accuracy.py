@@ -1,4 +1,4 @@
-"""The work-precision ladder (fccgen.accuracy, fccgen.accuracy_report) on a cheap model,
+"""The work-precision ladder (fccgen.bench.accuracy, fccgen.bench.accuracy_report) on a cheap model,
 and the command line ``fccgen bench MODEL --accuracy``."""
 from __future__ import annotations
 
@@ -10,12 +10,13 @@ import numpy as np
 import pytest
 
 from conftest import EXAMPLES, REFERENCE
-from fccgen.accuracy import (COLUMNS, Ladder, Reference, Variant, bench_accuracy,
-                             reference_from_table, run_ladder, run_one)
-from fccgen.accuracy_report import read_csv
+from fccgen.bench.accuracy import (COLUMNS, Ladder, Reference, Variant, reference_from_table,
+                                   run_ladder, run_one)
+from fccgen.bench.accuracy_report import bench_accuracy
+from fccgen.bench.accuracy_report import read_csv
 from fccgen.cli import main
 from fccgen.errors import SimulationError
-from fccgen.results import Result
+from fccgen.results.result import Result
 
 DOUBLE = EXAMPLES / "double_pendulum.yaml"
 STEPS = (0.05, 0.025, 0.0125)

@@ -9,7 +9,7 @@ import pytest
 
 import fccgen
 from conftest import REFERENCE
-from fccgen.accuracy import reference_from_table
+from fccgen.bench.accuracy import reference_from_table
 from fccgen.errors import SimulationError
 from fccgen.model import load_model_text
 from fccgen.runtime._ali3p import DEFAULTS, simulate_ali3p

@@ -1,6 +1,6 @@
 """ALI3-P on the scissor structures (fccgen/runtime/ali3p_setup.py, conditioned_penalty;
 the penalty raise of _ali3p.pyx) and its refusal of models with events
-(fccgen/method_limits.py).
+(fccgen/settings/limits.py).
 
 A scissor chain's row-scaled constraint Jacobian has a small last kept singular value
 s_r (8-bay mast 1.2e-2, 50-bay mast 3.1e-4, 12-unit boom 3.0e-3): with the fixed
@@ -83,7 +83,7 @@ def test_simulate_refuses_ali3p_on_a_model_with_events_before_building(tmp_path,
 
 
 def test_check_names_the_methods_that_cannot_run_a_model():
-    from fccgen.check import check_model
+    from fccgen.diagnostics.check import check_model
     text = check_model(EXAMPLES / "pendulum_limit.yaml").text()
     assert ("note: methods: only rk4 and dopri5 run this model, since it has events "
             "(A_lower, A_upper, quarter); refused: baumgarte, ali3p, scipy-RK45") in text

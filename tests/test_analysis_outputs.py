@@ -10,7 +10,7 @@ import pytest
 
 from conftest import EXAMPLES
 from fccgen.cli import main
-from fccgen.results import Result
+from fccgen.results.result import Result
 
 
 def test_statics_out_is_one_row_with_named_reactions(build_dir, tmp_path, capsys):

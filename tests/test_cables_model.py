@@ -12,7 +12,7 @@ import pytest
 from fccgen.analysis import statics
 from fccgen.analysis.cables import member_frequency, stable_step, step_advice
 from fccgen.api import plan_model
-from fccgen.check import check_model
+from fccgen.diagnostics.check import check_model
 from fccgen.errors import ModelError
 from fccgen.mechanism import lower
 from fccgen.mechanism.cable_outputs import cable_values

@@ -1,15 +1,16 @@
-"""``fccgen check`` of a model above fccgen.rank_sparse.DENSE_COMPONENT coordinates: a
+"""``fccgen check`` of a model above fccgen.rank.sparse.DENSE_COMPONENT coordinates: a
 connected component at a time, from the sparse B, the redundant rows from a certified LU
-(fccgen.check, fccgen.rank_sparse.independent_rows)."""
+(fccgen.diagnostics.check, fccgen.rank_rows.independent_rows)."""
 from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
 
 from fccgen import rank as rank_rule
-from fccgen import rank_sparse
+from fccgen.rank import rows as rank_rows
+from fccgen.rank import sparse as rank_sparse
 from fccgen.api import load_numeric
-from fccgen.check import check_model
+from fccgen.diagnostics.check import check_model
 from fccgen.mechanism.report import dependency_text
 
 from conftest import example_module
@@ -46,7 +47,7 @@ def test_check_of_a_33_bay_mast_counts_as_the_run_decides(tmp_path):
     kept = [k for k, label in enumerate(report.rows) if label not in named]
     assert len(kept) == decision.rank and len(set(report.rows)) == len(report.rows)
     assert _dense_rank(B[kept]) == len(kept) == _dense_rank(B)
-    # the rows taking part in dependencies: from rank_sparse.dependency_weights, the
+    # the rows taking part in dependencies: from rank_rows.dependency_weights, the
     # same rows as the small models' SVD of all the rows (weights 0.2 and more against
     # 1e-15 and less: the rule's 1e-6 is far from both)
     assert report.dependent == dependency_text(B, decision.rank, report.rows)
@@ -64,11 +65,11 @@ def test_the_lu_choice_of_independent_rows_is_a_basis_of_the_rows():
     chain = (np.eye(n - 1, n) - np.eye(n - 1, n, k=1)) * weights
     B = np.vstack([chain[:50] + chain[1:51], chain])     # the dependent rows first
     C = rank_sparse.scaled(sp.csr_matrix(B))
-    rows = rank_sparse.independent_rows(C, n - 1)
+    rows = rank_rows.independent_rows(C, n - 1)
     assert rows is not None and rows.size == n - 1
     assert _dense_rank(B[rows]) == n - 1
     # a rank the rows do not have is refused, not forced
-    assert rank_sparse.independent_rows(C, n - 2) is None
+    assert rank_rows.independent_rows(C, n - 2) is None
 
 
 def test_the_sparse_velocity_projection_is_the_dense_one(tmp_path):
@@ -103,7 +104,7 @@ def test_components_large_and_small_are_reported_as_the_whole_would_be():
     one doubled row, a zero stored across the two: the redundant rows are a complement of a basis (the kept rows have
     full rank), 51 of them, and the rows taking part in the dependencies are those of
     the SVD of the whole."""
-    from fccgen.check import _large_rows
+    from fccgen.diagnostics.check import _large_rows
     from fccgen.mechanism.report import dependent_rows
     n = 600
     weights = 1.0 + 0.5 * np.sin(np.arange(n))

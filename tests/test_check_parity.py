@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import pytest
 
-from fccgen.check import check_model
+from fccgen.diagnostics.check import check_model
 from fccgen.errors import ModelError
 
 ARM = """\
@@ -146,7 +146,7 @@ def test_check_generates_the_kernels_or_says_it_did_not(tmp_path, monkeypatch):
     """check derives, prints and renders every class (and the event kernels); a class
     that cannot be generated fails check as it would fail a build, naming the file
     and the class; with generate=False the report says the kernels were not made."""
-    import fccgen.check as check
+    import fccgen.diagnostics.check as check
     import fccgen.derive as derive
     from fccgen.errors import BuildError
     path = tmp_path / "case.yaml"

@@ -11,7 +11,7 @@ import pytest
 
 from conftest import EXAMPLES, run_python
 from fccgen.cli import main
-from fccgen.results import Result
+from fccgen.results.result import Result
 
 PENDULUM = EXAMPLES / "a01_pendulum.yaml"
 

@@ -3,7 +3,7 @@ against numbers computed independently from a consistent rigid-body state.
 
 A state is sampled per class: every body (the element's own, or the body of a
 body-point end) is a rigid body at a random pose with random angular velocity and
-acceleration, its frame numbers l, alpha, beta come from fccgen.plan.geometry, and a
+acceleration, its frame numbers l, alpha, beta come from fccgen.model.geometry, and a
 body point is placed by body-frame coordinates rho (point i + E rho).
 """
 import functools
@@ -17,7 +17,7 @@ from scipy.spatial.transform import Rotation
 
 from fccgen.derive import derive_class
 from fccgen.plan.classes import BODY_TRIPLES, KIND_ENDS, KIND_TRIPLES, ElementClass
-from fccgen.plan.geometry import body_frame_numbers, body_rotation, point_coefficients
+from fccgen.model.geometry import body_frame_numbers, body_rotation, point_coefficients
 from fccgen.plan.kernels import KERNEL_NAMES, KERNELS
 
 BP, PT = "body_point", "point"

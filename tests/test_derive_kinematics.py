@@ -17,7 +17,7 @@ from scipy.spatial.transform import Rotation
 from fccgen.derive.kinematics import body_frame
 from fccgen.derive.symbols import class_symbols
 from fccgen.plan.classes import ElementClass
-from fccgen.plan.geometry import body_frame_numbers, body_rotation, point_coefficients
+from fccgen.model.geometry import body_frame_numbers, body_rotation, point_coefficients
 
 
 def _rot(vec):

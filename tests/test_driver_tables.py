@@ -16,7 +16,7 @@ from fccgen.api import plan_model
 from conftest import EXAMPLES
 from fccgen.derive import derive_class
 from fccgen.errors import ModelError
-from fccgen.mechanism.tables import TableFunction, table_text
+from fccgen.expressions.tables import TableFunction, table_text
 from fccgen.model.load import load_model
 from fccgen.numeric import element_kernel
 from fccgen.plan.classes import ElementClass

@@ -309,8 +309,8 @@ def test_driver_errors(edit, item, rule, value):
 def test_time_jets_match_sympy(text):
     """The numeric version's f, f', f'' (forward-mode jets, no SymPy) against SymPy's
     derivatives of the same text, at a few times: 1e-12 relative (a few roundings)."""
-    from fccgen.mechanism.expressions import parse_expression
-    from fccgen.numeric.time_jets import time_function
+    from fccgen.expressions.grammar import parse_expression
+    from fccgen.expressions.time_jets import time_function
     t = sympy.Symbol("t", real=True)
     f = parse_expression(text, {"t": t}, source="-", line=None, item="-")
     for time in (0.4, 1.3, 2.2):
@@ -324,7 +324,7 @@ def test_time_jets_match_sympy(text):
 def test_rate_drivers_integrate_in_closed_form(rate, key):
     """rate: / speed: give f = integral of the rate from 0 (SymPy, decimals made exact
     rationals first): f(0) = 0 and f' = the rate, to rounding (1e-12)."""
-    from fccgen.mechanism.expressions import parse_expression
+    from fccgen.expressions.grammar import parse_expression
     text = GOOD.replace('position: "0.1*sin(2*t)"', f'{key}: "{rate}"')
     if key == "rate":
         text = text.replace("type: cylindrical", "type: revolute")

@@ -1,4 +1,4 @@
-"""The energy as an independent check of a run (fccgen/runtime/energy_check.py): a
+"""The energy as an independent check of a run (fccgen/runs/energy_check.py): a
 model that conserves its energy warns when a run's drift exceeds 1 % of the largest
 kinetic energy; models that exchange energy on purpose are named and not checked."""
 from __future__ import annotations
@@ -8,7 +8,7 @@ import warnings
 import pytest
 
 from fccgen.errors import RunWarning
-from fccgen.runtime.energy_check import DRIFT_FRACTION, energy_exchange
+from fccgen.runs.energy_check import DRIFT_FRACTION, energy_exchange
 
 
 def test_a_step_too_coarse_for_a_conservative_pendulum_is_reported(compiled):

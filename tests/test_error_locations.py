@@ -1,5 +1,5 @@
 """Every failure a model file can meet at run time names the file, the line, the item,
-the rule and the value, as a ModelError does (fccgen.locate, SimulationError.located):
+the rule and the value, as a ModelError does (fccgen.runs.locate, SimulationError.located):
 a singular mass matrix, forces that are not finite, an assembly that does not converge,
 a run that diverges, statics without an equilibrium, modes of a massless motion, a
 method that cannot take the model; a path too long for the file system is said in
@@ -152,7 +152,7 @@ def test_the_command_line_shows_the_located_error(tmp_path, capsys):
 
 
 def test_check_names_the_item_of_forces_not_finite_at_the_start(tmp_path):
-    from fccgen.check import check_model
+    from fccgen.diagnostics.check import check_model
     path = _write(tmp_path, COINCIDENT)
     with pytest.raises(SimulationError) as info:
         check_model(path, generate=False)
@@ -199,7 +199,7 @@ def test_the_numeric_evaluators_quote_the_expression_not_a_syntax_tree(text):
     """The NumPy version's evaluators take only what the grammar passes; anything else
     is told by its text (ast.dump's `BinOp(left=Name(id='t', ...` before)."""
     from fccgen.numeric.joint_loads import _dual
-    from fccgen.numeric.time_jets import time_function
+    from fccgen.expressions.time_jets import time_function
     import numpy as np
     with pytest.raises(ValueError) as info:
         time_function(text)(0.5)
@@ -210,7 +210,7 @@ def test_the_numeric_evaluators_quote_the_expression_not_a_syntax_tree(text):
 
 
 def test_a_method_refused_for_events_names_the_limits(tmp_path):
-    from fccgen.method_limits import refuse
+    from fccgen.settings.limits import refuse
     from fccgen.model.load import load_model
     from conftest import EXAMPLES
     with pytest.raises(ValueError) as info:

@@ -10,7 +10,7 @@ import pytest
 from conftest import EXAMPLES
 from fccgen.cli import main
 from fccgen.errors import RunWarning
-from fccgen.results import Result
+from fccgen.results.result import Result
 from fccgen.target_error.choice import Choice
 from fccgen.target_error.estimate import Estimate, converged, singular_warning
 from fccgen.target_error.run import report

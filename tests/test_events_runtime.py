@@ -11,7 +11,7 @@ import pytest
 from scipy.special import ellipkinc
 
 import fccgen.api as api
-from fccgen.results import Result
+from fccgen.results.result import Result
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 G = 9.81

@@ -15,7 +15,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from fccgen.errors import ModelError
-from fccgen.mechanism.expressions import parse_condition, parse_expression
+from fccgen.expressions.grammar import parse_condition, parse_expression
 from fccgen.printing.c99 import KernelPrinter
 from fccgen.render.escape import c_comment, c_expression
 

@@ -81,7 +81,7 @@ def test_the_compiled_run_follows_the_same_closed_form(tmp_path, build_dir):
 
 def test_check_passes_such_a_hinge(tmp_path):
     """check used to stop on the spring's nan torque; now the model is sound."""
-    from fccgen.check import check_model
+    from fccgen.diagnostics.check import check_model
     text = check_model(_model(tmp_path, SPRING), generate=False).text()
     assert "nan" not in text and "degrees of freedom" in text
 

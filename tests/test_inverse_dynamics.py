@@ -11,7 +11,7 @@ from conftest import EXAMPLES
 from fccgen.analysis.inverse import output_times
 from fccgen.cli import main
 from fccgen.errors import ModelError
-from fccgen.results import Result
+from fccgen.results.result import Result
 from test_drivers import OMEGA, SLIDER, THETA0, minimal_torque
 from test_joints import write
 

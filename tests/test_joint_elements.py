@@ -14,7 +14,7 @@ from scipy.spatial.transform import Rotation
 from fccgen.derive import derive_class
 from fccgen.numeric import element_kernel
 from fccgen.plan.classes import ElementClass
-from fccgen.plan.geometry import body_frame_numbers, point_coefficients
+from fccgen.model.geometry import body_frame_numbers, point_coefficients
 
 from kernel_checks import d1
 

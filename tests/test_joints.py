@@ -13,7 +13,7 @@ from scipy.integrate import solve_ivp
 from scipy.spatial.transform import Rotation
 
 import fccgen
-from fccgen.check import check_model
+from fccgen.diagnostics.check import check_model
 from fccgen.errors import ModelError
 from fccgen.model import load_model_text
 

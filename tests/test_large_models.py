@@ -1,4 +1,4 @@
-"""Large models: the rank decision without a dense SVD (fccgen.rank_sparse) and a
+"""Large models: the rank decision without a dense SVD (fccgen.rank.sparse) and a
 200-body deployable mast (examples/make_scissor_mast.py) through the large-model path."""
 from __future__ import annotations
 
@@ -7,7 +7,8 @@ import pytest
 import scipy.sparse as sp
 
 from fccgen import rank as rank_rule
-from fccgen import rank_sparse
+from fccgen.rank import rows as rank_rows
+from fccgen.rank import sparse as rank_sparse
 
 from conftest import example_module
 

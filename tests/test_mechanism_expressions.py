@@ -1,4 +1,4 @@
-"""The restricted expression grammar (fccgen/mechanism/expressions.py): every allowed
+"""The restricted expression grammar (fccgen/expressions/grammar.py): every allowed
 construct gives the value Python's math gives, in SymPy and compiled from fccgen's C
 printer; every forbidden construct is refused with file, line, item, rule and value."""
 from __future__ import annotations
@@ -13,7 +13,7 @@ import pytest
 import sympy
 
 from fccgen.errors import ModelError
-from fccgen.mechanism.expressions import (MAX_CHARS, MAX_DEPTH, parse_condition,
+from fccgen.expressions.grammar import (MAX_CHARS, MAX_DEPTH, parse_condition,
                                           parse_expression)
 from fccgen.printing.c99 import KernelPrinter
 

@@ -1,4 +1,4 @@
-"""Tabulated functions of time (fccgen/mechanism/tables.py): the clamped cubic spline
+"""Tabulated functions of time (fccgen/expressions/tables.py): the clamped cubic spline
 with constant extension, its derivatives, its C code, and the checks of the file."""
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ import sympy
 from scipy.interpolate import CubicSpline
 
 from fccgen.errors import ModelError
-from fccgen.mechanism.tables import MAX_ROWS, table_expression
+from fccgen.expressions.tables import MAX_ROWS, table_expression
 from fccgen.printing.c99 import KernelPrinter
 
 T = sympy.Symbol("t", real=True)

@@ -1,4 +1,4 @@
-"""Integration methods (fccgen.methods): every method against a tight reference on the
+"""Integration methods (fccgen.settings.methods): every method against a tight reference on the
 double pendulum and the four-bar, convergence with step and tolerance, Baumgarte
 stabilisation, run statistics, compiled vs numeric, the SciPy path and error paths."""
 from __future__ import annotations
@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from fccgen import methods
+from fccgen.settings import methods
 from fccgen.errors import ModelError, RunWarning, SimulationError
 from fccgen.model import METHODS, load_model_text
 from fccgen.numeric.dopri5 import simulate_dopri5 as numeric_dopri5
-from fccgen.runtime import scipy_ivp
+from fccgen.runs import scipy_ivp
 from fccgen.runtime._dopri5 import simulate_dopri5
 from fccgen.runtime.solver import METHODS as COMPILED_METHODS
 
@@ -324,7 +324,7 @@ def test_implicit_scipy_methods_report_jacobians(compiled):
 # -- divergence and failures ---------------------------------------------------------------------
 def test_unstable_baumgarte_settings_are_refused_before_the_run(compiled):
     """alpha dt = 10 is far outside RK4's stability interval (alpha dt < 2.78): the run
-    settings are refused up front with the largest stable dt (fccgen.run_settings);
+    settings are refused up front with the largest stable dt (fccgen.settings.run);
     runs that blow up anyway stop as 'diverged' (tests/test_run_guards.py)."""
     s = compiled("double_pendulum")
     with pytest.raises(ValueError, match=r"RK4 is unstable on the Baumgarte modes.*"
@@ -372,7 +372,7 @@ def test_scipy_failure_is_an_error():
 def test_cli_passes_tolerances_and_options(compiled, build_dir, tmp_path, capsys):
     from conftest import EXAMPLES as EXAMPLE_DIR
     from fccgen.cli import main
-    from fccgen.results import Result
+    from fccgen.results.result import Result
     compiled("double_pendulum")                      # built once, served from the cache
     model = str(EXAMPLE_DIR / "double_pendulum.yaml")
     common = [model, "--build-dir", str(build_dir), "-q", "--t-end", "0.2"]

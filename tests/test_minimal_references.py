@@ -340,7 +340,7 @@ def _element_constraints(el, q):
 
 def _driver_constraint(cls, tr, scal):
     """A driver's row (docs/joints.md, Drivers) at the time of its parameter t."""
-    from fccgen.mechanism.expressions import parse_expression
+    from fccgen.expressions.grammar import parse_expression
     import sympy
     t = sympy.Symbol("t", real=True)
     f = float(parse_expression(cls.function, {"t": t}, source="-", line=None,

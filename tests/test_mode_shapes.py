@@ -11,7 +11,7 @@ from conftest import EXAMPLES
 from fccgen.analysis import linearize, modes, statics
 from fccgen.analysis.mode_shapes import mode_shape_path, mode_shapes
 from fccgen.cli import main
-from fccgen.results import Result
+from fccgen.results.result import Result
 
 DOUBLE = EXAMPLES / "double_pendulum.yaml"
 G = 9.81

@@ -48,7 +48,7 @@ from hypothesis import HealthCheck, given, seed, settings
 from hypothesis import strategies as st
 
 import fccgen
-from fccgen.check import check_model
+from fccgen.diagnostics.check import check_model
 from fccgen.errors import FccgenError, ModelError
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"

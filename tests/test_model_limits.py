@@ -3,7 +3,7 @@ of the input audit as a named test.
 
 Model-file cases edit the valid model of test_model_errors (BASE) and mark the line the
 error must name with ``#<``, as there; run-setting cases call the one function both
-solvers and the loader use (fccgen.run_settings), and the command line end to end.
+solvers and the loader use (fccgen.settings.run), and the command line end to end.
 """
 from __future__ import annotations
 
@@ -13,13 +13,13 @@ import re
 import numpy as np
 import pytest
 
-from fccgen import methods
-from fccgen.check import _require_finite
+from fccgen.settings import methods
+from fccgen.diagnostics.check import _require_finite
 from fccgen.cli import main
 from fccgen.errors import FccgenError, ModelError, SimulationError, shown
 from fccgen.model import load_model, load_model_text, yamlcompose, yamlnodes
 from fccgen.model.fields import MAX_MAGNITUDE, MIN_POSITIVE
-from fccgen.run_settings import RunSettingError, baumgarte_modes, rk4_growth
+from fccgen.settings.run import RunSettingError, baumgarte_modes, rk4_growth
 from test_model_errors import (BASE, HIDDEN, SIMULATE, SOURCE, check, edited, expect_error,
                                marked_line, sub)
 

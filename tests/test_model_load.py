@@ -255,8 +255,8 @@ def test_yaml_12_floats(text, value):
 
 
 def test_methods_is_data():
-    import fccgen.methods
-    assert tuple(METHODS) == tuple(fccgen.methods.names())
+    import fccgen.settings.methods
+    assert tuple(METHODS) == tuple(fccgen.settings.methods.names())
     assert "rk4" in METHODS
 
 

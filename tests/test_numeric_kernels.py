@@ -15,7 +15,7 @@ import pytest
 from fccgen.numeric import element_kernel, element_kernels
 from fccgen.numeric.kinematics import skew
 from fccgen.plan.classes import ElementClass
-from fccgen.plan.geometry import point_coefficients
+from fccgen.model.geometry import point_coefficients
 from fccgen.plan.kernels import KERNEL_NAMES, KERNELS
 
 from kernel_checks import d1, gradient, random_case, random_params

@@ -14,7 +14,7 @@ from fccgen.model.types import (AngularVelocity, Body, Distance, Force, Initial,
                                 Point, PointOnLine, SimulateDefaults, Spring, Vector, Where)
 from fccgen.numeric import NumericSolver, constrained_solve
 from fccgen.plan import make_plan
-from fccgen.plan.geometry import body_rotation
+from fccgen.model.geometry import body_rotation
 
 HERE = Where("test.yaml", None)
 
@@ -124,8 +124,8 @@ def test_output_schedule_lands_on_t_end():
     res = solver.simulate(t_end=0.0105, dt=1e-3, output_dt=5e-3)
     assert np.allclose(res.t, [0, 0.005, 0.01, 0.0105], rtol=0, atol=1e-15)
     assert res.info["steps"] == 11 and res.info["method"] == "rk4"
-    import fccgen.methods
-    assert set(fccgen.methods.INFO_KEYS) | {"max_newton_iterations"} <= set(res.info)
+    import fccgen.settings.methods
+    assert set(fccgen.settings.methods.INFO_KEYS) | {"max_newton_iterations"} <= set(res.info)
     with pytest.raises(ValueError, match="whole multiple of dt"):
         solver.simulate(t_end=0.01, dt=1e-3, output_dt=2.5e-3)
     with pytest.raises(ValueError, match="available: rk4"):

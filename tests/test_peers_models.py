@@ -71,7 +71,7 @@ def test_the_mujoco_model_has_the_systems_joints_and_mass(system, n, nv):
 
 
 def test_the_pendulum_on_a_cart_has_n_plus_1_freedoms_and_no_redundant_equation(tmp_path):
-    from fccgen.check import check_model
+    from fccgen.diagnostics.check import check_model
     from systems import model_file
     report = check_model(model_file("cart", 3, tmp_path))
     assert (report.n_q, report.n_g, report.rank, report.dof) == (15, 11, 11, 4)

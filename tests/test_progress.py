@@ -13,7 +13,7 @@ import pytest
 
 import fccgen
 from conftest import EXAMPLES
-from fccgen.cli_progress import LOG_INTERVAL, ProgressDisplay
+from fccgen.progress.terminal import LOG_INTERVAL, ProgressDisplay
 from fccgen.progress import ProgressEvent, Reporter, restaged, run_reporter
 
 DOUBLE = EXAMPLES / "double_pendulum.yaml"
@@ -110,7 +110,7 @@ def test_a_log_gets_lines_at_most_every_few_seconds(monkeypatch):
     display = ProgressDisplay(quiet=False, stream=log)
     assert not display.bars
     clock = iter([0.0, 1.0, 2.0, LOG_INTERVAL + 1.0, LOG_INTERVAL + 2.0])
-    monkeypatch.setattr("fccgen.cli_progress.time.monotonic", lambda: next(clock))
+    monkeypatch.setattr("fccgen.progress.terminal.time.monotonic", lambda: next(clock))
     display(ProgressEvent("compiling m", "compile"))          # a stage message: shown
     for e in events("simulate", 10, 4):                       # first shown, then 5 s
         display(e)
@@ -123,7 +123,7 @@ def test_a_terminal_that_cannot_draw_gets_plain_lines(monkeypatch, term, columns
     """TERM=dumb, or a terminal that reports 0 columns: the lines of a log, not
     nothing and not a bar."""
     monkeypatch.setenv("TERM", term)
-    monkeypatch.setattr("fccgen.cli_progress._columns", lambda stream: columns)
+    monkeypatch.setattr("fccgen.progress.terminal._columns", lambda stream: columns)
     screen = Terminal()
     display = ProgressDisplay(quiet=False, stream=screen)
     assert not display.bars

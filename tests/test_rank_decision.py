@@ -9,7 +9,7 @@ import pytest
 import bricard
 import fccgen
 from fccgen import rank as rank_rule
-from fccgen.check import check_model
+from fccgen.diagnostics.check import check_model
 from fccgen.errors import RunWarning, SimulationError
 from fccgen.runtime._solve import constrained_solve
 

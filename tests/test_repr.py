@@ -1,8 +1,8 @@
-"""The summaries ``repr`` gives of solvers and results (fccgen.summary)."""
+"""The summaries ``repr`` gives of solvers and results (fccgen.results.summary)."""
 import numpy as np
 
 import fccgen
-from fccgen.results import Result
+from fccgen.results.result import Result
 from conftest import EXAMPLES
 
 FOUR_BAR = EXAMPLES / "four_bar.yaml"

@@ -13,9 +13,9 @@ import pytest
 import fccgen
 from conftest import EXAMPLES
 from fccgen.errors import HostError, ResultMetadataWarning
-from fccgen.provenance import model_hash
-from fccgen.result_files import sidecar_path
-from fccgen.results import Result, check_output
+from fccgen.results.provenance import model_hash
+from fccgen.results.files import sidecar_path
+from fccgen.results.result import Result, check_output
 
 DOUBLE = EXAMPLES / "double_pendulum.yaml"
 EVENTS = [{"time": 0.25, "name": "latch1", "impulse": 0.5, "energy_before": 1.0,

@@ -11,9 +11,9 @@ import sys
 import numpy as np
 import pytest
 
-import fccgen.results
+import fccgen.results.result
 from fccgen.errors import HostError, PartialResultWarning
-from fccgen.results import Result, check_output, partial_path
+from fccgen.results.result import Result, check_output, partial_path
 
 
 def small_result(n=4, **info) -> Result:
@@ -51,7 +51,7 @@ def test_a_failed_save_keeps_the_previous_file(tmp_path, monkeypatch):
 
     def fail(*args, **kwargs):
         raise OSError(28, "No space left on device")
-    monkeypatch.setattr(fccgen.results.np, "savetxt", fail)
+    monkeypatch.setattr(fccgen.results.result.np, "savetxt", fail)
     with pytest.raises(HostError, match="no space left.*free some space.*--out"):
         small_result(n=9).save(path)
     assert path.read_bytes() == before
@@ -114,7 +114,7 @@ def test_check_output_permission_denied(tmp_path, monkeypatch):
             if str(path).startswith(str(folder)):
                 raise PermissionError(13, "Permission denied", str(path))
             return real_open(path, *args, **kwargs)
-        monkeypatch.setattr(fccgen.results.os, "open", refuse)
+        monkeypatch.setattr(fccgen.results.result.os, "open", refuse)
     try:
         with pytest.raises(HostError, match="Permission denied.*make it writable") as info:
             check_output(folder / "r.csv")

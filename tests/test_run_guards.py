@@ -10,7 +10,7 @@ import pytest
 from conftest import EXAMPLES
 from fccgen.cli import main
 from fccgen.errors import PartialResultWarning, SimulationError
-from fccgen.results import Result
+from fccgen.results.result import Result
 
 
 def test_diverging_fixed_step_run_is_an_error(compiled):

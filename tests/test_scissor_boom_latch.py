@@ -67,7 +67,7 @@ def test_header_counts_are_those_of_fccgen_check(tmp_path, latch):
     without, on a 3-unit boom (cheap: no compiler)."""
     import re
 
-    from fccgen.check import check_model
+    from fccgen.diagnostics.check import check_model
     text = generator().model_text(3, latch=latch)
     path = tmp_path / "boom3.yaml"
     path.write_text(text)

@@ -103,7 +103,7 @@ def test_a_shaped_body_is_the_body_with_its_mass_and_inertia():
 def test_the_shape_is_drawn_where_the_body_is():
     """The box's corners at the centre +- half edges along the frame's axes (x = global
     y, y = -global x) at t = 0."""
-    from fccgen.results import Result
+    from fccgen.results.result import Result
     from fccgen.viz.scene import body_frames, body_solids, triple_tracks
     model = lower(shaped("shape: {box: [0.4, 0.1, 0.02]}, mass: 1.0"))
     columns = {}

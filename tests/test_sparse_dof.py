@@ -11,7 +11,7 @@ import pytest
 import fccgen
 from conftest import EXAMPLES
 from fccgen import rank as rank_rule
-from fccgen.check import check_model
+from fccgen.diagnostics.check import check_model
 from fccgen.errors import RunWarning
 from fccgen.runtime import CompiledSolver
 from fccgen.runtime._sparse import SparseEngine

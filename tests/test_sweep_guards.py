@@ -18,7 +18,7 @@ import fccgen
 from conftest import EXAMPLES
 from fccgen.cli import main
 from fccgen.errors import HostError
-from fccgen.provenance import model_hash
+from fccgen.results.provenance import model_hash
 from fccgen.sweep import SweepInterrupted, SweepStopped
 from fccgen.sweep import sweep as run_sweep
 
@@ -199,7 +199,7 @@ def cli(args, capsys):
 def test_cli_ctrl_c_ends_in_one_paragraph_with_status_130(build_dir, tmp_path, capsys,
                                                            monkeypatch):
     """Ctrl-C arrives as the second finished row has been written."""
-    from fccgen import sweep_table
+    from fccgen.sweep import table as sweep_table
     add = sweep_table.PartialWriter.add
 
     def add_then_interrupt(self, row):

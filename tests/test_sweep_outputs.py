@@ -1,4 +1,4 @@
-"""``--outputs`` of a sweep (fccgen.sweep_outputs, docs/sweeps.md): the grammar, its
+"""``--outputs`` of a sweep (fccgen.sweep.outputs, docs/sweeps.md): the grammar, its
 checks against the model before any run, and each value against a separate run of
 the same numbers (the same compiled code in this process: equal to the last bit)."""
 from __future__ import annotations
@@ -11,7 +11,7 @@ import pytest
 from conftest import EXAMPLES
 from fccgen.cli import main
 from fccgen.sweep import sweep as run_sweep
-from fccgen.sweep_outputs import Output, parse_outputs
+from fccgen.sweep.outputs import Output, parse_outputs
 
 
 def test_the_grammar():

@@ -12,7 +12,7 @@ import pytest
 
 from conftest import EXAMPLES
 from fccgen.cli import main
-from fccgen.results import Result
+from fccgen.results.result import Result
 
 MADE = re.compile(r"^[A-Za-z0-9]+_(axis\d?|drive_[ab]|a|b|n\d|nb|center|end|[xyz]|"
                   r"normal|spring\d)\.")

@@ -56,7 +56,7 @@ def _trace(frame_or_fig, name):
 
 
 def test_one_frame_per_row_when_few(short_result):
-    from fccgen.results import Result
+    from fccgen.results.result import Result
     result = Result.load(short_result)
     fig = animation_figure(load_model(DOUBLE), result)
     assert len(result.t) == 51 and len(fig.frames) == 51
@@ -99,7 +99,7 @@ def test_without_result_runs_the_model(tmp_path, build_dir, capsys):
      ["no column P1.x", "not a result of the model double_pendulum"]),
 ])
 def test_animate_errors_are_one_clear_line(tmp_path, build_dir, capsys, args, words):
-    from fccgen.results import Result
+    from fccgen.results.result import Result
     t = np.linspace(0, 1, 5)            # a result of another model: a point Q only
     Result(t, {"Q.x": t, "Q.y": t, "Q.z": t}).save(tmp_path / "other.csv")
     args = [tmp_path / a if "." in a else a for a in args]

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from fccgen.cli import main
-from fccgen.results import Result
+from fccgen.results.result import Result
 from fccgen.viz.plot import quantity
 
 

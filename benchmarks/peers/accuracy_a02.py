@@ -53,7 +53,7 @@ EXUDYN = [dict(dt=2e-3), dict(dt=1e-3)]
 
 
 class Track:
-    """B0's recorded (t, x, y) in the shape fccgen.accuracy.Reference.error reads."""
+    """B0's recorded (t, x, y) in the shape fccgen.bench.accuracy.Reference.error reads."""
 
     def __init__(self, rows):
         rows = np.asarray(rows, dtype=float)
@@ -113,7 +113,7 @@ RUNNERS = {"fccgen": (run_fccgen, FCCGEN), "mujoco": (run_mujoco, MUJOCO),
 
 
 def measure(n, reps, log):
-    from fccgen.accuracy import reference_from_table
+    from fccgen.bench.accuracy import reference_from_table
     ref = reference_from_table(DATA, "B0")
     rows = []
     for tool, (make, settings) in RUNNERS.items():

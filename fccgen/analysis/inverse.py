@@ -94,7 +94,7 @@ def kinematics(solver, times: np.ndarray, q, v, report=None) -> tuple[dict, dict
 
 
 def solve_inverse(solver, t_end=None, dt=None, progress=None):
-    """The :class:`~fccgen.results.Result` of the inverse dynamics of ``solver``'s
+    """The :class:`~fccgen.results.result.Result` of the inverse dynamics of ``solver``'s
     model (compiled or numeric) from 0 to t_end at the output spacing dt (defaults: the
     model's simulate t_end and output_dt, else dt); ``progress`` as for
     ``simulate`` (stage "inverse")."""
@@ -102,8 +102,8 @@ def solve_inverse(solver, t_end=None, dt=None, progress=None):
     from ..mechanism.outputs import add_joint_columns
     from ..mechanism.reactions import add_reactions
     from ..progress import run_reporter
-    from ..provenance import provenance
-    from ..results import result_from_arrays
+    from ..results.provenance import provenance
+    from ..results.result import result_from_arrays
     d = solver.plan.model.simulate
     t_end = float(d.t_end if t_end is None else t_end)
     dt = float((d.output_dt or d.dt) if dt is None else dt)
@@ -127,22 +127,6 @@ def solve_inverse(solver, t_end=None, dt=None, progress=None):
     add_driver_columns(solver, result)
     add_reactions(solver, result)
     result.info["wall_time"] = time.perf_counter() - start
-    return result
-
-
-def inverse_dynamics(path, *, t_end=None, dt=None, out=None, numeric=False,
-                     build_dir="generated", progress=None):
-    """Inverse dynamics of the model file ``path`` (module docstring): a Result with
-    the positions, speeds, joint outputs, the drivers' forces and the joint reactions
-    at 0, dt, ..., t_end; written to ``out`` if given (any result format)."""
-    from ..api import load, load_numeric
-    from ..results import check_output
-    if out is not None:
-        out = check_output(out)
-    solver = load_numeric(path) if numeric else load(path, build_dir, progress=progress)
-    result = solve_inverse(solver, t_end=t_end, dt=dt, progress=progress)
-    if out is not None:
-        result.save(out)
     return result
 
 

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..diagnose import explained
+from ..runs.explain import explained
 from ..errors import SimulationError
 from .tangent import (amax, bases, central_jacobian, cube_root_step, curvature,
                       min_norm_multipliers, step_size)

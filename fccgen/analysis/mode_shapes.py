@@ -13,7 +13,7 @@ a rigid-body mode (frequency 0) has no period and is shown with T = 1 (time unit
 The amplitude a is in the model's length unit: by default a tenth of its largest body
 length.
 
-Each shape is a :class:`~fccgen.results.Result` with every column of a run (points,
+Each shape is a :class:`~fccgen.results.result.Result` with every column of a run (points,
 vectors, bodies, energy, constraint_error) and ``info`` saying what it is: ``mode``,
 ``frequency_hz``, ``damping_ratio``, ``rigid``, ``period``, ``amplitude``,
 ``about`` and the model's metadata. Written by :func:`write_mode_shapes` as one file
@@ -26,17 +26,12 @@ from pathlib import Path
 
 import numpy as np
 
+from ..results.files import mode_shape_path
 from .linearize import Linearization, state_from_z
 from .modes import Modes
 
 DEFAULT_FRAMES = 41
 DEFAULT_AMPLITUDE = 0.1          # times the largest body length
-
-
-def mode_shape_path(path, k: int) -> Path:
-    """The file of mode k (1-based) among the shapes written for ``path``."""
-    path = Path(path)
-    return path.with_name(f"{path.stem}.mode{int(k)}{path.suffix}")
 
 
 def mode_shapes(solver, lin: Linearization, modes: Modes, *, amplitude=None,
@@ -63,8 +58,8 @@ def _direction(lin: Linearization, shape: np.ndarray) -> np.ndarray:
 
 
 def _shape(solver, lin, modes, k, a, frames, about):
-    from ..provenance import provenance
-    from ..results import result_from_arrays, _with_joint_columns
+    from ..results.provenance import provenance
+    from ..results.result import result_from_arrays, _with_joint_columns
     f = float(modes.frequency_hz[k])
     rigid = bool(modes.rigid[k])
     period = 1.0 / abs(f) if (f != 0.0 and not rigid) else 1.0

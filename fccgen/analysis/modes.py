@@ -52,10 +52,10 @@ class Modes:
     def write_csv(self, path, info: dict | None = None) -> None:
         """The rows ``mode, frequency_hz, damping_ratio, rigid``, written atomically,
         and how they were made (``info``: provenance, what was linearized) in the
-        sidecar ``<stem>.meta.json``, as for a result (fccgen.result_files)."""
+        sidecar ``<stem>.meta.json``, as for a result (fccgen.results.files)."""
         from pathlib import Path
 
-        from ..result_files import write_csv_with_sidecar
+        from ..results.files import write_csv_with_sidecar
 
         def write_table(tmp):
             with open(tmp, "w", encoding="utf-8") as out:

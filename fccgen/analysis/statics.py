@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import SimulationError
-from ..locate import loads_location
+from ..runs.locate import loads_location
 from .tangent import amax, bases, curvature, min_norm_multipliers
 
 FORCE_RTOL = 1e-11       # max |N^T f| relative to the largest applied force entry

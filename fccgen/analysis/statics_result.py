@@ -18,12 +18,12 @@ import numpy as np
 
 
 def equilibrium_result(solver, eq):
-    """The one-row :class:`fccgen.results.Result` of ``eq`` (an Equilibrium of
+    """The one-row :class:`fccgen.results.result.Result` of ``eq`` (an Equilibrium of
     ``solver``)."""
     from ..mechanism.driver_forces import add_driver_columns
     from ..mechanism.reactions import add_reactions
-    from ..provenance import provenance
-    from ..results import _with_joint_columns, result_from_arrays
+    from ..results.provenance import provenance
+    from ..results.result import _with_joint_columns, result_from_arrays
     q = np.asarray(eq.q, float)[None, :]
     v = np.zeros_like(q)
     body = np.asarray(solver.body_outputs(q[0], v[0])).reshape(1, len(solver.plan.bodies), 6)

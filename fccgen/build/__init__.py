@@ -24,7 +24,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-from .. import __version__
+from ..version import __version__
 from ..errors import BuildError, CacheRepairWarning, HostError
 from .cache import (HEADER, MANIFEST, cache_key, check_entry, files_problem,
                     manifest_problem, read_manifest, runtime_header, structure_hash,

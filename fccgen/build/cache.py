@@ -15,7 +15,7 @@ import sysconfig
 import uuid
 from pathlib import Path
 
-from .. import __version__
+from ..version import __version__
 from ..render import template_texts
 
 MANIFEST = "fccgen.json"

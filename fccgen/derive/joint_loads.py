@@ -70,7 +70,7 @@ def components(s: ClassSymbols) -> tuple[sympy.Matrix, dict]:
     """(F, Y): F(t, z) of the class, its three expressions with t the parameter "t"
     and every joint quantity z written in intermediate symbols Y (S, C, S', C' of an
     angle; s, s' of a position), Y -> its polynomial in q, v, p."""
-    from ..mechanism.expressions import parse_expression
+    from ..expressions.grammar import parse_expression
     t = sympy.Symbol("t", real=True)
     symbols, values, inter = {"t": t}, {t: s.scalar("t")}, {}
     for joint, family in s.cls.joint_families:

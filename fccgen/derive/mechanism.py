@@ -16,9 +16,9 @@ from .symbols import ClassSymbols
 def _time_function(s: ClassSymbols) -> tuple[sympy.Symbol, sympy.Expr]:
     """(t, f(t)) of a driver class: its expression read again by the restricted
     grammar (it was checked when the model was loaded) over a real symbol t, or its
-    table's spline (fccgen.mechanism.tables)."""
-    from ..mechanism.expressions import parse_expression
-    from ..mechanism.tables import is_table_text, table_text_expression
+    table's spline (fccgen.expressions.tables)."""
+    from ..expressions.grammar import parse_expression
+    from ..expressions.tables import is_table_text, table_text_expression
     t = sympy.Symbol("t", real=True)
     if is_table_text(s.cls.function):          # a table: the spline of tables.py
         return t, table_text_expression(s.cls.function, t)
@@ -89,7 +89,7 @@ BUILDERS.update({"driver_angle": driver_angle, "driver_position": driver_positio
 def _functions_of_time(s: ClassSymbols) -> sympy.Matrix:
     """The class's three components (its ``function``, "ex;ex;ex") read by the
     restricted grammar over t, with t the parameter the runtime writes."""
-    from ..mechanism.expressions import parse_expression
+    from ..expressions.grammar import parse_expression
     t = sympy.Symbol("t", real=True)
     parts = s.cls.function.split(";")
     return sympy.Matrix([parse_expression(x, {"t": t}, source="<load class>", line=None,

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import sympy
 
-from .. import __version__
+from ..version import __version__
 from ..build import BuiltModule, _built, load_module
 from ..build.cache import cache_key, check_entry
 from ..build.compile import (FLAG_POLICY, compile_args, compile_sources,

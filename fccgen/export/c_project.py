@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import __version__
+from ..version import __version__
 from ..errors import FccgenError
 from ..render.escape import c_identifier
 from . import c_data
@@ -100,7 +100,7 @@ def names_header(name: str, table: str) -> str:
 
 def data_header(solver, result, table: OutputTable, keys, inputs) -> str:
     """<name>_data.h: the constants of one export."""
-    from .. import methods as registry
+    from ..settings import methods as registry
     from ..runtime.solver import METHODS
     plan = solver.plan
     d = plan.model.simulate

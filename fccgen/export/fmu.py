@@ -22,7 +22,7 @@ import zipfile
 from pathlib import Path
 from xml.sax.saxutils import escape
 
-from .. import __version__
+from ..version import __version__
 from ..errors import BuildError
 from .c_project import ExportError, c_project_files, environment
 

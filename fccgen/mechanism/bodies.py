@@ -22,7 +22,7 @@ import numpy as np
 
 from ..model import checks
 from ..model.types import Body, PoseBody
-from ..plan.geometry import body_rotation
+from ..model.geometry import body_rotation
 
 # sin(angle between u and r_ij) below which a carried vector is not taken as u: the
 # mass matrix's condition grows like 1/sin^2 (fccgen.model.checks.PARALLEL_SIN).

@@ -24,7 +24,7 @@ import numpy as np
 
 from ..model.cables import Cable
 from ..model.types import Attached, Model, Slope, SlopeNormal, Vector
-from ..plan.geometry import body_rotation
+from ..model.geometry import body_rotation
 from .joints import perpendiculars
 
 

@@ -23,7 +23,7 @@ def check_driver_branches(plan, result) -> None:
                if d.quantity == "angle"]
     if not drivers or not len(result.t):
         return
-    from ..numeric.time_jets import time_function
+    from ..expressions.time_jets import time_function
     for d in drivers:
         angle = result.columns.get(f"{d.joint}.angle")
         if angle is None:

@@ -38,7 +38,7 @@ def driver_rows(plan) -> dict[str, tuple[int, object]]:
     for el in plan.elements:
         by_label[el.label] = start
         start += el.cls.n_g
-    from ..numeric.time_jets import time_function     # numeric imports this module
+    from ..expressions.time_jets import time_function     # numeric imports this module
     for d in drivers:
         slope = (lambda t: 1.0) if d.quantity != "distance" else (
             lambda t, f=time_function(d.function): 2.0 * f(t)[0])

@@ -76,7 +76,7 @@ def driven_angles(plan) -> list[tuple[str, float, object, int]]:
                if d.quantity == "angle"]
     if not drivers:
         return []
-    from ..numeric.time_jets import time_function
+    from ..expressions.time_jets import time_function
     from .lowering import driver_label
     rows, start = {}, 0
     for el in plan.elements:

@@ -38,7 +38,7 @@ def used_families(function: str, joint_names) -> list[tuple[str, str]]:
     grammar over every joint quantity, never evaluated."""
     import sympy
 
-    from .expressions import parse_expression
+    from ..expressions.grammar import parse_expression
     names = {"t"} | {f"{j}.{q}" for j in joint_names for q in FAMILY}
     symbols = {n: sympy.Symbol(n, real=True) for n in names}
     out = []

@@ -28,7 +28,7 @@ from ..model import checks
 from ..model.types import (GROUND, Angle, Attached, BodyPoint, Distance, DriverRow, Force,
                            Initial, JointSpring, LinearSpring, Model, Point, PointOnPlane,
                            TorsionSpring, Vector)
-from ..plan.geometry import body_rotation
+from ..model.geometry import body_rotation
 from .bodies import choose_frame, typical_body
 from .cables import lower_cables
 from .joint_loads import body_side, with_joint_uses

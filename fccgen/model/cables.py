@@ -169,7 +169,7 @@ class CableReader(Reader):
 
     def body_point(self, body: str, rho) -> np.ndarray:
         """The global initial position of the body point ``rho`` as written."""
-        from ..plan.geometry import body_rotation
+        from .geometry import body_rotation
         rho = np.asarray(rho, float)
         if body in self.bodies:
             b = self.bodies[body]

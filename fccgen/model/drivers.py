@@ -6,7 +6,7 @@ a joint quantity prescribed as an expression of the time t.
       - {name: push,  joint: S, position: "0.1*sin(2*t)"}   # prismatic or cylindrical
 
 The expression is checked here by the restricted grammar
-(:mod:`fccgen.mechanism.expressions`, only ``t`` is known) so that a bad one is
+(:mod:`fccgen.expressions.grammar`, only ``t`` is known) so that a bad one is
 reported with its file and line; it is read again when the driver's kernels are
 derived.
 """
@@ -124,7 +124,7 @@ class DriverReader(Reader):
         its integral from 0 to t instead (:func:`integral_text`)."""
         import sympy
 
-        from ..mechanism.expressions import parse_expression
+        from ..expressions.grammar import parse_expression
         if isinstance(node, YMap):
             return self.table(node, item, integrate)
         if isinstance(node, YScalar):
@@ -160,7 +160,7 @@ class DriverReader(Reader):
         number at t = 0 (sqrt(t), log(t), sin(t)/t)."""
         import sympy
 
-        from ..mechanism.expressions import finite_value
+        from ..expressions.grammar import finite_value
         if f.has(sympy.Abs, sympy.Min, sympy.Max, sympy.sign, sympy.Heaviside):
             raise self.fail(line, item, "must be smooth in t: abs, min and max make the "
                             "driver's rate jump where they switch, and its acceleration "
@@ -176,9 +176,9 @@ class DriverReader(Reader):
 
     def table(self, node: YMap, item: str, integrate: bool) -> str:
         """``{table: file.csv}``: the checked table's function text
-        (:func:`fccgen.mechanism.tables.table_text`); a rate or speed is refused (give
+        (:func:`fccgen.expressions.tables.table_text`); a rate or speed is refused (give
         the angle or position table)."""
-        from ..mechanism.tables import read_table, table_text
+        from ..expressions.tables import read_table, table_text
         m = self.mapping(node, item, ("table",))
         path = self.text(m.entries["table"], child(item, "table"))
         if integrate:

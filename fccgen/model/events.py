@@ -99,7 +99,7 @@ class EventReader(Reader):
         e = m.entries
         name = self.identifier(e["name"], child(item, "name"))
         self.claim(name, e["name"].line, child(item, "name"))
-        from ..mechanism.expressions import parse_event_function
+        from ..expressions.grammar import parse_event_function
         when = e["when"]
         text = when.value if isinstance(when, YScalar) else None
         s, direction = parse_event_function(text, self.symbols, source=self.source,

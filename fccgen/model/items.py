@@ -6,8 +6,8 @@ import math
 
 import numpy as np
 
-from ..methods import METHODS as REGISTRY
-from ..run_settings import LINEAR_SOLVERS, RunSettingError, schedule
+from ..settings.methods import METHODS as REGISTRY
+from ..settings.run import LINEAR_SOLVERS, RunSettingError, schedule
 from .fields import Reader, child, listing
 from .types import (Angle, AngularVelocity, Body, BodyPoint, Constraint, Distance, Force,
                     Initial, JointSpring, Load, Point, PointOnLine, PointOnPlane,
@@ -182,7 +182,7 @@ class ItemReader(Reader):
             return self.vec3(node, item), ""
         import sympy                       # only for models with such loads
 
-        from ..mechanism.expressions import parse_expression
+        from ..expressions.grammar import parse_expression
         from .events import joint_quantities
         seq = self.sequence(node, item, 3)
         if names is None:
@@ -206,7 +206,7 @@ class ItemReader(Reader):
         quantity 0)."""
         import sympy
 
-        from ..mechanism.expressions import finite_value
+        from ..expressions.grammar import finite_value
         speeds = [s for n, s in symbols.items() if n.endswith((".rate", ".speed"))]
         for s in speeds:
             if expr.has(s) and sympy.diff(expr, s).has(*speeds):
@@ -357,7 +357,7 @@ class ItemReader(Reader):
                  values_per_output: int = 0) -> SimulateDefaults:
         """Defaults of ``fccgen simulate`` (docs/design.md §5); ``node`` None: all
         defaults. Checked as ``fccgen simulate`` checks them, with the method's default
-        options (fccgen.run_settings.schedule), so that ``fccgen check`` refuses them
+        options (fccgen.settings.run.schedule), so that ``fccgen check`` refuses them
         too."""
         out = SimulateDefaults(values_per_output=values_per_output)
         if node is not None:

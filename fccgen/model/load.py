@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import ModelError, os_reason
-from ..methods import EVENT_METHODS, names as _method_names
+from ..settings.methods import EVENT_METHODS, names as _method_names
 from . import checks
 from .events import EventReader
 from .fields import IDENTIFIER, IDENTIFIER_RULE, Reader, child, listing
@@ -23,7 +23,7 @@ from .names import reserved_model_name
 from .types import GROUND, Body, Initial, Model, Point, PoseBody, Vector, Where
 from .yamlnodes import MAX_INPUT_CHARS, YMap, YNode, parse_yaml
 
-# Integration methods a model may name in ``simulate.method`` (fccgen.methods).
+# Integration methods a model may name in ``simulate.method`` (fccgen.settings.methods).
 METHODS: tuple[str, ...] = _method_names()
 
 MAX_NAME_LENGTH = 64          # the model name becomes a module name and a C symbol;

@@ -293,9 +293,9 @@ class SimulateDefaults:
     rank_tol: float | None = None
     position_tol: float | None = None
     max_newton: int | None = None
-    linear_solver: str | None = None  # fccgen.run_settings.LINEAR_SOLVERS; None: "auto"
+    linear_solver: str | None = None  # fccgen.settings.run.LINEAR_SOLVERS; None: "auto"
     # Numbers in one output row (0: unknown), set by the loader from the model's size;
-    # bounds a run's record (fccgen.run_settings.schedule). Not a setting: not compared.
+    # bounds a run's record (fccgen.settings.run.schedule). Not a setting: not compared.
     values_per_output: int = field(default=0, compare=False)
 
 

@@ -14,7 +14,7 @@ import numpy as np
 
 from .elements import KIND_KERNELS, ElementKernels, ForceKernels, TorqueKernels
 from .kinematics import EYE, cross
-from .time_jets import time_function
+from ..expressions.time_jets import time_function
 # -- drivers (docs/joints.md, "Drivers") ----------------------------------------------
 
 class DriverKernels(ElementKernels):

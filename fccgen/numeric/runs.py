@@ -14,14 +14,14 @@ import numpy as np
 from scipy.optimize import brentq
 
 from ..errors import SimulationError
-from ..results import keep_rows
+from ..results.result import keep_rows
 
 
 @dataclass
 class RunContext:
     """What a run of the NumPy version carries besides the state: its events (a
     numeric.events.NumericEvents, or None), the power whose work it integrates (None:
-    none), the divergence bounds of q and v (fccgen/runtime/guards.py), and the
+    none), the divergence bounds of q and v (fccgen/runs/guards.py), and the
     re-basing of the elements' angle references."""
     events: object = None
     power: object = None
@@ -254,7 +254,7 @@ def simulate_baumgarte(solver, q, v, sched, opts, project_on, progress=None, ctx
 def simulate_scipy(method: str):
     """The integrator of SciPy's ``method`` on the numeric right-hand side."""
     def run(solver, q, v, sched, opts, project_on, progress=None, ctx=None):
-        from ..runtime import scipy_ivp           # pure Python; SciPy loaded on use
+        from ..runs import scipy_ivp
         ctx = ctx or RunContext()
         references = getattr(solver, "references", None)
         return scipy_ivp.run(solver, method, sched, opts, q, v, progress,

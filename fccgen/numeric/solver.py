@@ -9,23 +9,23 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import methods as registry
+from ..settings import methods as registry
 from .. import rank as rank_rule
-from ..diagnose import explained
-from ..locate import step_setting
+from ..runs.explain import explained
+from ..runs.locate import step_setting
 from ..mechanism.driver_branch import check_driver_branches
 from ..mechanism.driver_forces import add_driver_columns, driver_rows
 from ..mechanism.initial_positions import assemble_at_joints
 from ..mechanism.initial_speeds import initial_speeds
 from ..mechanism.reactions import add_reactions
-from ..run_settings import linear_solver_choice, solver_tolerances
+from ..settings.run import linear_solver_choice, solver_tolerances
 from ..errors import FccgenError, SimulationError
 from ..progress import run_reporter
 from ..plan import Plan
-from ..results import InitialState, Result, timed_run
+from ..results.result import InitialState, Result, timed_run
 from .constrained import RankKeeper, constrained_solve, scaled_residual
-from ..runtime.energy_check import check_energy, kinetic_peak
-from ..runtime.guards import check_constraint_drift, divergence_bounds
+from ..runs.energy_check import check_energy, kinetic_peak
+from ..runs.guards import check_constraint_drift, divergence_bounds
 from .dopri5 import simulate_dopri5
 from .runs import RunContext, simulate_baumgarte, simulate_rk4, simulate_scipy
 from .work import work_power
@@ -39,6 +39,9 @@ SQUARE = ("mass_matrix", "force_jacobian_q", "force_jacobian_v")
 
 class NumericSolver:
     """Assembly, constrained solve, projections and integration in NumPy."""
+
+    element_kernels = staticmethod(element_kernels)   # the items a failure names
+
 
     def __init__(self, plan: Plan, *, rank_tol: float | None = None,
                  position_tol: float | None = None, max_newton: int | None = None,
@@ -385,7 +388,7 @@ class NumericSolver:
     def __repr__(self) -> str:
         """Model, coordinates, constraint equations, DOF if decided, method and the
         linear solver (NumPy: always the dense solve, no build)."""
-        from ..summary import solver_repr
+        from ..results.summary import solver_repr
         return solver_repr(self, self._rank.rank, "dense (NumPy)", None)
 
     def decide_rank(self, q) -> rank_rule.RankDecision:

@@ -3,7 +3,7 @@ numeric/constrained.py, costs O(n^3): 40 s at 3024 coordinates).
 
     v = argmin (v - v_t)^T M (v - v_t) / 2   subject to   B v = b
 
-B has redundant rows; with S a basis of its rows (fccgen.rank_sparse.independent_rows,
+B has redundant rows; with S a basis of its rows (fccgen.rank_rows.independent_rows,
 certified by the rank decision) the rows outside S are combinations of S, so B v = b
 is B_S v = b_S (b consistent, as dg/dt of consistent drivers is), and with B_S of full
 row rank and M positive definite on its null space the KKT matrix
@@ -24,7 +24,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
-from .. import rank_sparse
+from ..rank import rows as rank_rows
 from ..rank import scales_from_norms
 
 REFINEMENTS = 2          # steps of iterative refinement of the KKT solve
@@ -83,7 +83,7 @@ def constrained_step(solver, q, M, Q, b, rank: int) -> np.ndarray | None:
     norms = np.sqrt(np.asarray(B.multiply(B).sum(axis=1)).ravel())
     scale = scales_from_norms(norms, solver.row_groups)
     C = (sp.diags(1.0 / scale) @ B).tocsr()
-    keep = rank_sparse.independent_rows(C, rank) if rank > 0 else np.zeros(0, int)
+    keep = rank_rows.independent_rows(C, rank) if rank > 0 else np.zeros(0, int)
     if keep is None or not np.all(np.isfinite(C.data)):
         return None
     CS = C[keep]

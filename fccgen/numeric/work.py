@@ -1,5 +1,5 @@
 """The power of the forces without potential in the NumPy version, for the energy
-check with the work added back (fccgen/runtime/energy_check.py; the compiled
+check with the work added back (fccgen/runs/energy_check.py; the compiled
 runtime's runtime/_power.pyx, written independently): the applied forces assembled
 with the parameters of the forces that have a potential set to zero (gravity,
 constant forces, spring stiffnesses), and for driven models the constraint forces'
@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..runtime.energy_check import driven, energy_exchange, work_split
+from ..runs.energy_check import driven, energy_exchange, work_split
 
 
 class WorkPower:

@@ -14,7 +14,7 @@ from ..model.types import (Angle, Attached, BodyPoint, Distance, DriverRow, Forc
 from .cables import (cable_columns, cable_elements, point_force_element,
                      slope_normal_element)
 from .classes import END_FOLDABLE, FOLDABLE, ElementClass
-from .geometry import body_frame_numbers, body_rotation, point_coefficients
+from ..model.geometry import body_frame_numbers, body_rotation, point_coefficients
 from .joint_loads import joint_load_element
 
 

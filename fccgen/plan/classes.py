@@ -86,7 +86,7 @@ END_FOLDABLE = {"beta", "b1", "b2", "b3"}
 
 # -- mechanism level (docs/joints.md): attached points and vectors, point on a plane,
 # constant dot product. Attached triples carry the coefficients b1..b3 of their
-# body-frame coordinates (fccgen.plan.geometry.point_coefficients); all rows are linear
+# body-frame coordinates (fccgen.model.geometry.point_coefficients); all rows are linear
 # or quadratic in q.
 MECHANISM_KINDS = {
     # kind: (scalars, ends, triples, foldable, constraint rows)
@@ -167,7 +167,7 @@ class ElementClass:
     fixed: tuple[bool, ...]        # per triple of triple_names
     zeros: frozenset[str]          # scalar names folded to zero
     function: str = ""             # drivers: f(t); timed loads: "ex;ex;ex" (grammar of
-                                   # fccgen.mechanism.expressions, in t)
+                                   # fccgen.expressions.grammar, in t)
 
     def __post_init__(self):
         if self.kind not in KIND_SCALARS:

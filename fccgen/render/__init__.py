@@ -12,7 +12,7 @@ import importlib.resources
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from .. import __version__
+from ..version import __version__
 from ..plan.kernels import KERNEL_NAMES, KERNELS
 from .escape import c_identifier
 

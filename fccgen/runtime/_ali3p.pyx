@@ -47,7 +47,7 @@ import numpy as np
 
 from fccgen.errors import SimulationError
 
-from fccgen.results import keep_rows
+from fccgen.results.result import keep_rows
 
 from ._cengine cimport (FCC_ALI3P_PENALTY_RAISE, FCC_RUN_DONE, FCC_RUN_ERROR, fcc_ali3p,
                         fcc_ali3p_advance, fcc_ali3p_record, fcc_ali3p_start,

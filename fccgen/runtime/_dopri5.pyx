@@ -23,7 +23,7 @@ from ._power cimport power_state
 from ._runloop cimport array_data, now, past_deadline
 
 from ._messages import error_message
-from fccgen.results import keep_rows
+from fccgen.results.result import keep_rows
 
 WORK_ARRAYS = 15                          # FCC_DOPRI5_WORK: arrays of 2 n numbers
 

@@ -110,7 +110,7 @@ cdef class EventSet:
 
     def refresh(self, q):
         """Move the angle references (and their copies) to the angles at q: for loops
-        that step in Python (fccgen.runtime.scipy_ivp), after each accepted step."""
+        that step in Python (fccgen.runs.scipy_ivp), after each accepted step."""
         qa = np.ascontiguousarray(q, float)
         cdef double[::1] qv = qa
         if qa.shape[0] != self.spec.n:

@@ -1,13 +1,13 @@
 # cython: language_level=3
 """The work of the forces that have no potential, integrated by the steps' own
 quadrature, so that the energy check holds for models that exchange energy
-(fccgen/runtime/energy_check.py, docs/reliability.md "Energy").
+(fccgen/runs/energy_check.py, docs/reliability.md "Energy").
 
 The C engine computes the stage powers and adds them up in its integrators
 (engine/fcc_work.c says how); this wrapper sets up its fcc_power from a second
 Assembler of the same kernels over the elements whose forces have no potential (or
 part of one: damped springs, with their stiffness set to zero), and hands the powers
-to loops that step in Python (fccgen.runtime.scipy_ivp).
+to loops that step in Python (fccgen.runs.scipy_ivp).
 """
 import numpy as np
 

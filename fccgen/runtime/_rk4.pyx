@@ -22,7 +22,7 @@ from ._power cimport power_state
 from ._runloop cimport array_data, now, past_deadline
 
 from ._messages import error_message
-from fccgen.results import keep_rows
+from fccgen.results.result import keep_rows
 
 
 def simulate_rk4(Engine engine, q0, v0, double t_end, double dt, long n_steps,

@@ -404,7 +404,7 @@ cdef class SparseEngine(Engine):
         min(n, m)) and n - rank <= TRACK_MAX; otherwise no watch. B dense: a full SVD;
         B sparse (models above rank.dense_columns_max() coordinates, where that SVD
         would take minutes): shift-invert Lanczos on B^T B
-        (fccgen.rank_sparse.smallest_right_vectors)."""
+        (fccgen.rank.sparse.smallest_right_vectors)."""
         cdef int n = self.c.n, m = self.c.m, k = n - rank, i
         fcc_sparse_set_watch(&self.c, 0, NULL, GROW_TOL)
         if rank < 0 or rank >= min(n, m) or k > TRACK_MAX:
@@ -416,7 +416,7 @@ cdef class SparseEngine(Engine):
                                          full_matrices=m < n)     # vt: n x n
                 basis = vt[rank:rank + k].T
             else:
-                from fccgen import rank_sparse
+                from fccgen.rank import sparse as rank_sparse
                 basis = rank_sparse.smallest_right_vectors(
                     rank_sparse.scaled(B, groups), k)
         except (np.linalg.LinAlgError, ArithmeticError, RuntimeError):

@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from ..errors import SimulationError
-from ..methods import METHODS
+from ..settings.methods import METHODS
 from ._assemble import FLAGS
 from ._messages import INPUTS
 

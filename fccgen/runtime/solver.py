@@ -11,28 +11,32 @@ import statistics
 
 import numpy as np
 
-from .. import methods as registry
+from ..settings import methods as registry
 from .. import rank as rank_rule
-from ..diagnose import explained
-from ..locate import step_setting
+from ..runs.explain import explained
+from ..runs.locate import step_setting
+from ..numeric.elements import element_kernels
 from ..mechanism.driver_branch import check_driver_branches
 from ..mechanism.driver_forces import add_driver_columns, driver_rows
 from ..mechanism.initial_positions import assemble_at_joints
 from ..mechanism.initial_speeds import initial_speeds
 from ..mechanism.reactions import add_reactions
-from ..run_settings import linear_solver_choice, solver_tolerances
-from ..errors import BuildError, SimulationError
+from ..settings.run import linear_solver_choice, solver_tolerances
+from ..errors import SimulationError
 from ..progress import run_reporter
-from ..results import InitialState, Result, timed_run
-from ._assemble import FLAGS, Assembler
+from ..results.result import InitialState, Result, timed_run
+from ..threads import single_threaded_blas
+from ._assemble import FLAGS
 from ._dopri5 import simulate_dopri5
 from .paths import (SPARSE_MIN_COORDINATES, make_engine, pattern_samples,
                     reduced_mass_spread, small_model_path, use_sparse)
 from ._rk4 import simulate_baumgarte, simulate_rk4
-from .energy_check import check_energy, kinetic_peak, work_tracker
-from .guards import check_constraint_drift
+from ..runs.energy_check import check_energy, kinetic_peak
+from ..runs.guards import check_constraint_drift
+from .assembler import make_assembler
 from .setup_reuse import SetupStore, kept_decision, kept_initial_state
 from .turns import REBASING, turn_check
+from .work import work_tracker
 
 
 def _available_methods() -> tuple[str, ...]:
@@ -65,56 +69,24 @@ def length_scale(plan) -> float:
     return float(max(lengths)) if lengths else 1.0
 
 
-def make_assembler(plan, module) -> Assembler:
-    """Bind a generated module's kernels to the plan's instance data (checked)."""
-    try:
-        capsule = module.table_capsule()
-        structure_hash = module.STRUCTURE_HASH
-    except AttributeError as exc:
-        raise BuildError(f"{getattr(module, '__name__', module)!r} is not a generated "
-                         f"kernel module ({exc})") from None
-    els = plan.elements
-    q_idx = [el.q_index() for el in els]
-    q_ptr = np.concatenate([[0], np.cumsum([len(i) for i in q_idx])])
-    p_ptr = np.concatenate([[0], np.cumsum([len(el.params) for el in els])])
-    asm = Assembler(
-        capsule, [c.name for c in plan.classes],
-        np.array([(c.n_q, c.n_p, c.n_g) for c in plan.classes], dtype=np.intc).reshape(-1, 3),
-        np.asarray(plan.class_of, dtype=np.intc), q_ptr,
-        np.concatenate(q_idx) if q_idx else np.zeros(0, np.intc), p_ptr,
-        np.concatenate([el.params for el in els]) if els else np.zeros(0),
-        plan.n_q, np.array([e for _, e in plan.bodies], dtype=np.intc),
-        structure_hash=structure_hash, owner=module)
-    asm.set_time_slots(time_slots(plan))
-    return asm
-
-
-def time_slots(plan) -> np.ndarray:
-    """Indices into the concatenated element parameters of every parameter named "t"
-    (element classes whose equations depend on the time, such as drivers)."""
-    slots, start = [], 0
-    for el in plan.elements:
-        if "t" in el.cls.param_names:
-            slots.append(start + el.cls.param_names.index("t"))
-        start += len(el.params)
-    return np.array(slots, dtype=np.intc)
-
-
 class CompiledSolver:
     """Assembly, constrained solve, projections and the integration methods of
-    :mod:`fccgen.methods` for one model, the per-step loops in compiled code.
+    :mod:`fccgen.settings.methods` for one model, the per-step loops in compiled code.
 
     plan: the model's :class:`fccgen.plan.Plan`; module: its generated kernel module.
     rank_tol: QR pivot ratio at or below which a constraint row counts as lost at a
     singular position (fccgen.rank); position_tol: Newton projection tolerance on
     max_k |g_k| / ||B_k||; max_newton: its iteration limit. Each defaults to the
-    model's simulate section, else fccgen.run_settings (1e-10, 1e-11 times the largest
+    model's simulate section, else fccgen.settings.run (1e-10, 1e-11 times the largest
     body length, 20). linear_solver: "dense", "sparse" or "auto" (by size;
     fccgen.runtime.paths), default the model's simulate.linear_solver, else "auto".
 
     progress_interval: wall-clock seconds between a run's pauses, where it reports its
     progress and sees Ctrl-C (0: after every step).
     """
+
+    element_kernels = staticmethod(element_kernels)   # the items a failure names
+
     progress_interval = 0.5
 
     def __init__(self, plan, module, *, rank_tol=None, position_tol=None, max_newton=None,
@@ -296,7 +268,7 @@ class CompiledSolver:
         """Integrate from (q0, v0), used as given, to t_end. q0 None: the consistent
         :meth:`initial_state`; only v0 None: the model's initial speeds projected at q0.
 
-        method: a name of :mod:`fccgen.methods` (default: the model's). Fixed-step
+        method: a name of :mod:`fccgen.settings.methods` (default: the model's). Fixed-step
         methods take steps dt, the last one shortened to land on t_end, and record at 0,
         every output_dt (a multiple of dt) and t_end. Adaptive methods take dt as the
         first step (None: automatic), rtol and atol, and record at multiples of
@@ -305,7 +277,7 @@ class CompiledSolver:
         method_options: the method's options (e.g. alpha, beta for baumgarte).
         progress: called with a :class:`~fccgen.progress.ProgressEvent` (stage
         "simulate", done = t of total = t_end; its text ``"t = ... of ..."``) at most
-        about every 0.5 s of wall time. ``result.info`` holds fccgen.methods.INFO_KEYS and more.
+        about every 0.5 s of wall time. ``result.info`` holds fccgen.settings.methods.INFO_KEYS and more.
         reactions: add the joint reaction columns of a mechanism-level model
         (fccgen.mechanism.reactions; ``result.info["reactions"]`` says whether they
         are unique, or why they are absent).
@@ -346,10 +318,11 @@ class CompiledSolver:
         sched = registry.schedule(m, d, t_end, dt, output_dt, opts)
         self.set_time(0.0)
         self.setup_store.start_run()
-        q0, v0 = self._start_state(q0, v0)
+        with single_threaded_blas():      # the set-up's SVDs: as the run's solves
+            q0, v0 = self._start_state(q0, v0)
+            decision = self.decide_rank(q0)
         project = bool(project) and m.projects
         report = run_reporter(progress, sched.t_end)
-        decision = self.decide_rank(q0)
         events = self._event_set(event_tol, rest_speed)
         tracker, untracked = work_tracker(self.plan, self.module, m.name, self.sparse)
         kept = {}
@@ -536,7 +509,7 @@ class CompiledSolver:
                                   report, self.progress_interval,
                                   length_scale=self.length_scale)
         if m.name.startswith("scipy-"):
-            from . import scipy_ivp              # imports scipy.integrate: only when used
+            from ..runs import scipy_ivp
             if events is not None:               # references from the start's angles
                 events.reset(q0)
             return scipy_ivp.run(self, m.name[len("scipy-"):], s, opts, q0, v0, report,
@@ -558,7 +531,7 @@ class CompiledSolver:
         """Model, coordinates, constraint equations, DOF if decided, method, linear
         solver path and the build folder of the kernel module."""
         from pathlib import Path
-        from ..summary import solver_repr
+        from ..results.summary import solver_repr
         file = getattr(self.module, "__file__", None)
         return solver_repr(self, self._engine.decided_rank,
                            "sparse" if self.sparse else "dense",

@@ -240,29 +240,6 @@ def _title(model, result, n_frames: int) -> str:
             f"{len(result.t)} recorded rows")
 
 
-def mode_file(result, mode: int) -> Path:
-    """The file of mode ``mode`` among the shapes that ``fccgen modes --shapes
-    RESULT`` wrote (RESULT.mode<k><suffix>); ValueError naming the ones there are."""
-    from ..analysis.mode_shapes import mode_shape_path
-    if result is None or not isinstance(result, (str, Path)):
-        raise ValueError("--mode needs --result NAME, the name given to fccgen modes "
-                         "--shapes (e.g. --result modes.npz --mode 1)")
-    if int(mode) < 1:
-        raise ValueError(f"--mode counts from 1 (got {mode})")
-    path = mode_shape_path(result, mode)
-    if path.exists():
-        return path
-    base = Path(result)
-    found = sorted(base.parent.glob(f"{base.stem}.mode*{base.suffix}"),
-                   key=lambda p: (len(p.name), p.name))
-    if not found:
-        raise ValueError(f"no mode shapes named {base.stem}.mode<k>{base.suffix} in "
-                         f"{base.parent}: write them first with fccgen modes MODEL "
-                         f"--shapes {base}")
-    raise ValueError(f"{path} does not exist; the shapes written as {base} are "
-                     + ", ".join(p.name for p in found))
-
-
 def write_animation(model, result, out, max_frames: int = DEFAULT_MAX_FRAMES):
     """Write the page to ``out`` (.html), plotly.js inlined; returns (path, frames)."""
     out = check_page_path(out)
