@@ -142,3 +142,12 @@ def test_changing_inputs_need_a_method_that_stops_at_output_times(panel):
         panel.simulate(inputs={"torque": 1.0})
     with pytest.raises(ValueError, match="not a finite number"):
         panel.simulate(inputs={"hinge_torque": lambda t: np.nan})
+
+
+def test_an_input_no_load_reads_changes_nothing(build_dir, tmp_path, panel):
+    path = tmp_path / "panel_input.yaml"
+    path.write_text(panel_text("inputs: {hinge_torque: 0.02}",
+                               "inputs: {hinge_torque: 0.02, spare: 1.0}"))
+    solver = fccgen.load(path, build_dir)              # the same kernels: no new build
+    got = solver.simulate(inputs={"spare": lambda t: t}, reactions=False)
+    assert np.array_equal(got["hinge.angle"], panel.simulate(reactions=False)["hinge.angle"])

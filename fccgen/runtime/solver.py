@@ -555,8 +555,8 @@ class CompiledSolver:
         """(arrays, stats) of one run of method m (held: inputs that change over the
         run, fccgen.runtime.inputs; rk4 and baumgarte only)."""
         s, e = sched, self._engine
-        held = None if held is None or held.constant else (held.slots, held.columns,
-                                                            held.table)
+        held = None if held is None or held.constant or not len(held.slots) else (
+            held.slots, held.columns, held.table)
         if model_events(self.plan) and m.name not in ("rk4", "dopri5"):
             raise ValueError(f"events are located by the rk4 and dopri5 methods, not "
                              f"by {m.name}")
