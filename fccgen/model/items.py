@@ -201,7 +201,9 @@ class ItemReader(Reader):
             if point_force:
                 refuse_inputs(self, expr, inputs, n.line, child(item, k), text,
                               NOT_IN_POINT_FORCES)
-            self.load_expression_rules(expr, t, n.line, child(item, k), text)
+            # the start's checks with the inputs at their start values
+            at_start = expr.subs({t[name]: x for name, x in inputs.items()})
+            self.load_expression_rules(at_start, t, n.line, child(item, k), text)
             parts.append(" ".join((text if isinstance(text, str) else repr(text)).split()))
         return np.zeros(3), ";".join(parts)
 
@@ -224,9 +226,11 @@ class ItemReader(Reader):
                                 "computed without them)", text)
         value = expr.subs({s: 0 for s in symbols.values()})
         if not finite_value(value):
+            held = ", every input at its start value" if getattr(self, "inputs", None) \
+                else ""
             raise self.fail(line, item, "is not a finite number at the start (t = 0, "
-                            f"every joint quantity 0: {sympy.sstr(value)}); 1/A.angle, "
-                            "log(t), sin(t)/t are not", text)
+                            f"every joint quantity 0{held}: {sympy.sstr(value)}); "
+                            "1/A.angle, log(t), sin(t)/t are not", text)
 
     def point_force(self, node: YNode, item: str) -> PointForce:
         """``{type: force, point: P, value: [x, y, z]}``: a force on a moving point (a
