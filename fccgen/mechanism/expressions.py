@@ -415,20 +415,3 @@ def parse_event_function(text: str, symbols: Mapping[str, sympy.Symbol], *, sour
     if isinstance(body, ast.Compare):
         return parse_condition(text, symbols, source=source, line=line, item=item)
     return walker.bounded(walker.finite(walker.convert(body))), None
-
-
-def names_read(text: str, candidates) -> tuple[str, ...]:
-    """The names of ``candidates`` (plain names, such as the model's inputs) that the
-    checked expression text ``text`` reads, sorted; "ex;ex;ex" (a load's components)
-    and "header|ex;ex;ex" (a load of joint quantities) are read part by part. The text
-    is parsed only (it was checked by :func:`parse_expression` when the model was
-    loaded); nothing is evaluated."""
-    wanted = set(candidates)
-    if not wanted or not text or text.startswith("table:"):
-        return ()
-    found = set()
-    for part in text.split("|", 1)[-1].split(";"):
-        for node in ast.walk(ast.parse(part.strip(ASCII_SPACE), mode="eval")):
-            if isinstance(node, ast.Name) and node.id in wanted:
-                found.add(node.id)
-    return tuple(sorted(found))

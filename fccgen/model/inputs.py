@@ -14,6 +14,7 @@ the ``with_parameters`` keys, such as ``gravity``).
 """
 from __future__ import annotations
 
+import ast
 import keyword
 
 from .fields import IDENTIFIER, IDENTIFIER_RULE, Reader
@@ -76,3 +77,20 @@ def refuse_inputs(reader: Reader, expr, inputs, line, item: str, text, rule: str
     used = sorted(s.name for s in expr.free_symbols if s.name in inputs)
     if used:
         raise reader.fail(line, item, rule.format(name=used[0]), text)
+
+
+def names_read(text: str, candidates) -> tuple[str, ...]:
+    """The names of ``candidates`` (the model's inputs) that the checked expression
+    text ``text`` reads, sorted; "ex;ex;ex" (a load's components) and
+    "header|ex;ex;ex" (a load of joint quantities) are read part by part. The text is
+    parsed only (it was checked by the expression grammar when the model was loaded),
+    never evaluated; no SymPy (planning a cached model imports none)."""
+    wanted = set(candidates)
+    if not wanted or not text or text.startswith("table:"):
+        return ()
+    found = set()
+    for part in text.split("|", 1)[-1].split(";"):
+        for node in ast.walk(ast.parse(part.strip(), mode="eval")):
+            if isinstance(node, ast.Name) and node.id in wanted:
+                found.add(node.id)
+    return tuple(sorted(found))

@@ -133,7 +133,7 @@ class _Builder:
 
     def element(self, kind, label, where, scalars: dict, triples: list, ends=(),
                 function: str = ""):
-        from ..mechanism.expressions import names_read
+        from ..model.inputs import names_read
         known = getattr(self.model, "inputs", {})
         inputs = names_read(function, known) if kind in INPUT_KINDS else ()
         scalars = {**scalars, **{input_parameter(n): float(known[n])

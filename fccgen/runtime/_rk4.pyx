@@ -21,6 +21,9 @@ from ._events cimport ev_state
 from ._power cimport power_state
 from ._runloop cimport array_data, now, past_deadline
 
+from ._messages import error_message
+from fccgen.results import keep_rows
+
 
 cdef struct held_inputs:
     # the model's inputs held between records (fccgen.runtime.inputs): after record j
@@ -46,9 +49,6 @@ cdef int pause_holding_inputs(void *ctx) noexcept nogil:
             h.params[h.slot[i]] = h.table[j * h.n_cols + h.col[i]]
         h.applied = j
     return past_deadline(h.deadline)
-
-from ._messages import error_message
-from fccgen.results import keep_rows
 
 
 def simulate_rk4(Engine engine, q0, v0, double t_end, double dt, long n_steps,
