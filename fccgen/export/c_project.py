@@ -268,7 +268,7 @@ def keep_initial_speeds(solver, keys, result):
 
 def model_inputs(plan) -> list:
     """(name, start value, parameter slots) of the model's inputs."""
-    from ..runtime.inputs import input_slots
+    from ..runs.inputs import input_slots
     slots = input_slots(plan)
     return [(name, float(x0), slots[name]) for name, x0 in plan.model.inputs.items()]
 

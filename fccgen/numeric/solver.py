@@ -26,7 +26,7 @@ from ..results.result import InitialState, Result, timed_run
 from .constrained import RankKeeper, constrained_solve, scaled_residual
 from ..runs.energy_check import check_energy, kinetic_peak
 from ..runs.guards import check_constraint_drift, divergence_bounds
-from ..runtime.inputs import input_run
+from ..runs.inputs import input_run
 from ..plan.classes import input_parameter
 from .dopri5 import simulate_dopri5
 from .runs import RunContext, simulate_baumgarte, simulate_rk4, simulate_scipy
@@ -68,7 +68,7 @@ class NumericSolver:
                             for k, el in enumerate(plan.elements)
                             if "t" in el.cls.param_names]
         self.t = 0.0
-        self._held = None                 # the inputs of a run (fccgen.runtime.inputs)
+        self._held = None                 # the inputs of a run (fccgen.runs.inputs)
         # turn counting of springs and loads of joint angles (numeric/references.py)
         self.references = AngleReferences(plan, self._params, self._index)
 
@@ -80,7 +80,7 @@ class NumericSolver:
 
     def hold_inputs(self, record: int) -> None:
         """Set the inputs to their row of the record just written (a run with inputs
-        that change: fccgen.runtime.inputs; they hold until the next record)."""
+        that change: fccgen.runs.inputs; they hold until the next record)."""
         held = self._held
         if held is not None and not held.constant:
             self._put_inputs(held, held.table[record])
@@ -312,7 +312,7 @@ class NumericSolver:
         and output_dt come from the model file; error, error_on: an error target
         (fccgen.target_error). Events (numeric/events.py) are located by rk4 and dopri5
         with projection, as in the compiled runtime. inputs: as the compiled
-        runtime's (fccgen.runtime.inputs): sampled at the output times, held between."""
+        runtime's (fccgen.runs.inputs): sampled at the output times, held between."""
         if error is not None and inputs:
             raise ValueError("an error target (error=) chooses its own runs; give "
                              "inputs to a run with a method and step instead")

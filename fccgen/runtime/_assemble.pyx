@@ -175,7 +175,7 @@ cdef class Assembler:
 
     def put_params(self, slots, values):
         """Write values[i] into the concatenated parameters at slots[i] (the model's
-        inputs, fccgen.runtime.inputs): later assemblies read them."""
+        inputs, fccgen.runs.inputs): later assemblies read them."""
         cdef int[::1] s = np.ascontiguousarray(slots, dtype=np.intc)
         cdef double[::1] x = np.ascontiguousarray(values, dtype=float)
         cdef int j

@@ -26,7 +26,7 @@ from fccgen.results.result import keep_rows
 
 
 cdef struct held_inputs:
-    # the model's inputs held between records (fccgen.runtime.inputs): after record j
+    # the model's inputs held between records (fccgen.runs.inputs): after record j
     # the slots take row j of the table; then the run's wall-clock pause rule
     fcc_rk4 *r
     double *params
@@ -66,7 +66,7 @@ def simulate_rk4(Engine engine, q0, v0, double t_end, double dt, long n_steps,
     max_constraint_error. Raises SimulationError (with the time and what failed) on a
     singular mass matrix, a non-finite state or one past the divergence bounds.
 
-    inputs: None, or (slots, columns, table) of fccgen.runtime.inputs: the parameter
+    inputs: None, or (slots, columns, table) of fccgen.runs.inputs: the parameter
     slots[i] holds table[j, columns[i]] from record j to record j + 1 (row 0 from the
     start; one row per record).
     """

@@ -36,7 +36,7 @@ from ..runs.guards import check_constraint_drift
 from .assembler import make_assembler
 from .setup_reuse import SetupStore, kept_decision, kept_initial_state
 from .turns import REBASING, turn_check
-from .inputs import input_run
+from ..runs.inputs import input_run
 from .work import work_tracker
 
 
@@ -292,7 +292,7 @@ class CompiledSolver:
         (fccgen.target_error, docs/accuracy.md).
         inputs: the model's inputs, name -> a number, a function of t or a table
         (times, values), sampled at each output time and held until the next
-        (fccgen.runtime.inputs, docs/model-file.md "Inputs"); an input not given keeps
+        (fccgen.runs.inputs, docs/model-file.md "Inputs"); an input not given keeps
         its start value.
         """
         if error is not None and inputs:
@@ -511,7 +511,7 @@ class CompiledSolver:
     def _run(self, m, sched, opts, project, q0, v0, report, events=None, work=None,
              held=None):
         """(arrays, stats) of one run of method m (held: inputs that change over the
-        run, fccgen.runtime.inputs; rk4 and baumgarte only)."""
+        run, fccgen.runs.inputs; rk4 and baumgarte only)."""
         s, e = sched, self._engine
         held = None if held is None or held.constant or not len(held.slots) else (
             held.slots, held.columns, held.table)
