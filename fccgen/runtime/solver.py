@@ -569,6 +569,16 @@ class CompiledSolver:
         from .params import with_parameters
         return with_parameters(self, values)
 
+    def simulate_many(self, parameters, *, threads=None, progress=None, watch=None,
+                      **options) -> list:
+        """One run per parameter set (dicts of with_parameters keys, or a pandas
+        DataFrame whose columns are keys), on ``threads`` threads (None: the cores):
+        a list of Results, a RunFailure where a run failed; see
+        :mod:`fccgen.runtime.many`."""
+        from .many import simulate_many
+        return simulate_many(self, parameters, threads=threads, progress=progress,
+                             watch=watch, **options)
+
     def __repr__(self) -> str:
         """Model, coordinates, constraint equations, DOF if decided, method, linear
         solver path and the build folder of the kernel module."""
