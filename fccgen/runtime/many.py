@@ -187,7 +187,8 @@ def _run_one(solver, k: int, params: dict, options: dict, watch, stop) -> object
             raise Cancelled("simulate_many was interrupted")
         instance = solver.with_parameters(params)
         return instance.simulate(progress=checked, **options)
-    except (FccgenError, SimulationError, ArithmeticError, ValueError) as exc:
+    # Warning: a run warning the caller's filters turn into an error fails its run
+    except (FccgenError, SimulationError, ArithmeticError, ValueError, Warning) as exc:
         text = str(exc) or type(exc).__name__
         model_hash = None
         if instance is not None:
