@@ -156,6 +156,7 @@ class CompiledSolver:
         self._decided_at = None
         self._manifold_key = None
         self._manifold_kept = 0.0
+        self._manifold_rises = True          # until _manifold_redundancy tests it
         self._dense_engine = None if self.sparse else self._engine
         self._sparse_engine = self._engine if self.sparse else None
 
@@ -479,7 +480,25 @@ class CompiledSolver:
             self._dense_engine.decide_rank(q, decision.rank)
         if self.sparse:
             self._engine.set_beyond_rank(self._manifold_redundancy(q, decision))
+            if not self._rank_may_grow(decision):
+                self._engine.stop_watch()
         return decision
+
+    def _rank_may_grow(self, decision) -> bool:
+        """Whether the sparse path's rank-growth watch (engine/fcc_sparse_watch.c) is
+        needed after the decision at q (_manifold_redundancy just made there). B is
+        an analytic function of q, so a row dependency that holds at a random point
+        holds identically (its minors vanish there, so everywhere, with probability
+        one): when the rank off the constraints (the random point of
+        _manifold_redundancy) is no higher than the decided rank, no state reaches a
+        higher one and the watch has nothing to find. Kept for rows that depend on
+        the time (drivers: B changes with t) and for models with events (lock rows).
+        docs/reliability.md, "The rank-growth watch"."""
+        if not 0 <= decision.rank < min(self.n_q, self.n_g):
+            return False                    # full rank: the watch never starts
+        if len(time_slots(self.plan)) or self.plan.model.events:
+            return True
+        return self._manifold_rises
 
     def small_path_signals(self, q, B, decision) -> tuple[float, float, float]:
         """What paths.small_model_path reads at q, B (dense) and its rank decision:
@@ -516,7 +535,8 @@ class CompiledSolver:
             off = q + OFF_MANIFOLD * self.length_scale * rng.standard_normal(q.size)
             moved = rank_rule.decide(self._jacobian_for_rank(off), self.n_q,
                                      self.row_groups)
-            self._manifold_kept = decision.gap[0] if moved.rank > decision.rank else 0.0
+            self._manifold_rises = moved.rank > decision.rank
+            self._manifold_kept = decision.gap[0] if self._manifold_rises else 0.0
             self._manifold_key = key
         return self._manifold_kept
 
