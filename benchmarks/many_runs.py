@@ -50,7 +50,7 @@ def fccgen_ways(n_runs: int):
 
     def many(threads):
         runs = solver.simulate_many(sets, threads=threads, **options)
-        failed = [r for r in runs if not getattr(r, "ok", True)]
+        failed = [r for r in runs if not r.ok]
         if failed:
             raise SystemExit(f"{len(failed)} runs failed, e.g. {failed[0]}")
         return runs

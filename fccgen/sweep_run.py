@@ -58,7 +58,7 @@ def run_batch(solver, batch: list[dict], method=None, outputs: list[Output] = ()
     for k, (params, entry) in enumerate(zip(batch, entries)):
         row = dict(params)
         wall = starts[k + 1] - starts[k]
-        if not getattr(entry, "ok", True):
+        if not entry.ok:
             if entry.model_hash is not None:
                 row["model_hash"] = entry.model_hash
             status = "timeout" if entry.kind == RunTimedOut.__name__ else "failed"
