@@ -15,7 +15,8 @@ step (its interface has no other way). The fccgen timings include each run's set
 copies of the model per variant are made before the clock starts.
 
 Each of the ways runs REPEATS times, in turn, in one process; the figures are the
-median wall seconds and their ratios (the machine's other load moves them all alike).
+median wall seconds and their ratios (the machine's other load moves them all alike),
+and the median CPU seconds of the process (all its threads).
 """
 from __future__ import annotations
 
@@ -100,21 +101,25 @@ def main(argv=None) -> int:
     for call in ways.values():                  # warm: builds, imports, first calls
         call()
     seconds = {name: [] for name in ways}
+    cpu = {name: [] for name in ways}
     for _ in range(args.repeats):
         for name, call in ways.items():
-            start = time.perf_counter()
+            start, start_cpu = time.perf_counter(), time.process_time()
             call()
             seconds[name].append(time.perf_counter() - start)
+            cpu[name].append(time.process_time() - start_cpu)
     median = {name: statistics.median(s) for name, s in seconds.items()}
+    median_cpu = {name: statistics.median(s) for name, s in cpu.items()}
     print(f"{args.runs} variants of the A02 chain (N = {N}), {T_END:g} s of RK4 at dt = "
           f"{DT:g}; median wall seconds of {args.repeats} repetitions")
     base = median["simulate_many, 1 thread"]
     mj = median.get("MuJoCo rollout, 2 threads")
-    print(f"{'way':<28} {'seconds':>9} {'per run':>9} {'vs 1 thread':>12} {'vs MuJoCo':>10}")
+    print(f"{'way':<28} {'seconds':>9} {'per run':>9} {'vs 1 thread':>12} {'vs MuJoCo':>10}"
+          f" {'CPU s':>8}")
     for name, value in median.items():
         vs_mj = f"{value / mj:10.2f}" if mj else f"{'-':>10}"
         print(f"{name:<28} {value:9.3f} {1e3 * value / args.runs:7.2f}ms "
-              f"{base / value:11.2f}x {vs_mj}")
+              f"{base / value:11.2f}x {vs_mj} {median_cpu[name]:8.3f}")
     if mj is None:
         print("MuJoCo is not installed: its rollout was not timed (pip install mujoco)")
     return 0

@@ -72,7 +72,7 @@ def main(argv=None) -> int:
         decision = solver.decide_rank(init.q)
         forced = fccgen.load(model_file(n, directory), str(ROOT / "generated"),
                              linear_solver="sparse")
-        forced._rank_may_grow = lambda decision: True
+        forced._rank_may_grow = lambda decision: True    # as before: always on
         forced.decide_rank(init.q)
         assert solver._engine.watched_directions == 0
         assert forced._engine.watched_directions == solver.n_q - decision.rank

@@ -424,11 +424,6 @@ cdef class SparseEngine(Engine):
         cdef double[::1] cols = np.ascontiguousarray(np.asarray(basis).T, dtype=float).ravel()
         fcc_sparse_set_watch(&self.c, k, &cols[0], GROW_TOL)
 
-    def stop_watch(self):
-        """No rank-growth watch until the next decision: for a rank shown unable to
-        grow (CompiledSolver._rank_may_grow)."""
-        fcc_sparse_set_watch(&self.c, 0, NULL, GROW_TOL)
-
     @property
     def watched_directions(self):
         """The directions the rank-growth watch tracks (0: no watch)."""

@@ -475,13 +475,15 @@ class CompiledSolver:
         self._decided_at = np.array(q, dtype=float)
         if self._auto_small:
             self._choose_small_path(q, self._jacobian_for_rank(q), decision)
-        self._engine.decide_rank(q, decision.rank)
+        beyond = self._manifold_redundancy(q, decision) if self.sparse else 0.0
+        # q None: the sparse engine keeps the rank without the rank-growth watch (and
+        # without the SVD that starts it) where the rank cannot grow
+        watched = q if not self.sparse or self._rank_may_grow(decision) else None
+        self._engine.decide_rank(watched, decision.rank)
         if self._dense_engine is not None and self._dense_engine is not self._engine:
             self._dense_engine.decide_rank(q, decision.rank)
         if self.sparse:
-            self._engine.set_beyond_rank(self._manifold_redundancy(q, decision))
-            if not self._rank_may_grow(decision):
-                self._engine.stop_watch()
+            self._engine.set_beyond_rank(beyond)
         return decision
 
     def _rank_may_grow(self, decision) -> bool:
@@ -493,7 +495,7 @@ class CompiledSolver:
         _manifold_redundancy) is no higher than the decided rank, no state reaches a
         higher one and the watch has nothing to find. Kept for rows that depend on
         the time (drivers: B changes with t) and for models with events (lock rows).
-        docs/reliability.md, "The rank-growth watch"."""
+        docs/reliability.md, "The rank of the constraint Jacobian"."""
         if not 0 <= decision.rank < min(self.n_q, self.n_g):
             return False                    # full rank: the watch never starts
         if len(time_slots(self.plan)) or self.plan.model.events:
