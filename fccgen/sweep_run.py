@@ -52,7 +52,8 @@ def run_batch(solver, batch: list[dict], method=None, outputs: list[Output] = ()
     def run_watch(k):
         starts.append(time.perf_counter())
         return watch(run_timeout, sweep_id)
-    entries = solver.simulate_many(batch, threads=1, watch=run_watch, method=method)
+    entries = solver.simulate_many(batch, threads=1, run_progress=run_watch,
+                                   method=method)
     starts.append(time.perf_counter())
     rows = []
     for k, (params, entry) in enumerate(zip(batch, entries)):

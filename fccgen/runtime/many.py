@@ -94,16 +94,16 @@ def default_threads() -> int:
         return os.cpu_count() or 1
 
 
-def simulate_many(solver, parameters, *, threads=None, progress=None, watch=None,
+def simulate_many(solver, parameters, *, threads=None, progress=None, run_progress=None,
                   **options) -> list:
     """One result per parameter set, in order (see the module docstring).
 
     parameters: a list of dicts of with_parameters keys, or a pandas DataFrame whose
     columns are such keys; threads: worker threads (None: the cores; 1: one after the
     other in this thread); progress: called with a ProgressEvent (stage "simulate_many",
-    done of total runs) as runs end; watch: called with a run's index when it starts,
-    returns that run's progress callback (or None), e.g. to stop it past a time limit;
-    options: those of ``simulate`` (t_end, dt, method, output_dt, reactions, ...),
+    done of total runs) as runs end; run_progress: called with a run's index when it
+    starts, returns that run's progress callback (or None), e.g. to stop it past a
+    time limit (it raises from there); options: those of ``simulate`` (t_end, dt, method, output_dt, reactions, ...),
     the same for every run. An entry is a :class:`~fccgen.results.Result`, or a
     :class:`RunFailure` for a run that failed."""
     for name in NOT_SHARED:
@@ -123,7 +123,7 @@ def simulate_many(solver, parameters, *, threads=None, progress=None, watch=None
     stop = threading.Event()
 
     def run(k):
-        out[k] = _run_one(solver, k, sets[k], options, watch, stop)
+        out[k] = _run_one(solver, k, sets[k], options, run_progress, stop)
         return k
     from ..threads import single_threaded_blas
     with single_threaded_blas():        # held for every worker: none restores it early
@@ -171,10 +171,10 @@ def _check_keys(solver, sets: list[dict]) -> None:
             seen.add(key)
 
 
-def _run_one(solver, k: int, params: dict, options: dict, watch, stop) -> object:
+def _run_one(solver, k: int, params: dict, options: dict, run_progress, stop) -> object:
     """Run k: a Result, or a RunFailure saying why it has none."""
     from ..errors import SimulationError
-    progress = watch(k) if watch is not None else None
+    progress = run_progress(k) if run_progress is not None else None
 
     def checked(event):
         if stop.is_set():

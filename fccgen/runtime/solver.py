@@ -591,7 +591,7 @@ class CompiledSolver:
         from .params import with_parameters
         return with_parameters(self, values)
 
-    def simulate_many(self, parameters, *, threads=None, progress=None, watch=None,
+    def simulate_many(self, parameters, *, threads=None, progress=None, run_progress=None,
                       **options) -> list:
         """One run per parameter set (dicts of with_parameters keys, or a pandas
         DataFrame whose columns are keys), on ``threads`` threads (None: the cores):
@@ -599,7 +599,7 @@ class CompiledSolver:
         :mod:`fccgen.runtime.many`."""
         from .many import simulate_many
         return simulate_many(self, parameters, threads=threads, progress=progress,
-                             watch=watch, **options)
+                             run_progress=run_progress, **options)
 
     def __repr__(self) -> str:
         """Model, coordinates, constraint equations, DOF if decided, method, linear
