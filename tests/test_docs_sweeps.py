@@ -51,3 +51,20 @@ def test_the_local_sweep_of_the_page(compiled, build_dir, tmp_path, monkeypatch,
         again = list(csv.DictReader(fh))
     # the same compiled code and numbers: the same torques to the last bit
     assert [r["motor.torque:max"] for r in again] == [r["motor.torque:max"] for r in rows]
+
+
+def test_the_simulate_many_snippet_of_the_page(compiled, build_dir, tmp_path, monkeypatch,
+                                               capsys):
+    """The snippet of "Many runs in one process" runs as written: three masses meet
+    the stop, the too-large step is reported in its place."""
+    compiled("pendulum_limit")                       # built once per session
+    shutil.copytree(EXAMPLES, tmp_path / "examples")
+    for folder in build_dir.glob("pendulum_limit*"):
+        shutil.copytree(folder, tmp_path / "generated" / folder.name)
+    monkeypatch.chdir(tmp_path)
+    (code,) = re.findall(r"```python\n(.*?)```", section("Many runs in one process: "
+                                                         "`simulate_many`"), flags=re.S)
+    exec(compile(code, str(PAGE), "exec"), {})
+    lines = capsys.readouterr().out.splitlines()
+    assert len(lines) == 4 and all("first event: quarter at" in x for x in lines[:3])
+    assert "failed:" in lines[3] and "diverged" in lines[3]

@@ -119,15 +119,23 @@ def test_an_uncertain_start_is_said_alike_on_both_paths(tmp_path, build_dir):
 def test_no_false_alarm_on_redundant_mechanisms(compiled, name):
     """A02 (40 redundant rows, through its flat position at t = 0.75 s), Bricard and
     the deployable with joints on the sparse path for 1 s: no change, no SVD, as on
-    the dense path. The bound stays far below the trigger GROW_TOL = 1e-6 (measured
-    2.5e-9, 8.6e-10 and 6.5e-8), so no SVD was needed."""
+    the dense path. A02's redundant rows are dependent off the constraints too, so its
+    rank cannot grow and the watch stays off (bound 0); Bricard's and the
+    deployable's are dependent only on the constraints, so the watch runs and its
+    bound stays far below the trigger GROW_TOL = 1e-6 (measured 8.6e-10 and 6.5e-8;
+    2.5e-9 on A02 while it ran there), so no SVD was needed."""
     solver = compiled(name)
     sparse = CompiledSolver(solver.plan, solver.module, linear_solver="sparse")
     result, texts = run(sparse, t_end=1.0, dt=1e-3, method="rk4", reactions=False)
     assert texts == []
     assert result.info["dof_changes"] == [] and result.info["rank_svd_checks"] == 0
     assert result.info["dof"] == result.info["final_dof"] == 1
-    assert 0.0 < result.info["largest_dropped_pivot"] < rank_rule.GROW_TOL
+    if name == "a02_n_four_bar":
+        assert sparse._engine.watched_directions == 0
+        assert result.info["largest_dropped_pivot"] == 0.0
+    else:
+        assert sparse._engine.watched_directions == 1
+        assert 0.0 < result.info["largest_dropped_pivot"] < rank_rule.GROW_TOL
 
 
 def test_check_reports_the_rank_of_a_model_on_the_sparse_path(compiled):
@@ -151,3 +159,21 @@ def test_the_command_line_says_the_change_on_the_sparse_path(flat_four_bar, tmp_
     out, err = capsys.readouterr()
     assert "degrees of freedom 2 by rank, 1 at the end" in out
     assert "fccgen: warning: the degrees of freedom changed from 2 to 1 at t = 0.001" in err
+
+
+def test_the_watch_runs_only_where_the_rank_can_grow(compiled, flat_four_bar):
+    """The watch is left off where the rows dependent at the start are dependent off
+    the constraints too (the four-bar's "perpendicular to z" row: its rank cannot
+    grow anywhere), and stays on where they are dependent only at the start (the
+    flat four-bar), where the growth is still caught."""
+    four_bar = compiled("four_bar")
+    sparse = CompiledSolver(four_bar.plan, four_bar.module, linear_solver="sparse")
+    result, warned = run(sparse, t_end=0.05)
+    assert (result.info["dof"], result.info["final_dof"]) == (1, 1)
+    assert sparse._engine.watched_directions == 0
+    assert result.info["rank_svd_checks"] == 0 and not warned
+    _, flat = paths(flat_four_bar)
+    rs, ws = run(flat, t_end=0.01, output_dt=0.01)
+    assert flat._engine.watched_directions == 1        # 1 DOF after the change
+    assert rs.info["dof_changes"] == [dict(t=0.001, dof_before=2, dof_after=1)]
+    assert any("changed from 2 to 1" in w for w in ws)

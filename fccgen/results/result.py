@@ -131,6 +131,12 @@ class Result:
         return plot_columns(self, columns, figure=plt.figure())
 
     @property
+    def ok(self) -> bool:
+        """True: a run's result (simulate_many puts a RunFailure, whose ok is False,
+        in the place of a run that failed)."""
+        return True
+
+    @property
     def partial(self) -> bool:
         """Whether the run stopped before its end (Ctrl-C, a failure)."""
         return bool(self.info.get("partial", False))

@@ -424,6 +424,11 @@ cdef class SparseEngine(Engine):
         cdef double[::1] cols = np.ascontiguousarray(np.asarray(basis).T, dtype=float).ravel()
         fcc_sparse_set_watch(&self.c, k, &cols[0], GROW_TOL)
 
+    @property
+    def watched_directions(self):
+        """The directions the rank-growth watch tracks (0: no watch)."""
+        return self.c.sp.n_track
+
     def _restart(self):
         """The watch from the null space of B after a rank increase (_restart_watch)."""
         cdef int n = self.c.n, m = self.c.m

@@ -149,6 +149,15 @@ def _number(value, key, source, line) -> float:
     return x
 
 
+def check_key(model, key: str) -> None:
+    """ModelError when ``key`` names no settable number of ``model`` (its value's rules
+    are checked when it is set)."""
+    tokens = split_key(str(key))
+    if len(tokens) > 1 and isinstance(tokens[-1], int):
+        tokens.pop()
+    _target(model, tokens, str(key))
+
+
 def _set_one(model, key: str, value) -> None:
     tokens = split_key(key)
     component = tokens.pop() if len(tokens) > 1 and isinstance(tokens[-1], int) else None

@@ -114,6 +114,7 @@ class CompiledSolver:
         self._decided_at = None
         self._manifold_key = None
         self._manifold_kept = 0.0
+        self._manifold_rises = True          # until _manifold_redundancy tests it
         self._dense_engine = None if self.sparse else self._engine
         self._sparse_engine = self._engine if self.sparse else None
 
@@ -454,12 +455,32 @@ class CompiledSolver:
         self._decided_at = np.array(q, dtype=float)
         if self._auto_small:
             self._choose_small_path(q, self._jacobian_for_rank(q), decision)
-        self._engine.decide_rank(q, decision.rank)
+        beyond = self._manifold_redundancy(q, decision) if self.sparse else 0.0
+        # q None: the sparse engine keeps the rank without the rank-growth watch (and
+        # without the SVD that starts it) where the rank cannot grow
+        watched = q if not self.sparse or self._rank_may_grow(decision) else None
+        self._engine.decide_rank(watched, decision.rank)
         if self._dense_engine is not None and self._dense_engine is not self._engine:
             self._dense_engine.decide_rank(q, decision.rank)
         if self.sparse:
-            self._engine.set_beyond_rank(self._manifold_redundancy(q, decision))
+            self._engine.set_beyond_rank(beyond)
         return decision
+
+    def _rank_may_grow(self, decision) -> bool:
+        """Whether the sparse path's rank-growth watch (engine/fcc_sparse_watch.c) is
+        needed after the decision at q (_manifold_redundancy just made there). B is
+        an analytic function of q, so a row dependency that holds at a random point
+        holds identically (its minors vanish there, so everywhere, with probability
+        one): when the rank off the constraints (the random point of
+        _manifold_redundancy) is no higher than the decided rank, no state reaches a
+        higher one and the watch has nothing to find. Kept for rows that depend on
+        the time (drivers: B changes with t) and for models with events (lock rows).
+        docs/reliability.md, "The rank of the constraint Jacobian"."""
+        if not 0 <= decision.rank < min(self.n_q, self.n_g):
+            return False                    # full rank: the watch never starts
+        if len(time_slots(self.plan)) or self.plan.model.events:
+            return True
+        return self._manifold_rises
 
     def small_path_signals(self, q, B, decision) -> tuple[float, float, float]:
         """What paths.small_model_path reads at q, B (dense) and its rank decision:
@@ -496,7 +517,8 @@ class CompiledSolver:
             off = q + OFF_MANIFOLD * self.length_scale * rng.standard_normal(q.size)
             moved = rank_rule.decide(self._jacobian_for_rank(off), self.n_q,
                                      self.row_groups)
-            self._manifold_kept = decision.gap[0] if moved.rank > decision.rank else 0.0
+            self._manifold_rises = moved.rank > decision.rank
+            self._manifold_kept = decision.gap[0] if self._manifold_rises else 0.0
             self._manifold_key = key
         return self._manifold_kept
 
@@ -554,6 +576,16 @@ class CompiledSolver:
         ``{"bodies.arm.mass": 2.0}``; see :mod:`fccgen.runtime.params`."""
         from .params import with_parameters
         return with_parameters(self, values)
+
+    def simulate_many(self, parameters, *, threads=None, progress=None, run_progress=None,
+                      **options) -> list:
+        """One run per parameter set (dicts of with_parameters keys, or a pandas
+        DataFrame whose columns are keys), on ``threads`` threads (None: the cores):
+        a list of Results, a RunFailure where a run failed; see
+        :mod:`fccgen.runtime.many`."""
+        from .many import simulate_many
+        return simulate_many(self, parameters, threads=threads, progress=progress,
+                             run_progress=run_progress, **options)
 
     def __repr__(self) -> str:
         """Model, coordinates, constraint equations, DOF if decided, method, linear

@@ -6,7 +6,11 @@ from __future__ import annotations
 import logging
 
 from ..errors import FccgenError, HostError
-from .run import run_one
+from .run import run_batch
+
+# Runs per Dask task at most: a task is one simulate_many call; its rows reach the
+# table (and the partial file) when it ends
+BATCH_MAX = 16
 
 class Lost(FccgenError):
     """The cluster cancelled a run the sweep did not cancel: its scheduler is gone."""
@@ -61,9 +65,10 @@ def client_for(scheduler: str | None, workers: int, timeout: float):
 
 def dispatch(client, solver, runs, method, outputs, run_timeout, sweep_id, rows,
               writer, say, where) -> None:
-    """Submit every run and take the rows as they finish (into ``rows`` and the
-    partial file). A task that raised gives a failed row; a task the cluster lost
-    (cancelled) stops the sweep."""
+    """Submit the runs in batches (:func:`batch_size`), each task one simulate_many
+    call (fccgen.sweep.run.run_batch), and take the rows as they finish (into
+    ``rows`` and the partial file). A task that raised gives failed rows; a task the
+    cluster lost (cancelled) stops the sweep."""
     from dask.distributed import as_completed
     todo = [k for k, row in enumerate(rows) if row is None]
     if not todo:
@@ -72,24 +77,44 @@ def dispatch(client, solver, runs, method, outputs, run_timeout, sweep_id, rows,
         shared = client.scatter(solver, broadcast=True)
     except Exception as exc:       # noqa: BLE001 - whatever the worker's load raised
         raise NoSolver(cause(exc)) from None
-    futures = [client.submit(run_one, shared, runs[k], method, outputs, run_timeout,
-                             sweep_id, pure=False) for k in todo]
-    index = {f.key: k for f, k in zip(futures, todo)}
-    for done, future in enumerate(as_completed(futures), len(runs) - len(todo) + 1):
-        k = index[future.key]
+    batches = [todo[i:i + size] for size in [batch_size(len(todo), _threads(client))]
+               for i in range(0, len(todo), size)]
+    futures = [client.submit(run_batch, shared, [runs[k] for k in batch], method, outputs,
+                             run_timeout, sweep_id, pure=False) for batch in batches]
+    index = {f.key: batch for f, batch in zip(futures, batches)}
+    done = len(runs) - len(todo)
+    for future in as_completed(futures):
+        batch = index[future.key]
         if future.status == "finished":
-            row = future.result()
+            got = future.result()
         elif future.status == "error":
             exc = future.exception()
-            row = dict(runs[k], status="failed", error=f"the task ended in "
-                       f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}")
+            got = [dict(runs[k], status="failed", error=f"the task ended in "
+                        f"{type(exc).__name__}: "
+                        f"{str(exc).splitlines()[0] if str(exc) else ''}") for k in batch]
         else:
-            raise Lost(f"run {k + 1} was {future.status}")
-        row["run"] = k + 1
-        rows[k] = row
-        if writer is not None:
-            writer.add(row)
-        say(f"sweep: {done} of {len(runs)} runs done", done=done)
+            raise Lost(f"run {batch[0] + 1} was {future.status}")
+        for k, row in zip(batch, got):
+            done += 1
+            row["run"] = k + 1
+            rows[k] = row
+            if writer is not None:
+                writer.add(row)
+            say(f"sweep: {done} of {len(runs)} runs done", done=done)
+
+
+def batch_size(n_runs: int, threads: int) -> int:
+    """Runs per task: about four tasks per thread of the cluster (so that the threads
+    stay busy to the end), at most BATCH_MAX."""
+    return max(1, min(BATCH_MAX, n_runs // (4 * max(threads, 1))))
+
+
+def _threads(client) -> int:
+    """The cluster's worker threads (1 if it does not say)."""
+    try:
+        return int(sum(client.nthreads().values())) or 1
+    except Exception:              # noqa: BLE001 - a scheduler that does not answer
+        return 1
 
 
 def why_stopped(exc, where: str) -> str:

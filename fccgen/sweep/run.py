@@ -37,30 +37,47 @@ def watch(limit: float | None, sweep_id: str | None):
 
 def run_one(solver, params: dict, method=None, outputs: list[Output] = (),
             run_timeout: float | None = None, sweep_id: str | None = None) -> dict:
-    """One run of the sweep (executed by a Dask worker): a row of summary figures."""
-    from ..results.provenance import model_hash
-    start = time.perf_counter()
-    row = dict(params)
-    try:
-        run = solver.with_parameters(params)
-        row["model_hash"] = model_hash(run.plan)
-        result = run.simulate(method=method, progress=watch(run_timeout, sweep_id))
-    except RunTimedOut as exc:
-        row.update(status="timeout", error=str(exc), wall_time=time.perf_counter() - start)
-        return row
-    except (FccgenError, ArithmeticError, ValueError) as exc:
-        row.update(status="failed", error=str(exc).splitlines()[0],
-                   wall_time=time.perf_counter() - start)
-        return row
-    info = result.info
-    row.update(status="ok", error="", wall_time=time.perf_counter() - start,
-               steps=info.get("steps"), t_final=float(result.t[-1]),
-               energy_drift=info.get("energy_drift"),
-               max_constraint_error=info.get("max_constraint_error"))
-    row.update(evaluate(list(outputs), result))
-    for label, column in final_columns(solver.plan):
-        row[label] = float(result[column][-1])
-    return row
+    """One run of the sweep: its row of summary figures (:func:`run_batch` of one)."""
+    return run_batch(solver, [params], method, outputs, run_timeout, sweep_id)[0]
+
+
+def run_batch(solver, batch: list[dict], method=None, outputs: list[Output] = (),
+              run_timeout: float | None = None, sweep_id: str | None = None) -> list[dict]:
+    """The runs of one Dask task: ``solver.simulate_many`` of the batch's numbers, one
+    after the other in the task's thread (the cluster's threads run tasks side by
+    side), one row of summary figures per run, in order. A row's wall_time is its
+    run's, set-up included."""
+    starts: list[float] = []
+
+    def run_watch(k):
+        starts.append(time.perf_counter())
+        return watch(run_timeout, sweep_id)
+    entries = solver.simulate_many(batch, threads=1, run_progress=run_watch,
+                                   method=method)
+    starts.append(time.perf_counter())
+    rows = []
+    for k, (params, entry) in enumerate(zip(batch, entries)):
+        row = dict(params)
+        wall = starts[k + 1] - starts[k]
+        if not entry.ok:
+            if entry.model_hash is not None:
+                row["model_hash"] = entry.model_hash
+            status = "timeout" if entry.kind == RunTimedOut.__name__ else "failed"
+            row.update(status=status, error=entry.message if status == "timeout"
+                       else entry.error, wall_time=wall)
+            rows.append(row)
+            continue
+        result, info = entry, entry.info
+        row["model_hash"] = info["model"]["hash"]
+        row.update(status="ok", error="", wall_time=wall,
+                   steps=info.get("steps"), t_final=float(result.t[-1]),
+                   energy_drift=info.get("energy_drift"),
+                   max_constraint_error=info.get("max_constraint_error"))
+        row.update(evaluate(list(outputs), result))
+        for label, column in final_columns(solver.plan):
+            row[label] = float(result[column][-1])
+        rows.append(row)
+    return rows
 
 
 def final_columns(plan) -> list[tuple[str, str]]:
