@@ -33,7 +33,7 @@ from .paths import (SPARSE_MIN_COORDINATES, make_engine, pattern_samples,
 from ._rk4 import simulate_baumgarte, simulate_rk4
 from ..runs.energy_check import check_energy, kinetic_peak
 from ..runs.guards import check_constraint_drift
-from .assembler import make_assembler
+from .assembler import make_assembler, time_slots
 from .setup_reuse import SetupStore, kept_decision, kept_initial_state
 from .turns import REBASING, turn_check
 from ..runs.inputs import input_run
