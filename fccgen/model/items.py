@@ -61,6 +61,7 @@ class ItemReader(Reader):
         self.bodies = bodies
         self.vectors = vectors or {}
         self.joints: dict = {}             # name -> Joint (set by the loader)
+        self.tables: dict = {}             # name -> (x, y) rows (fccgen.model.tables)
 
     # -- point references --------------------------------------------------------------
     def ref(self, node: YNode, item: str) -> PointRef:
@@ -185,19 +186,35 @@ class ItemReader(Reader):
         from ..mechanism.expressions import parse_expression
         from .events import joint_quantities
         seq = self.sequence(node, item, 3)
+        calls = {}                         # table name -> its spline (body loads only)
         if names is None:
             names = ["t", *(q for j in self.joints.values() for q in joint_quantities(j))]
+            calls = self.table_calls()
         t = {n: sympy.Symbol(n, real=True) for n in names}
-        parts = []
+        parts, used, reads_joint = [], set(), False
         for k, n in enumerate(seq.items):
             text = n.value if isinstance(n, YScalar) and isinstance(
                 n.value, (bool, int, float)) else (n.text if isinstance(n, YScalar)
                                                    else n.plain())
-            expr = parse_expression(text, t, source=self.source, line=n.line,
-                                    item=child(item, k))
+            expr = parse_expression(text, {**t, **calls}, source=self.source,
+                                    line=n.line, item=child(item, k))
             self.load_expression_rules(expr, t, n.line, child(item, k), text)
+            used |= {name for name, f in calls.items() if expr.atoms(f)}
+            reads_joint |= any(s.name != "t" for s in expr.free_symbols)
             parts.append(" ".join((text if isinstance(text, str) else repr(text)).split()))
-        return np.zeros(3), ";".join(parts)
+        if used and not reads_joint:
+            raise self.fail(seq.line, item, "calls a table but reads no joint quantity: "
+                            "a load's table is a function of a joint's angle, rate, "
+                            "position or speed (a table of time drives a joint: "
+                            "drivers' {table: file})", " ".join(sorted(used)))
+        from ..mechanism.named_tables import with_tables
+        return np.zeros(3), with_tables(";".join(parts),
+                                        {name: self.tables[name] for name in used})
+
+    def table_calls(self) -> dict:
+        """name -> TableFunction class of each table of the model."""
+        from ..mechanism.named_tables import spline_class
+        return {name: spline_class(*rows) for name, rows in self.tables.items()}
 
     def load_expression_rules(self, expr, symbols: dict, line, item: str, text) -> None:
         """A load's expression must be affine in the joint rates and speeds (the
@@ -216,7 +233,7 @@ class ItemReader(Reader):
                                 "min, max, log, powers or products of rates are not "
                                 "supported, since the force's Jacobian in the speeds is "
                                 "computed without them)", text)
-        value = expr.subs({s: 0 for s in symbols.values()})
+        value = expr.subs({s: 0 for s in symbols.values() if isinstance(s, sympy.Symbol)})
         if not finite_value(value):
             raise self.fail(line, item, "is not a finite number at the start (t = 0, "
                             f"every joint quantity 0: {sympy.sstr(value)}); 1/A.angle, "
