@@ -118,11 +118,13 @@ def test_tabulated_tape_spring_matches_the_minimal_coordinate_hinge(tmp_path):
 @pytest.fixture(scope="module")
 def steep(tmp_path_factory):
     """The example's table at fold angles on its steep branch (0.03 + H.angle), where
-    the slope dM/dphi is up to 20 N m/rad: compiled and numeric versions."""
+    the slope dM/dphi is up to 20 N m/rad, with a damping whose coefficient is a
+    function of the angle (linear in the rate): compiled and numeric versions."""
     folder = tmp_path_factory.mktemp("hinge_steep")
     (folder / "tape.csv").write_text((EXAMPLES / "tape_spring_moment.csv").read_text())
     path = write_model(folder, "steep", '{type: torque, body: panel, value: [0, 0, '
-                       '"-tape(0.03 + H.angle) - 0.02*H.rate"]}',
+                       '"-tape(0.03 + H.angle) - (0.02 + 0.05*abs(tape(0.03 + H.angle)))'
+                       '*H.rate"]}',
                        "tables:\n  tape: {file: tape.csv}\n")
     return fccgen.load(path, folder / "gen"), fccgen.load_numeric(path)
 
@@ -154,6 +156,14 @@ def test_force_jacobian_carries_the_spline_slope(steep):
                           for e in np.eye(len(q))])
     assert np.max(np.abs(jq - fd)) <= 1e-6 * np.max(np.abs(fd))
     assert np.max(np.abs(fd)) > 1.0
+    # df/dq' is exact for a load linear in the rate: the f's difference in v is exact
+    # up to rounding (1e-9 of the entry at h = 1e-6)
+    jv = solver.force_jacobian_v(q, v)
+    fd = np.column_stack([(solver.applied_forces(q, v + h * e)
+                           - solver.applied_forces(q, v - h * e)) / (2 * h)
+                          for e in np.eye(len(q))])
+    assert np.max(np.abs(jv - fd)) <= 1e-8 * np.max(np.abs(fd))
+    assert np.max(np.abs(fd)) > 1e-3
 
 
 def test_a_table_change_rebuilds_and_a_renamed_copy_does_not(tmp_path):
@@ -235,12 +245,15 @@ def test_a_table_outside_the_model_folder_is_refused_unless_named(tmp_path, monk
      "loads[0].value[2]", "the table moment() takes 1 argument, not 2"),
     (TABLES, '{type: torque, body: panel, value: [0, 0, "moment(H.rate)"]}',
      "loads[0].value[2]", "must be linear in the joint rates"),
+    (TABLES, '{type: torque, body: panel, value: [0, 0, '
+             '"-moment(H.angle) - 0.1*abs(H.rate)"]}',
+     "loads[0].value[2]", "must be linear in the joint rates and speeds"),
     (TABLES, '{type: torque, body: panel, value: [0, 0, "moment(t)"]}',
      "loads[0].value", "calls a table but reads no joint quantity"),
     (TABLES, '{type: torque, body: panel, value: [0, 0, "other(H.angle)"]}',
      "loads[0].value[2]", "calls only sin"),
 ], ids=["grammar-name", "model-name", "not-a-mapping", "not-called", "two-arguments",
-        "of-a-rate", "of-time", "unknown"])
+        "of-a-rate", "fold-unfold-branches", "of-time", "unknown"])
 def test_table_names_and_calls_are_checked(tmp_path, tables, load, item, rule):
     (tmp_path / "line.csv").write_text("0, 0\n1, 1\n")
     err = refused(tmp_path, None, load, tables)
