@@ -244,6 +244,13 @@ class TableFunction(sympy.Function):
         k = min(int(np.searchsorted(t, x, side="right")) - 1, len(t) - 2)
         return float(np.polynomial.polynomial.polyval(x - t[k], cls.coef[k]))
 
+    def _eval_is_real(self):
+        """Real: a table is evaluated at real arguments only (the time, a joint
+        quantity, atan2 of real numbers, which SymPy cannot prove real when both
+        could be 0), so abs() of a table differentiates to sign(), never to re(),
+        im() or conjugate(), which C does not print."""
+        return True
+
     def fdiff(self, argindex=1):
         if self.order >= 3:           # the derivative of a piecewise constant
             return sympy.S.Zero
