@@ -177,7 +177,9 @@ class ItemReader(Reader):
     def load_value(self, node: YNode, item: str, names=None) -> tuple[np.ndarray, str]:
         """(value, "") for three numbers; (zeros, "ex;ex;ex") when a component is
         text: expressions of the time t and the joints' quantities (restricted grammar,
-        docs/expressions.md); ``names``: the quantities allowed, if fewer."""
+        docs/expressions.md) that may call the model's named tables, whose rows are
+        appended to the text (fccgen.mechanism.named_tables); ``names``: the
+        quantities allowed, if fewer (then no table)."""
         if not (isinstance(node, YSeq) and any(
                 isinstance(n, YScalar) and isinstance(n.value, str) for n in node.items)):
             return self.vec3(node, item), ""
@@ -204,8 +206,8 @@ class ItemReader(Reader):
             parts.append(" ".join((text if isinstance(text, str) else repr(text)).split()))
         if used and not reads_joint:
             raise self.fail(seq.line, item, "calls a table but reads no joint quantity: "
-                            "a load's table is a function of a joint's angle, rate, "
-                            "position or speed (a table of time drives a joint: "
+                            "a load's table is called on an expression of a joint's "
+                            "angle or position (a table of time drives a joint: "
                             "drivers' {table: file})", " ".join(sorted(used)))
         from ..mechanism.named_tables import with_tables
         return np.zeros(3), with_tables(";".join(parts),
@@ -233,7 +235,7 @@ class ItemReader(Reader):
                                 "min, max, log, powers or products of rates are not "
                                 "supported, since the force's Jacobian in the speeds is "
                                 "computed without them)", text)
-        value = expr.subs({s: 0 for s in symbols.values() if isinstance(s, sympy.Symbol)})
+        value = expr.subs({s: 0 for s in symbols.values()})
         if not finite_value(value):
             raise self.fail(line, item, "is not a finite number at the start (t = 0, "
                             f"every joint quantity 0: {sympy.sstr(value)}); 1/A.angle, "
