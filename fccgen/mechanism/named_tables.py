@@ -26,21 +26,22 @@ from functools import lru_cache
 
 import numpy as np
 
-from .tables import (TableFunction, spline_coefficients, table_function, table_rows,
-                     table_text)
-
 SEPARATOR = "@"
+# fccgen.mechanism.tables (which imports SymPy) is imported inside the functions that
+# need it: the runtime path reads a load's text (expressions_of) without SymPy.
 
 
 def with_tables(expressions: str, tables: dict[str, tuple[np.ndarray, np.ndarray]]) -> str:
     """The function text of a load: ``expressions`` ("ex;ex;ex") and the rows of the
     tables it calls (name -> (x, y)), in name order."""
+    from .tables import table_text
     return "".join([expressions, *(f"{SEPARATOR}{name}={table_text(*tables[name])}"
                                    for name in sorted(tables))])
 
 
 def split_tables(text: str) -> tuple[str, dict[str, tuple[np.ndarray, np.ndarray]]]:
     """(expressions, name -> (x, y)) of a function text made by :func:`with_tables`."""
+    from .tables import table_rows
     expressions, *parts = text.split(SEPARATOR)
     tables = {}
     for part in parts:
@@ -54,13 +55,14 @@ def expressions_of(text: str) -> str:
     return text.split(SEPARATOR, 1)[0]
 
 
-def spline_class(x: np.ndarray, y: np.ndarray) -> type[TableFunction]:
+def spline_class(x: np.ndarray, y: np.ndarray):
     """The TableFunction class of the rows (x, y) (one class per content)."""
+    from .tables import spline_coefficients, table_function
     key = hashlib.sha256(np.concatenate([x, y]).tobytes()).hexdigest()[:12]
     return table_function(key, x, spline_coefficients(x, y))
 
 
-def table_symbols(text: str) -> tuple[str, dict[str, type[TableFunction]]]:
+def table_symbols(text: str) -> tuple[str, dict]:
     """(expressions, name -> TableFunction class) of a function text: the entries
     the expression grammar takes beside its symbols (a name it may call)."""
     expressions, tables = split_tables(text)
