@@ -13,6 +13,11 @@ expressions in the class's q, v and parameters:
     position = u.(r_b - r_a) - s0,
     speed    = u'.(r_b - r_a) + u.(r_b' - r_a').
 
+A named table ``name(expr)`` (fccgen.mechanism.named_tables) is the TableFunction
+of its rows, an opaque function whose derivative is the spline's derivative table:
+the chain rule below carries it into df/dq (a table of a rate is refused when the
+model is loaded: the load would not be linear in the speeds).
+
 The angle is measured from the initial configuration and counted over turns, as the
 torsion spring's: th is the reference the runtime keeps at the joint angle of the
 last accepted state (fccgen.events.references), so the atan2 stays near 0 within a
@@ -72,6 +77,7 @@ def components(s: ClassSymbols) -> tuple[sympy.Matrix, dict]:
     angle; s, s' of a position), Y -> its polynomial in q, v, p."""
     from ..expressions.grammar import parse_expression
     from .mechanism import input_symbols
+    from ..mechanism.named_tables import table_symbols
     t = sympy.Symbol("t", real=True)
     symbols, values = input_symbols(s)
     inter = {}
@@ -82,7 +88,8 @@ def components(s: ClassSymbols) -> tuple[sympy.Matrix, dict]:
             sym = sympy.Symbol(f"{joint}.{name}", real=True)
             symbols[f"{joint}.{name}"] = sym
             values[sym] = expr
-    text = s.cls.function.split("|", 1)[1]
+    text, tables = table_symbols(s.cls.function.split("|", 1)[1])
+    symbols.update(tables)           # named tables: TableFunction classes of the rows
     return sympy.Matrix([_without_min_max(parse_expression(
         x, symbols, source="<load class>", line=None, item=s.cls.name)).xreplace(values)
         for x in text.split(";")]), inter

@@ -7,6 +7,8 @@ speed (the formulas of :mod:`fccgen.mechanism.outputs`, unwrapped from one read 
 next). The joints' reactions and the drivers' forces need the constraint multipliers,
 which fccgen computes after a run with a dense least-squares solve per row; a
 standalone export has no LAPACK, so it leaves them out (:data:`LEFT_OUT` names them).
+The members' strain and curvature columns (fccgen.mechanism.cable_outputs) are
+computed after a run too and left out; their node positions and slopes are columns.
 """
 from __future__ import annotations
 
@@ -20,7 +22,8 @@ from ..model.types import GROUND
 
 # kind codes (the C side's enum in the api template)
 Q, V, BODY, ENERGY, CERR, ANGLE, RATE, SLIDE, SLIDE_SPEED = range(9)
-LEFT_OUT = "joint reactions (J.fx ... J.tz) and driver forces"
+LEFT_OUT = ("joint reactions (J.fx ... J.tz), driver forces and the members' strain "
+            "and curvature (m.n<k>.strain, m.n<k>.curvature)")
 
 
 class OutputTable:

@@ -193,13 +193,17 @@ def golden_header(result, table: OutputTable) -> str:
 def export_columns(solver, result) -> list[str]:
     """The result columns the export computes: all of simulate's but LEFT_OUT's."""
     from ..mechanism.driver_forces import driver_rows
+    from ..model.cables import node_names
     drivers = set(driver_rows(solver.plan))
     lowering = getattr(solver.plan.model, "mechanism", None)
     reactions = set()
     if lowering is not None:
         from ..mechanism.reaction_bases import COMPONENTS
         reactions = {f"{jl.joint.name}.{c}" for jl in lowering.joints for c in COMPONENTS}
-    return [n for n in result.names[1:] if n not in drivers and n not in reactions]
+    members = {f"{node}.{c}" for m in solver.plan.model.cables.values()
+               for node in node_names(m.name, m.elements) for c in ("strain", "curvature")}
+    return [n for n in result.names[1:]
+            if n not in drivers and n not in reactions and n not in members]
 
 
 @dataclass

@@ -18,7 +18,9 @@ that names the file, line, item, rule and the text seen. The grammar::
 
 ``NAME`` and ``NAME.QUANTITY`` must be keys of the symbol table the caller passes
 (``t``, ``A.angle``, ``S.speed``, ``P.x``, ...): a dotted name is one entry of the
-table, never an attribute lookup. Limits: :data:`MAX_CHARS` characters,
+table, never an attribute lookup. An entry that is a SymPy function class (a named
+table, fccgen.mechanism.named_tables) is called with one argument, ``name(expr)``.
+Limits: :data:`MAX_CHARS` characters,
 :data:`MAX_NODES` syntax-tree nodes, :data:`MAX_DEPTH` levels of nesting, numbers
 written at most :data:`MAX_LITERAL` and constants computed at most
 :data:`MAX_CONSTANT` in magnitude.
@@ -264,6 +266,9 @@ class _Walker:
         return f"{node.value.id}.{node.attr}"
 
     def name(self, name: str) -> sympy.Expr:
+        if name in self.symbols and _is_call(self.symbols[name]):
+            raise self.fail(f"{name!r} is a table: call it on an expression, as in "
+                            f"{name}(A.angle)")
         if name in self.symbols:
             return self.symbols[name]
         if name in CONSTANTS:
@@ -281,8 +286,13 @@ class _Walker:
         raise self.fail(f"unknown name {name!r}{hint} (known: {', '.join(known)})")
 
     def call(self, node: ast.Call, depth: int) -> sympy.Expr:
+        if (isinstance(node.func, ast.Name) and node.func.id in self.symbols
+                and _is_call(self.symbols[node.func.id])):
+            return self.table_call(node, depth)
         if not isinstance(node.func, ast.Name) or node.func.id not in FUNCTIONS:
-            raise self.fail(f"calls only {FUNCTION_LIST}")
+            tables = [n for n, f in self.symbols.items() if _is_call(f)]
+            more = f" and the tables {', '.join(sorted(tables))}" if tables else ""
+            raise self.fail(f"calls only {FUNCTION_LIST}{more}")
         name = node.func.id
         fun, low, high = FUNCTIONS[name]
         if node.keywords:
@@ -300,6 +310,15 @@ class _Walker:
         except (ValueError, TypeError, ZeroDivisionError, OverflowError) as exc:
             # e.g. max() of a value SymPy knows to be complex: "is not comparable"
             raise self.fail(f"{name}() cannot take these arguments ({exc})") from None
+
+    def table_call(self, node: ast.Call, depth: int) -> sympy.Expr:
+        """``name(expr)``: a named table (a function class the caller put in the
+        symbol table) of one argument."""
+        name = node.func.id
+        if node.keywords or len(node.args) != 1:
+            raise self.fail(f"the table {name}() takes 1 argument, not "
+                            f"{len(node.args) + len(node.keywords)}")
+        return self.finite(self.symbols[name](self.convert(node.args[0], depth + 1)))
 
     def finite(self, expr: sympy.Expr) -> sympy.Expr:
         """``expr`` if it holds no infinity, NaN or imaginary unit, and, when it is a
@@ -325,6 +344,12 @@ class _Walker:
                                 f"{MAX_CONSTANT:g} in magnitude (the kernels multiply it "
                                 "by lengths, masses and speeds: doubles would overflow)")
         return expr
+
+
+def _is_call(entry) -> bool:
+    """Whether a symbol-table entry is a function to call (a named table), not a
+    symbol."""
+    return isinstance(entry, sympy.FunctionClass)
 
 
 def finite_value(expr: sympy.Expr) -> bool:

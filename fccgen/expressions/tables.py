@@ -118,9 +118,11 @@ def _open_table(path: str, source: str, fail) -> bytes:
     return data
 
 
-def read_table(path: str, *, source: str, line: int | None, item: str
+def read_table(path: str, *, source: str, line: int | None, item: str,
+               columns: tuple[str, str] = ("t", "value")
                ) -> tuple[np.ndarray, np.ndarray]:
-    """(t, values) of a table file, checked as the module docstring says."""
+    """(t, values) of a table file, checked as the module docstring says; ``columns``
+    name the two columns in messages (an angle table: ("angle", "moment"))."""
     def fail(rule: str) -> ModelError:
         return _fail(source, line, item, rule, path)
 
@@ -131,6 +133,7 @@ def read_table(path: str, *, source: str, line: int | None, item: str
         raise fail(f"table file cannot be read as UTF-8 text (byte {exc.start + 1} is "
                    "not UTF-8)") from None
     rows: list[tuple[float, float]] = []
+    numbers: list[int] = []                 # the file's row number of each row
     first = True                            # the first row may be a header
     reader = csv.reader(io.StringIO(text))
     number = 0
@@ -147,11 +150,12 @@ def read_table(path: str, *, source: str, line: int | None, item: str
             continue
         values = _row(fields)
         if values is None and not (first and _is_header(fields)):
-            raise fail(f"{path} row {number}: must be two finite numbers t, value "
-                       f"({_row_problem(fields)})")
+            raise fail(f"{path} row {number}: must be two finite numbers "
+                       f"{columns[0]}, {columns[1]} ({_row_problem(fields)})")
         first = False
         if values is not None:
             rows.append(values)
+            numbers.append(number)
         if len(rows) > MAX_ROWS:
             raise fail(f"table has more than {MAX_ROWS} rows")
     if len(rows) < 2:
@@ -160,8 +164,10 @@ def read_table(path: str, *, source: str, line: int | None, item: str
     bad = np.flatnonzero(np.diff(t) <= 0)
     if bad.size:
         k = int(bad[0])
-        raise fail(f"{path}: t must increase strictly from row to row (t = "
-                   f"{float(t[k])!r} is followed by t = {float(t[k + 1])!r})")
+        x = columns[0]
+        raise fail(f"{path} row {numbers[k + 1]}: {x} must increase strictly from row "
+                   f"to row ({x} = {float(t[k])!r} is followed by {x} = "
+                   f"{float(t[k + 1])!r})")
     return t, y
 
 
@@ -237,6 +243,13 @@ class TableFunction(sympy.Function):
             return cls.outside[1]
         k = min(int(np.searchsorted(t, x, side="right")) - 1, len(t) - 2)
         return float(np.polynomial.polynomial.polyval(x - t[k], cls.coef[k]))
+
+    def _eval_is_real(self):
+        """Real: a table is evaluated at real arguments only (the time, a joint
+        quantity, atan2 of real numbers, which SymPy cannot prove real when both
+        could be 0), so abs() of a table differentiates to sign(), never to re(),
+        im() or conjugate(), which C does not print."""
+        return True
 
     def fdiff(self, argindex=1):
         if self.order >= 3:           # the derivative of a piecewise constant

@@ -44,6 +44,7 @@ from ..model.types import (GROUND, Attached, BodyPoint, DriverRow, Force,
                            LinearSpring, Spring, Torque, TorsionSpring)
 from .body_motion import Motion
 from .reaction_bases import COMPONENTS
+from .named_tables import expressions_of
 from .reaction_solve import solve_records
 from .reaction_system import system
 
@@ -106,7 +107,7 @@ def check_attributable(plan) -> None:
             # constant force and torque values only
             raise _refuse(ld.where, f"loads[{k}]", "its value is an expression (of t or "
                           "of joint quantities), which the reaction balance does not "
-                          "evaluate yet", ld.function.split("|")[-1])
+                          "evaluate yet", expressions_of(ld.function.split("|")[-1]))
 
 
 def _moving(plan, body: str) -> bool:

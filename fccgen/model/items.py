@@ -62,6 +62,7 @@ class ItemReader(Reader):
         self.bodies = bodies
         self.vectors = vectors or {}
         self.joints: dict = {}             # name -> Joint (set by the loader)
+        self.tables: dict = {}             # name -> (x, y) rows (fccgen.model.tables)
 
     # -- point references --------------------------------------------------------------
     def ref(self, node: YNode, item: str) -> PointRef:
@@ -177,7 +178,9 @@ class ItemReader(Reader):
     def load_value(self, node: YNode, item: str, names=None) -> tuple[np.ndarray, str]:
         """(value, "") for three numbers; (zeros, "ex;ex;ex") when a component is
         text: expressions of the time t and the joints' quantities (restricted grammar,
-        docs/expressions.md); ``names``: the quantities allowed, if fewer."""
+        docs/expressions.md) that may call the model's named tables, whose rows are
+        appended to the text (fccgen.mechanism.named_tables); ``names``: the
+        quantities allowed, if fewer (then no table)."""
         if not (isinstance(node, YSeq) and any(
                 isinstance(n, YScalar) and isinstance(n.value, str) for n in node.items)):
             return self.vec3(node, item), ""
@@ -187,25 +190,42 @@ class ItemReader(Reader):
         from .events import joint_quantities
         seq = self.sequence(node, item, 3)
         point_force = names is not None
+        calls = {}                         # table name -> its spline (body loads only)
         if names is None:
             names = ["t", *(q for j in self.joints.values() for q in joint_quantities(j))]
+            calls = self.table_calls()
         inputs = getattr(self, "inputs", {})
         t = {n: sympy.Symbol(n, real=True) for n in [*names, *inputs]}
-        parts = []
+        parts, used, reads_joint = [], set(), False
         for k, n in enumerate(seq.items):
             text = n.value if isinstance(n, YScalar) and isinstance(
                 n.value, (bool, int, float)) else (n.text if isinstance(n, YScalar)
                                                    else n.plain())
-            expr = parse_expression(text, t, source=self.source, line=n.line,
-                                    item=child(item, k))
+            expr = parse_expression(text, {**t, **calls}, source=self.source,
+                                    line=n.line, item=child(item, k))
             if point_force:
                 refuse_inputs(self, expr, inputs, n.line, child(item, k), text,
                               NOT_IN_POINT_FORCES)
             # the start's checks with the inputs at their start values
             at_start = expr.subs({t[name]: x for name, x in inputs.items()})
             self.load_expression_rules(at_start, t, n.line, child(item, k), text)
+            used |= {name for name, f in calls.items() if expr.atoms(f)}
+            reads_joint |= any(s.name != "t" and s.name not in inputs
+                               for s in expr.free_symbols)
             parts.append(" ".join((text if isinstance(text, str) else repr(text)).split()))
-        return np.zeros(3), ";".join(parts)
+        if used and not reads_joint:
+            raise self.fail(seq.line, item, "calls a table but reads no joint quantity: "
+                            "a load's table is called on an expression of a joint's "
+                            "angle or position (a table of time drives a joint: "
+                            "drivers' {table: file})", " ".join(sorted(used)))
+        from ..mechanism.named_tables import with_tables
+        return np.zeros(3), with_tables(";".join(parts),
+                                        {name: self.tables[name] for name in used})
+
+    def table_calls(self) -> dict:
+        """name -> TableFunction class of each table of the model."""
+        from ..mechanism.named_tables import spline_class
+        return {name: spline_class(*rows) for name, rows in self.tables.items()}
 
     def load_expression_rules(self, expr, symbols: dict, line, item: str, text) -> None:
         """A load's expression must be affine in the joint rates and speeds (the

@@ -21,6 +21,7 @@ from .cables import CableReader
 from .drivers import DriverReader
 from .joints import MechanismReader
 from .names import reserved_model_name
+from .tables import TableReader
 from .types import GROUND, Body, Initial, Model, Point, PoseBody, Vector, Where
 from .yamlnodes import MAX_INPUT_CHARS, YMap, YNode, parse_yaml
 
@@ -33,7 +34,7 @@ MAX_NAME_LENGTH = 64          # the model name becomes a module name and a C sym
 # Keys of each kind of mapping: (required, optional).
 TOP_KEYS = (("name", "points", "bodies"),
             ("gravity", "vectors", "constraints", "loads", "initial", "simulate", "joints",
-             "drivers", "events", "cables", "inputs"))
+             "drivers", "events", "cables", "inputs", "tables"))
 POINT_KEYS = (("at",), ("fixed",))
 VECTOR_KEYS = (("along",), ("fixed",))
 BODY_KEYS = (("points", "vector", "mass", "inertia"), ("center",))
@@ -126,6 +127,8 @@ class _ModelReader(Reader):
                            self.vectors)
         items.joints = {j.name: j for j in joints}
         items.inputs = inputs
+        if "tables" in e:                  # before the loads that call them
+            items.tables = TableReader(self.source, self.claim).tables(e["tables"])
         constraints = items.constraints(e["constraints"]) if "constraints" in e else []
         loads = items.loads(e["loads"]) if "loads" in e else []
         initial = items.initial(e["initial"], joints) if "initial" in e else Initial()

@@ -19,6 +19,8 @@ of z are written out by hand:
   d rate/dq' = d angle/dq and d rate/dq from the gradients of S', C':
   dD' = (p_A' x p_B + p_A x p_B', p_B x u' + p_B' x u, u' x p_A + u x p_A'),
   dP' = (0, p_B', p_A');
+* a named table name(z) (fccgen.mechanism.named_tables): SciPy's clamped spline of
+  its rows and the spline's derivative, constant outside the rows;
 * position = u.d - s0 (d = r_b - r_a): gradient (d, -u, u) on (u, r_a, r_b);
   speed = u'.d + u.d': on q (d', -u', u'), on q' the position gradient.
 """
@@ -30,6 +32,7 @@ from functools import cached_property, lru_cache
 
 import numpy as np
 
+from ..mechanism.named_tables import expressions_of, numeric_splines
 from .elements import KIND_KERNELS, ForceKernels, TorqueKernels, turned
 from .kinematics import cross
 from .mechanism_kernels import input_values
@@ -43,9 +46,11 @@ _UNARY = {"sin": (math.sin, math.cos), "cos": (math.cos, lambda x: -math.sin(x))
           "abs": (abs, lambda x: math.copysign(1.0, x))}
 
 
-def _dual(node: ast.AST, env: dict) -> tuple[float, np.ndarray]:
+def _dual(node: ast.AST, env: dict, tables=None) -> tuple[float, np.ndarray]:
     """(value, gradient over env's variables) of a checked expression tree; env maps
-    names to (value, gradient)."""
+    names to (value, gradient); ``tables``: name -> x -> (value, slope) of the named
+    tables the tree calls (fccgen.mechanism.named_tables.numeric_splines)."""
+    tables = tables or {}
     zero = np.zeros_like(next(iter(env.values()))[1])
     if isinstance(node, ast.Constant):
         return float(node.value), zero
@@ -54,10 +59,10 @@ def _dual(node: ast.AST, env: dict) -> tuple[float, np.ndarray]:
     if isinstance(node, ast.Attribute):
         return env[f"{node.value.id}.{node.attr}"]
     if isinstance(node, ast.UnaryOp):
-        a, da = _dual(node.operand, env)
+        a, da = _dual(node.operand, env, tables)
         return (-a, -da) if isinstance(node.op, ast.USub) else (a, da)
     if isinstance(node, ast.BinOp):
-        (a, da), (b, db) = _dual(node.left, env), _dual(node.right, env)
+        (a, da), (b, db) = _dual(node.left, env, tables), _dual(node.right, env, tables)
         op = type(node.op)
         if op is ast.Add:
             return a + b, da + db
@@ -73,8 +78,12 @@ def _dual(node: ast.AST, env: dict) -> tuple[float, np.ndarray]:
             value = a ** b
             return value, value * (db * math.log(a) + b * da / a)
     if isinstance(node, ast.Call):
-        args = [_dual(x, env) for x in node.args]
+        args = [_dual(x, env, tables) for x in node.args]
         name = node.func.id
+        if name in tables:                                   # a named table
+            (a, da), = args
+            value, slope = tables[name](a)
+            return value, slope * da
         if name in _UNARY:
             f, d = _UNARY[name]
             (a, da), = args
@@ -164,8 +173,10 @@ class _JointLoad:
             for name, value, gq, gv in pairs:
                 env[f"{joint}.{name}"] = (value, np.concatenate([gq, gv]))
         text = cls.function.split("|", 1)[1]
+        tables = numeric_splines(text)
+        text = expressions_of(text)
         try:
-            rows = [_dual(tree, env) for tree in _trees(text)]
+            rows = [_dual(tree, env, tables) for tree in _trees(text)]
         except ValueError as exc:         # the user's text, never a syntax tree
             raise ValueError(f"the load {text.replace(';', ', ')!r}: {exc}") from None
         for name, (value, _) in zip(self.names, rows):

@@ -98,6 +98,31 @@ def _check_kernel(spec: KernelSpec, derived, exprs: list) -> None:
             raise ValueError(f"{cls.name}.{spec.name}[{k}] is not finite: {e}")
 
 
+def _hoist_table_arguments(temps, reduced, used):
+    """A table (fccgen.expressions.tables.TableFunction) prints its argument once per
+    interval it searches: an argument that is not a symbol becomes a temporary of
+    its own, defined just before the first expression that calls the table."""
+    from ..expressions.tables import TableFunction
+    names = sympy.numbered_symbols("xt", exclude=used | {s for s, _ in temps})
+    out = []
+
+    def hoist(e):
+        calls = [f for f in e.atoms(TableFunction) if not f.args[0].is_Symbol]
+        if not calls:
+            return e
+        swap = {}
+        for f in sorted(calls, key=sympy.default_sort_key):
+            name = next(names)
+            out.append((name, hoist(f.args[0])))
+            swap[f] = f.func(name)
+        return e.xreplace(swap)
+    for s, e in temps:
+        e = hoist(e)
+        out.append((s, e))
+    reduced = [hoist(e) for e in reduced]
+    return out, reduced
+
+
 def print_kernel(spec: KernelSpec, derived, matrix: sympy.Matrix) -> PrintedKernel:
     """CSE over all outputs of the kernel together, then print temporaries and outputs."""
     exprs = [sympy.sympify(e) for e in matrix]
@@ -108,6 +133,7 @@ def print_kernel(spec: KernelSpec, derived, matrix: sympy.Matrix) -> PrintedKern
         inputs["v"] = derived.v
     unused = tuple(a for a in ("q", "v", "p") if a in inputs and not used & set(inputs[a]))
     temps, reduced = sympy.cse(exprs, symbols=sympy.numbered_symbols("x", exclude=used))
+    temps, reduced = _hoist_table_arguments(temps, reduced, used)
     printer = KernelPrinter(slot_map(derived.q, derived.v, derived.p))
     n_ops = (sum(sympy.count_ops(e) for _, e in temps)
              + sum(sympy.count_ops(e) for e in reduced))
