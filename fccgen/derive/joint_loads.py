@@ -13,7 +13,7 @@ expressions in the class's q, v and parameters:
     position = u.(r_b - r_a) - s0,
     speed    = u'.(r_b - r_a) + u.(r_b' - r_a').
 
-A named table ``name(expr)`` (fccgen.mechanism.named_tables) is the TableFunction
+A named table ``name(expr)`` (fccgen.expressions.named_tables) is the TableFunction
 of its rows, an opaque function whose derivative is the spline's derivative table:
 the chain rule below carries it into df/dq (a table of a rate is refused when the
 model is loaded: the load would not be linear in the speeds).
@@ -77,7 +77,7 @@ def components(s: ClassSymbols) -> tuple[sympy.Matrix, dict]:
     angle; s, s' of a position), Y -> its polynomial in q, v, p."""
     from ..expressions.grammar import parse_expression
     from .mechanism import input_symbols
-    from ..mechanism.named_tables import table_symbols
+    from ..expressions.named_tables import table_symbols
     t = sympy.Symbol("t", real=True)
     symbols, values = input_symbols(s)
     inter = {}

@@ -1,3 +1,3 @@
 """The expression language of the model file: the checked grammar of expressions in t,
-the coordinates, joint angles and parameters (``grammar``), the tables they may call
-(``tables``), and the time derivatives of time functions (``time_jets``)."""
+the coordinates, joint angles and parameters (``grammar``), the tables of time they may call
+(``tables``), the model's named tables called by loads (``named_tables``), and the time derivatives of time functions (``time_jets``)."""

@@ -19,7 +19,7 @@ that names the file, line, item, rule and the text seen. The grammar::
 ``NAME`` and ``NAME.QUANTITY`` must be keys of the symbol table the caller passes
 (``t``, ``A.angle``, ``S.speed``, ``P.x``, ...): a dotted name is one entry of the
 table, never an attribute lookup. An entry that is a SymPy function class (a named
-table, fccgen.mechanism.named_tables) is called with one argument, ``name(expr)``.
+table, fccgen.expressions.named_tables) is called with one argument, ``name(expr)``.
 Limits: :data:`MAX_CHARS` characters,
 :data:`MAX_NODES` syntax-tree nodes, :data:`MAX_DEPTH` levels of nesting, numbers
 written at most :data:`MAX_LITERAL` and constants computed at most

@@ -39,7 +39,7 @@ def used_families(function: str, joint_names, inputs=()) -> list[tuple[str, str]
     import sympy
 
     from ..expressions.grammar import parse_expression
-    from .named_tables import table_symbols
+    from ..expressions.named_tables import table_symbols
     names = {"t", *inputs} | {f"{j}.{q}" for j in joint_names for q in FAMILY}
     symbols = {n: sympy.Symbol(n, real=True) for n in names}
     function, tables = table_symbols(function)

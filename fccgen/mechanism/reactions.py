@@ -44,7 +44,7 @@ from ..model.types import (GROUND, Attached, BodyPoint, DriverRow, Force,
                            LinearSpring, Spring, Torque, TorsionSpring)
 from .body_motion import Motion
 from .reaction_bases import COMPONENTS
-from .named_tables import expressions_of
+from ..expressions.named_tables import expressions_of
 from .reaction_solve import solve_records
 from .reaction_system import system
 

@@ -179,7 +179,7 @@ class ItemReader(Reader):
         """(value, "") for three numbers; (zeros, "ex;ex;ex") when a component is
         text: expressions of the time t and the joints' quantities (restricted grammar,
         docs/expressions.md) that may call the model's named tables, whose rows are
-        appended to the text (fccgen.mechanism.named_tables); ``names``: the
+        appended to the text (fccgen.expressions.named_tables); ``names``: the
         quantities allowed, if fewer (then no table)."""
         if not (isinstance(node, YSeq) and any(
                 isinstance(n, YScalar) and isinstance(n.value, str) for n in node.items)):
@@ -218,13 +218,13 @@ class ItemReader(Reader):
                             "a load's table is called on an expression of a joint's "
                             "angle or position (a table of time drives a joint: "
                             "drivers' {table: file})", " ".join(sorted(used)))
-        from ..mechanism.named_tables import with_tables
+        from ..expressions.named_tables import with_tables
         return np.zeros(3), with_tables(";".join(parts),
                                         {name: self.tables[name] for name in used})
 
     def table_calls(self) -> dict:
         """name -> TableFunction class of each table of the model."""
-        from ..mechanism.named_tables import spline_class
+        from ..expressions.named_tables import spline_class
         return {name: spline_class(*rows) for name, rows in self.tables.items()}
 
     def load_expression_rules(self, expr, symbols: dict, line, item: str, text) -> None:

@@ -19,7 +19,7 @@ of z are written out by hand:
   d rate/dq' = d angle/dq and d rate/dq from the gradients of S', C':
   dD' = (p_A' x p_B + p_A x p_B', p_B x u' + p_B' x u, u' x p_A + u x p_A'),
   dP' = (0, p_B', p_A');
-* a named table name(z) (fccgen.mechanism.named_tables): SciPy's clamped spline of
+* a named table name(z) (fccgen.expressions.named_tables): SciPy's clamped spline of
   its rows and the spline's derivative, constant outside the rows;
 * position = u.d - s0 (d = r_b - r_a): gradient (d, -u, u) on (u, r_a, r_b);
   speed = u'.d + u.d': on q (d', -u', u'), on q' the position gradient.
@@ -32,7 +32,7 @@ from functools import cached_property, lru_cache
 
 import numpy as np
 
-from ..mechanism.named_tables import expressions_of, numeric_splines
+from ..expressions.named_tables import expressions_of, numeric_splines
 from .elements import KIND_KERNELS, ForceKernels, TorqueKernels, turned
 from .kinematics import cross
 from .mechanism_kernels import input_values
@@ -49,7 +49,7 @@ _UNARY = {"sin": (math.sin, math.cos), "cos": (math.cos, lambda x: -math.sin(x))
 def _dual(node: ast.AST, env: dict, tables=None) -> tuple[float, np.ndarray]:
     """(value, gradient over env's variables) of a checked expression tree; env maps
     names to (value, gradient); ``tables``: name -> x -> (value, slope) of the named
-    tables the tree calls (fccgen.mechanism.named_tables.numeric_splines)."""
+    tables the tree calls (fccgen.expressions.named_tables.numeric_splines)."""
     tables = tables or {}
     zero = np.zeros_like(next(iter(env.values()))[1])
     if isinstance(node, ast.Constant):

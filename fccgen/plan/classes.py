@@ -300,7 +300,7 @@ class ElementClass:
             text = self.function
             if text.startswith("table:"):         # a table: its hash (the rows are long)
                 text = ":".join(text.split(":")[:2])
-            from ..mechanism.named_tables import short_text
+            from ..expressions.named_tables import short_text
             text = short_text(text)                # a load's named tables: the same
             parts.append(f"f(t) = {text}")
         return "; ".join(parts)

@@ -34,14 +34,14 @@ SEPARATOR = "@"
 def with_tables(expressions: str, tables: dict[str, tuple[np.ndarray, np.ndarray]]) -> str:
     """The function text of a load: ``expressions`` ("ex;ex;ex") and the rows of the
     tables it calls (name -> (x, y)), in name order."""
-    from ..expressions.tables import table_text
+    from .tables import table_text
     return "".join([expressions, *(f"{SEPARATOR}{name}={table_text(*tables[name])}"
                                    for name in sorted(tables))])
 
 
 def split_tables(text: str) -> tuple[str, dict[str, tuple[np.ndarray, np.ndarray]]]:
     """(expressions, name -> (x, y)) of a function text made by :func:`with_tables`."""
-    from ..expressions.tables import table_rows
+    from .tables import table_rows
     expressions, *parts = text.split(SEPARATOR)
     tables = {}
     for part in parts:
@@ -57,7 +57,7 @@ def expressions_of(text: str) -> str:
 
 def spline_class(x: np.ndarray, y: np.ndarray):
     """The TableFunction class of the rows (x, y) (one class per content)."""
-    from ..expressions.tables import spline_coefficients, table_function
+    from .tables import spline_coefficients, table_function
     key = hashlib.sha256(np.concatenate([x, y]).tobytes()).hexdigest()[:12]
     return table_function(key, x, spline_coefficients(x, y))
 
