@@ -34,3 +34,41 @@ def kernel_dp(cls, name: str, q, v, p, rel_step: float = 2e-4) -> np.ndarray:
         rows.append((-at(p + 2 * e) + 8 * at(p + e) - 8 * at(p - e) + at(p - 2 * e))
                     / (12 * h))
     return np.array(rows).reshape(p.size, base.size)
+
+
+def _residuals(cls, q, v, p, a, lam) -> np.ndarray:
+    """[f - h - M a - B^T lam; -bias - B a; g; B v + dg/dt] of the NumPy kernels."""
+    n, ng = cls.n_q, cls.n_g
+
+    def get(name, shape):
+        out = element_kernel(cls, name, q, v, p)
+        return np.zeros(shape) if out is None else np.asarray(out, float).reshape(shape)
+
+    M, h, f = get("mass_matrix", (n, n)), get("h_vector", n), get("applied_forces", n)
+    g, B = get("constraints", ng), get("constraint_jacobian", (ng, n))
+    bias, rate = get("constraint_bias", ng), get("constraint_rate", ng)
+    return np.concatenate([f - h - M @ a - B.T @ lam, -bias - B @ a, g, B @ v + rate])
+
+
+def tangent(cls, q, v, p, a, lam, dq, dv, dp, step: float = 2e-4) -> np.ndarray:
+    """The tangent kernel (fccgen.derive.parameters.tangent_kernel) of the NumPy
+    kernels: five-point differences along the direction, the velocity constraint's
+    and g's rows along (dq, dp) and dp alone as that kernel defines them."""
+    q, v, p = (np.asarray(x, float) for x in (q, v, p))
+    dq, dv, dp = (np.asarray(x, float) for x in (dq, dv, dp))
+    n, ng = cls.n_q, cls.n_g
+
+    def d(direction):
+        eq, ev, ep = direction
+
+        def at(s):
+            return _residuals(cls, q + s * eq, v + s * ev, p + s * ep, a, lam)
+        return (-at(2 * step) + 8 * at(step) - 8 * at(-step) + at(-2 * step)) / (12 * step)
+
+    full = d((dq, dv, dp))
+    out = full[:n + ng]
+    if ng:
+        zero_q, zero_v = np.zeros(n), np.zeros(n)
+        out = np.concatenate([out, d((zero_q, zero_v, dp))[n + ng:n + 2 * ng],
+                              d((dq, zero_v, dp))[n + 2 * ng:]])
+    return out

@@ -11,7 +11,7 @@
 #ifndef FCCGEN_DP_H
 #define FCCGEN_DP_H
 
-#define FCC_DP_ABI_VERSION 1
+#define FCC_DP_ABI_VERSION 2
 #define FCC_DP_CAPSULE_NAME "fccgen.dp_table"
 
 enum { FCC_DP_MASS, FCC_DP_H, FCC_DP_F, FCC_DP_G, FCC_DP_B, FCC_DP_BIAS, FCC_DP_N };
@@ -19,10 +19,20 @@ enum { FCC_DP_MASS, FCC_DP_H, FCC_DP_F, FCC_DP_G, FCC_DP_B, FCC_DP_BIAS, FCC_DP_
 typedef void (*fcc_dp_kernel)(const double *q, const double *v, const double *p,
                               double *out);
 
+/* The tangent kernel: with R1 = f - h - M a - B^T lam (n_q), R2 = -bias - B a (n_g)
+ * and Phi = B v + dg/dt (n_g), the directional derivatives along (dq, dv, dp):
+ *   out = [dR1[dq, dv, dp] (n_q); dR2[dq, dv, dp] (n_g); (dg/dp) dp (n_g);
+ *          dPhi[dq, dp] (n_g)]
+ * a: the element's accelerations (n_q), lam its multipliers (n_g). */
+typedef void (*fcc_dp_tangent)(const double *q, const double *v, const double *p,
+                               const double *a, const double *lam, const double *dq,
+                               const double *dv, const double *dp, double *out);
+
 typedef struct {
     const char *name;                     /* the element class's name */
     int n_q, n_p, n_g;
     fcc_dp_kernel k[FCC_DP_N];            /* indexed by FCC_DP_MASS ... FCC_DP_BIAS */
+    fcc_dp_tangent tangent;               /* never NULL */
 } fcc_dp_class;
 
 typedef struct {

@@ -22,22 +22,25 @@ from ..progress import Progress, Reporter
 from ..render import environment
 
 DP_HEADER = "fccgen_dp.h"
+DP_FORMAT = 2              # bump when the kernels' meaning or layout changes
 
 
 def dp_hash(classes) -> str:
     """sha256 of the class keys (what the derivatives are derived from)."""
-    text = "dp\n" + "\n".join(c.key for c in classes)
+    text = f"dp {DP_FORMAT}\n" + "\n".join(c.key for c in classes)
     return hashlib.sha256(text.encode("utf-8")).hexdigest()
 
 
 def _print_all(classes, progress: Progress | None):
     from ..derive import derive_class
-    from ..printing.parameters import PrintedDp, print_parameter_kernels
+    from ..printing.parameters import PrintedDp, print_parameter_kernels, print_tangent
     say = Reporter(progress, "derive", total=len(classes))
     printed = []
     for k, cls in enumerate(classes, 1):
         say(f"deriving d/dp of class {k}/{len(classes)}: {cls.name}", done=k - 1)
-        printed.append(PrintedDp(cls, print_parameter_kernels(derive_class(cls))))
+        derived = derive_class(cls)
+        printed.append(PrintedDp(cls, print_parameter_kernels(derived),
+                                 print_tangent(derived)))
     return printed
 
 
