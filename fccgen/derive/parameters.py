@@ -16,7 +16,7 @@ import sympy
 from .derived import DerivedClass
 
 # The kernels of the equations of motion M q'' + B^T lambda = f - h, B q'' = -(bias),
-# g(q) = 0 that depend on the parameters (in fcc_dp_class order, fccgen_dp.h).
+# g(q) = 0 that depend on the parameters (in fcc_dp_class order, fcc_dp.h).
 PARAMETER_KERNELS = ("mass_matrix", "h_vector", "applied_forces", "constraints",
                      "constraint_jacobian", "constraint_bias")
 

@@ -307,7 +307,7 @@ class CompiledSolver:
     def simulate(self, t_end=None, dt=None, method=None, output_dt=None, project=True,
                  q0=None, v0=None, progress=None, rtol=None, atol=None,
                  reactions=True, event_tol=1e-12, rest_speed=1e-6, error=None,
-                 error_on=None, **method_options) -> Result:
+                 error_on=None, sensitivities=None, **method_options) -> Result:
         """Integrate from (q0, v0), used as given, to t_end. q0 None: the consistent
         :meth:`initial_state`; only v0 None: the model's initial speeds projected at q0.
 
@@ -332,7 +332,14 @@ class CompiledSolver:
         error_on: the points or columns it is measured on): the method and its setting
         are chosen by a measured pilot and the run reports ``info["error_estimate"]``
         (fccgen.target_error, docs/accuracy.md).
+        sensitivities: parameter keys (``with_parameters`` keys, e.g.
+        ``["bodies.arm.mass", "loads[0].stiffness"]``); their derivatives are
+        integrated with the motion and read with ``result.sensitivity(column, key)``
+        (fccgen.sensitivity, docs/sensitivities.md).
         """
+        if sensitivities is not None and error is not None:
+            raise ValueError("sensitivities are integrated with a fixed-step run: give "
+                             "dt, not an error target")
         if error is not None:
             from ..target_error import simulate_to_error
             return simulate_to_error(self, error, error_on, t_end=t_end, output_dt=output_dt,
@@ -345,24 +352,32 @@ class CompiledSolver:
         args = dict(t_end=t_end, dt=dt, method=method, output_dt=output_dt,
                     project=project, q0=q0, v0=v0, progress=progress, rtol=rtol,
                     atol=atol, reactions=reactions, event_tol=event_tol,
-                    rest_speed=rest_speed, **method_options)
+                    rest_speed=rest_speed, sensitivities=sensitivities, **method_options)
         # On the sparse path, a run whose motion leaves the pattern of A read at the
         # written positions (a model written in a plane that moves out of it) stops at
         # the first such assembly and is run again on the full pattern, once.
         return self._engine_call(lambda engine: self._simulate_once(**args))
 
     def _simulate_once(self, t_end, dt, method, output_dt, project, q0, v0, progress,
-                       rtol, atol, reactions, event_tol, rest_speed,
+                       rtol, atol, reactions, event_tol, rest_speed, sensitivities=None,
                        **method_options) -> Result:
         """One run (:meth:`simulate`)."""
         d = self.plan.model.simulate
         m = registry.get(d.method if method is None else method, METHODS)
+        sens = keys = None
+        if sensitivities is not None:
+            from ..sensitivity import run as sensitivity_run
+            keys = sensitivity_run.check_request(self, sensitivities, m.name,
+                                                 bool(project) and m.projects)
         opts = registry.options_for(m, rtol, atol, method_options)
         sched = registry.schedule(m, d, t_end, dt, output_dt, opts)
         self.set_time(0.0)
         self.setup_store.start_run()
         q0, v0 = self._start_state(q0, v0)
         project = bool(project) and m.projects
+        if keys is not None:
+            from .params import module_directory
+            sens = sensitivity_run.setup(self, keys, module_directory(self.module).parents[1])
         report = run_reporter(progress, sched.t_end)
         decision = self.decide_rank(q0)
         events = self._event_set(event_tol, rest_speed)
@@ -371,7 +386,7 @@ class CompiledSolver:
 
         def run():
             arrays, stats = self._run(m, sched, opts, project, q0, v0, report, events,
-                                      tracker)
+                                      tracker, sens)
             kept["work"] = arrays.get("work") if tracker is not None else None
             return arrays, stats
         try:
@@ -384,6 +399,8 @@ class CompiledSolver:
                 log, turn = events.log(), events.largest_turn
                 events.restore()          # direct kernel calls: references as planned
         result.info["setup"] = self.setup_store.report()
+        if sens is not None:
+            sensitivity_run.attach(result, self.plan, keys, sens.records)
         if report is not None:
             report.finish(result.t[-1])          # the run's end: 100%
         if events is not None:
@@ -400,7 +417,7 @@ class CompiledSolver:
                                                                 result.events)
         add_driver_columns(self, result)
         check_driver_branches(self.plan, result)
-        used = self.dense_engine() if m.name == "ali3p" else self._engine
+        used = self.dense_engine() if m.name == "ali3p" or sens else self._engine
         stats = used.rank_statistics()
         rank_rule.report_run(result, decision, stats,
                              driven=bool(driver_rows(self.plan)))
@@ -528,15 +545,17 @@ class CompiledSolver:
             v0 = self.project_velocities(q0, self.plan.v_target)
         return q0, v0
 
-    def _run(self, m, sched, opts, project, q0, v0, report, events=None, work=None):
-        """(arrays, stats) of one run of method m."""
-        s, e = sched, self._engine
+    def _run(self, m, sched, opts, project, q0, v0, report, events=None, work=None,
+             sens=None):
+        """(arrays, stats) of one run of method m (sens: rk4's sensitivities)."""
+        s, e = sched, (self._engine if sens is None else self.dense_engine())
         if model_events(self.plan) and m.name not in ("rk4", "dopri5"):
             raise ValueError(f"events are located by the rk4 and dopri5 methods, not "
                              f"by {m.name}")
         if m.name == "rk4":
             return simulate_rk4(e, q0, v0, s.t_end, s.dt, s.n_steps, s.every, project,
-                                report, self.progress_interval, events=events, work=work)
+                                report, self.progress_interval, events=events, work=work,
+                                sens=sens)
         if m.name == "baumgarte":
             return simulate_baumgarte(e, q0, v0, s.t_end, s.dt, s.n_steps, s.every,
                                       opts["alpha"], opts["beta"], report,

@@ -3,7 +3,7 @@
 cached by the model's structure (the derivatives of the same classes are the same).
 
 The module is built only when sensitivities are asked for, so that models without
-them never pay the derivation. Its table (fccgen_dp.h) lists the classes in the order
+them never pay the derivation. Its table (fcc_dp.h) lists the classes in the order
 of the model's kernel table (``plan.classes``).
 """
 from __future__ import annotations
@@ -21,7 +21,7 @@ from ..build.store import build_lock, clean_stale, entry_dir
 from ..progress import Progress, Reporter
 from ..render import environment
 
-DP_HEADER = "fccgen_dp.h"
+DP_HEADER = "fcc_dp.h"
 DP_FORMAT = 2              # bump when the kernels' meaning or layout changes
 
 
@@ -57,7 +57,7 @@ def render(model_name: str, module_name: str, printed: list, s_hash: str,
     out = {name: env.get_template(tpl).render(**ctx) for name, tpl in (
         ("dp_kernels.c", "dp_kernels.c.jinja"), ("dp_kernels.h", "dp_kernels.h.jinja"),
         ("dp_module.pyx", "dp.pyx.jinja"), ("build_module.py", "dp_build.py.jinja"))}
-    out[DP_HEADER] = (files("fccgen.runtime") / DP_HEADER).read_text(encoding="utf-8")
+    out[DP_HEADER] = (files("fccgen.runtime") / "engine" / DP_HEADER).read_text(encoding="utf-8")
     return out
 
 

@@ -8,8 +8,8 @@
  * with K = M (n_q*n_q), h (n_q), f (n_q), g (n_g), B (n_g*n_q), the constraint bias
  * (n_g). A pointer is NULL when that derivative is identically zero for the class.
  */
-#ifndef FCCGEN_DP_H
-#define FCCGEN_DP_H
+#ifndef FCC_DP_TABLE_H
+#define FCC_DP_TABLE_H
 
 #define FCC_DP_ABI_VERSION 2
 #define FCC_DP_CAPSULE_NAME "fccgen.dp_table"
