@@ -399,8 +399,6 @@ class CompiledSolver:
                 log, turn = events.log(), events.largest_turn
                 events.restore()          # direct kernel calls: references as planned
         result.info["setup"] = self.setup_store.report()
-        if sens is not None:
-            sensitivity_run.attach(result, self.plan, keys, sens.records)
         if report is not None:
             report.finish(result.t[-1])          # the run's end: 100%
         if events is not None:
@@ -428,6 +426,8 @@ class CompiledSolver:
         check_energy(result, self.plan,
                      kinetic_peak(self, result, stats.get("kinetic_energy_peak")),
                      kept.get("work"), untracked)
+        if sens is not None:
+            sensitivity_run.attach(self, result, keys, sens)
         return add_reactions(self, result) if reactions else result
 
     def dense_engine(self):

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import ModelError
+from .columns import column_name, column_sensitivities
 from .parameters import directions
 
 
@@ -55,10 +56,21 @@ def setup(solver, keys, build_dir):
     return Sensitivities(solver.dense_engine().asm, module, dP, S0)
 
 
-def attach(result, plan, keys, records) -> None:
-    """``result.sensitivities[key]``: (n_out, 2 n_q) = [dq/dp, dv/dp] at each record."""
-    n = plan.n_q
-    if records.shape[0] != len(result.t) or records.shape[2] != 2 * n:
+def attach(solver, result, keys, sens) -> None:
+    """Add the columns ``d(<column>)/d(<key>)`` of every column of the state and key
+    (fccgen.sensitivity.columns) to ``result``; ``info["sensitivities"]``: the keys."""
+    records = sens.records
+    if records.shape[0] != len(result.t) or records.shape[2] != 2 * solver.plan.n_q:
         raise AssertionError("sensitivity records do not match the run's records")
-    result.sensitivities = {k: np.array(records[:, j, :]) for j, k in enumerate(keys)}
+    worst = 0.0
+    for j, key in enumerate(keys):
+        cols, err = column_sensitivities(solver, result, key, records[:, j, :],
+                                         sens.dP[j])
+        worst = max(worst, err)
+        for col in list(result.columns):
+            if col in cols:
+                result.columns[column_name(col, key)] = cols[col]
+                if col in result.hidden:
+                    result.hidden.add(column_name(col, key))
     result.info["sensitivities"] = list(keys)
+    result.info["sensitivity_column_error"] = worst
