@@ -381,7 +381,8 @@ class CompiledSolver:
         report = run_reporter(progress, sched.t_end)
         decision = self.decide_rank(q0)
         events = self._event_set(event_tol, rest_speed)
-        tracker, untracked = work_tracker(self.plan, self.module, m.name, self.sparse)
+        tracker, untracked = work_tracker(self.plan, self.module, m.name,
+                                          self.sparse and keys is None)
         kept = {}
 
         def run():

@@ -57,6 +57,35 @@ def _numbers(solver, key: str, x: float):
     return params, np.asarray(init.q, float), np.asarray(init.v, float)
 
 
+NOT_LINEAR = (
+    "the model's numbers are not linear in this key (a geometry key: it enters the "
+    "kernels through the bodies' lengths and angles); sensitivities to geometry are not "
+    "supported yet",
+    "the assembled start is not linear in this key (a geometry key: it moves the points "
+    "the start is assembled from); sensitivities to geometry are not supported yet",
+    "the initial speeds depend on this key nonlinearly (speeds that the constraints and "
+    "the given joint rates leave free are chosen in the kinetic-energy metric); give "
+    "initial speeds the constraints allow, or joint rates for every freedom")
+
+
+def _shifted(solver, model, key: str, x: float):
+    """The numbers at x + d and x + 2 d for the largest d of +-REL_STEP |x| / 8^k that
+    the model's rules accept (an inertia must keep the triangle inequality, a mass
+    stay positive), and d."""
+    size = abs(x) if x != 0 else 1.0
+    last = None
+    for k in range(6):
+        for sign in (1.0, -1.0):
+            d = sign * REL_STEP * size / 8 ** k
+            try:
+                return _numbers(solver, key, x + d), _numbers(solver, key, x + 2 * d), d
+            except ModelError as exc:
+                last = exc
+    raise ModelError(model.source, last.line, key, "a sensitivity needs the model with "
+                     f"this number changed a little, which fails: {last.rule}",
+                     show_value=False)
+
+
 def _time_mask(plan) -> np.ndarray:
     mask = []
     for el in plan.elements:
@@ -77,13 +106,7 @@ def directions(solver, keys) -> tuple[np.ndarray, np.ndarray]:
         if not np.isfinite(x):
             raise ModelError(model.source, None, key, "the component index is too large",
                              show_value=False)
-        d = REL_STEP * max(abs(x), 1.0)
-        try:
-            one, two = _numbers(solver, key, x + d), _numbers(solver, key, x + 2 * d)
-        except ModelError as exc:
-            raise ModelError(model.source, exc.line, key, "a sensitivity needs the "
-                             f"model with this number changed, which fails: {exc.rule}",
-                             show_value=False) from None
+        one, two, d = _shifted(solver, model, key, x)
         d1 = [(a - b) / d for a, b in zip(one, base)]
         d2 = [(a - b) / (2 * d) for a, b in zip(two, base)]
         for part, (g1, g2, b) in enumerate(zip(d1, d2, base)):
@@ -91,10 +114,7 @@ def directions(solver, keys) -> tuple[np.ndarray, np.ndarray]:
                 g1[mask] = g2[mask] = 0.0
             scale = np.max(np.abs(b), initial=0.0) / d + np.max(np.abs(g1), initial=0.0)
             if np.max(np.abs(g1 - g2), initial=0.0) > 1e-11 * scale:
-                raise ModelError(model.source, None, key, "the model's numbers are not "
-                                 "linear in this key (a geometry key: it moves points, "
-                                 "directions or lengths the start is assembled from); "
-                                 "sensitivities to geometry are not supported yet",
+                raise ModelError(model.source, None, key, NOT_LINEAR[part],
                                  show_value=False)
         dP.append(d1[0])
         S0.append(np.concatenate([d1[1], d1[2]]))

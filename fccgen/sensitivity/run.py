@@ -15,13 +15,19 @@ from .columns import column_name, column_sensitivities
 from .parameters import directions
 
 
+def split_keys(keys) -> list[str]:
+    """Parameter keys from a list or one comma-separated string (commas inside [k]
+    never occur: a key's component is one index)."""
+    if isinstance(keys, str):
+        keys = keys.split(",")
+    return [str(k).strip() for k in keys if str(k).strip()]
+
+
 def check_request(solver, keys, method: str, project: bool) -> list[str]:
     """The keys as a list of strings, or ModelError / ValueError saying what cannot be
     done (and why) before anything runs."""
     model = solver.plan.model
-    if isinstance(keys, str):
-        keys = [k for k in keys.split(",") if k.strip()]
-    keys = [str(k).strip() for k in keys]
+    keys = split_keys(keys)
     if not keys:
         raise ValueError("sensitivities: name at least one parameter key "
                          "(e.g. bodies.arm.mass)")
