@@ -43,10 +43,6 @@ def check_request(solver, keys, method: str, project: bool) -> list[str]:
                          "events (the event times' derivatives and the jumps at latches "
                          "and bounces) are not supported yet; remove the events or run "
                          "without sensitivities", show_value=False)
-    if getattr(solver, "events_module", None) is not None:
-        raise ModelError(model.source, None, "loads", "sensitivities of a model whose "
-                         "loads read joint angles counted over turns are not supported "
-                         "yet", show_value=False)
     if solver.linear_solver == "sparse":
         raise ValueError("sensitivities run on the dense path: load the solver with "
                          "linear_solver='dense' or 'auto'")
