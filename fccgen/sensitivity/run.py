@@ -8,7 +8,6 @@ through the same output functions, for every other column of the state.
 """
 from __future__ import annotations
 
-import numpy as np
 
 from ..errors import ModelError
 from .columns import column_name, column_sensitivities
