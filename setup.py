@@ -23,7 +23,7 @@ from setuptools import Extension, setup
 from setuptools.command.build_ext import build_ext
 
 CIMPORT_ORDER = ("_solve", "_assemble", "_engine",
-                 "_events", "_power")
+                 "_events", "_power", "_sens")
 
 
 def runtime_modules() -> list[str]:

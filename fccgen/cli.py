@@ -30,7 +30,7 @@ from .settings.methods import names as method_names
 from .settings.run import LINEAR_SOLVERS
 
 COMMANDS = ("simulate", "bench", "check", "generate", "plot", "animate", "sweep",
-            "statics", "modes", "inverse", "examples", "export")
+            "statics", "modes", "inverse", "examples", "export", "sensitivity")
 EXIT_INTERRUPTED = 130      # 128 + SIGINT, as shells report it
 
 
@@ -229,6 +229,19 @@ def _viz_sweep_parsers(sub, common) -> None:
     xp.add_argument("--c", metavar="DIR", dest="c_dir",
                     help="write the C project (Makefile, CMakeLists.txt, API) into DIR")
     xp.add_argument("--fmu", metavar="FILE", help="write an FMU (.fmu) for linux64")
+
+    se = sub.add_parser("sensitivity", help="one rk4 run with the derivatives of every "
+                        "column with respect to parameter keys (docs/sensitivities.md)")
+    common(se)
+    se.add_argument("--force", action="store_true", help="rebuild even if cached")
+    se.add_argument("--params", required=True, metavar="KEY,KEY",
+                    help="parameter keys, comma-separated, e.g. "
+                         "bodies.arm.mass,loads[0].stiffness")
+    se.add_argument("--t-end", type=float, help="end time (default: model's)")
+    se.add_argument("--dt", type=float, help="time step (default: model's)")
+    se.add_argument("--output-dt", type=float, help="output interval, a multiple of dt")
+    se.add_argument("--out", help="write t and the columns d(<column>)/d(<param>) to "
+                    "FILE.csv, .npz or .h5")
 
     sw = sub.add_parser("sweep", help="many runs of one compiled model with different "
                         "numbers, on Dask; one row of summary figures per run",
@@ -469,6 +482,9 @@ def _run(args, progress) -> int:
               f"    import sys; sys.path.insert(0, {str(built.directory)!r})\n"
               f"    import {built.module_name}")
         return 0
+    if args.command == "sensitivity":
+        from .sensitivity.cli import run_sensitivity
+        return run_sensitivity(args, progress)
     if args.command == "export":
         from .export.cli import run_export
         return run_export(args, progress)

@@ -76,6 +76,24 @@ class Result:
                            + (" (and those of result.internal)" if self.hidden else "")
                            ) from None
 
+    def sensitivity(self, column: str, param: str) -> np.ndarray:
+        """d(column)/d(param) at every record, of a run with ``sensitivities=[...]``
+        (its column ``d(<column>)/d(<param>)``, kept in the files; docs/sensitivities.md)."""
+        name = f"d({column})/d({param})"
+        if name in self.columns:
+            return self.columns[name]
+        keys = self.info.get("sensitivities") or []
+        if not keys:
+            raise KeyError("this result has no sensitivities: run with "
+                           "sensitivities=[...] (fccgen sensitivity on the command line)")
+        if param not in keys:
+            raise KeyError(f"no sensitivity to {param!r}; the run's parameters are: "
+                           + ", ".join(keys))
+        if column == "t" or column in self.columns:
+            raise KeyError(f"the column {column!r} has no sensitivity (constraint forces, "
+                           "reactions and constraint_error have none)")
+        raise KeyError(f"no column {column!r}; columns are: " + ", ".join(self.names))
+
     @property
     def names(self) -> list[str]:
         """``t`` and the columns of what the user named: points, vectors, bodies,

@@ -427,6 +427,19 @@ cdef extern from "fcc_run.h":
         double *cerr
 
 
+cdef extern from "fcc_sens.h":
+    ctypedef struct fcc_dp_table:
+        int abi_version
+    ctypedef struct fcc_sens:
+        int n, m, np
+        double *out
+
+    int fcc_sens_init(fcc_sens *s, const fcc_model *model, const fcc_dp_table *dp,
+                      int np, const double *dP) nogil
+    void fcc_sens_free(fcc_sens *s) nogil
+    void fcc_sens_start(fcc_sens *s, const double *S0) nogil
+
+
 cdef extern from "fcc_rk4.h":
     ctypedef struct fcc_rk4:
         int project, baumgarte
@@ -447,6 +460,7 @@ cdef extern from "fcc_rk4.h":
         fcc_power *pw
         double *w_out
         double w
+        fcc_sens *sens
 
     int fcc_rk4_start(fcc_rk4 *r, fcc_engine *e, const double *q0,
                       const double *v0) noexcept nogil

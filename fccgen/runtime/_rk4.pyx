@@ -19,6 +19,7 @@ from ._cengine cimport (FCC_RUN_DONE, FCC_RUN_ERROR, fcc_rk4, fcc_rk4_advance,
 from ._engine cimport Engine
 from ._events cimport ev_state
 from ._power cimport power_state
+from ._sens cimport sens_state
 from ._runloop cimport array_data, now, past_deadline
 
 from ._messages import error_message
@@ -53,7 +54,7 @@ cdef int pause_holding_inputs(void *ctx) noexcept nogil:
 
 def simulate_rk4(Engine engine, q0, v0, double t_end, double dt, long n_steps,
                  long output_every, bint project, progress=None,
-                 double progress_interval=0.5, events=None, work=None, inputs=None):
+                 double progress_interval=0.5, events=None, work=None, inputs=None, sens=None):
     """Classical RK4 from (q0, v0) (used as given) over n_steps steps of dt, the last
     one shortened to end at t_end; after each step, if project, position then velocity
     projection. Records t = 0, every output_every steps and t_end.
@@ -69,9 +70,12 @@ def simulate_rk4(Engine engine, q0, v0, double t_end, double dt, long n_steps,
     inputs: None, or (slots, columns, table) of fccgen.runs.inputs: the parameter
     slots[i] holds table[j, columns[i]] from record j to record j + 1 (row 0 from the
     start; one row per record).
+
+    sens: a _sens.Sensitivities (None: none) whose ``records`` the run fills, one per
+    record (needs project, no events and the dense path).
     """
     return _simulate(engine, q0, v0, t_end, dt, n_steps, output_every, project, False,
-                     0.0, 0.0, progress, progress_interval, events, work, inputs)
+                     0.0, 0.0, progress, progress_interval, events, work, inputs, sens)
 
 
 def simulate_baumgarte(Engine engine, q0, v0, double t_end, double dt, long n_steps,
@@ -90,7 +94,7 @@ def simulate_baumgarte(Engine engine, q0, v0, double t_end, double dt, long n_st
 
 def _simulate(Engine engine, q0, v0, double t_end, double dt, long n_steps,
               long output_every, bint project, bint baumgarte, double alpha, double beta,
-              progress, double progress_interval, events=None, work=None, inputs=None):
+              progress, double progress_interval, events=None, work=None, inputs=None, sens=None):
     """The shared driver of simulate_rk4 and simulate_baumgarte."""
     if engine.c.running:
         raise RuntimeError("this engine is already running a simulation")
@@ -103,6 +107,10 @@ def _simulate(Engine engine, q0, v0, double t_end, double dt, long n_steps,
         raise ValueError("events need the projected RK4 (method rk4, projection on)")
     if work is not None:
         work.fits(engine)
+    if sens is not None and (baumgarte or not project or engine.c.sparse
+                             or (events is not None and events.n_events)):
+        raise ValueError("sensitivities need the projected RK4 on the dense path, "
+                         "without events")
     cdef double[::1] qv = engine.vector(q0, "q0"), vv = engine.vector(v0, "v0")
     engine.reset_warm_start()           # a run does not depend on earlier solves
     if not (np.all(np.isfinite(qv)) and np.all(np.isfinite(vv))):
@@ -152,6 +160,7 @@ def _simulate(Engine engine, q0, v0, double t_end, double dt, long n_steps,
     r.ev = ev_state(events)
     r.pw = power_state(work)
     r.w_out = array_data(work_out)
+    r.sens = sens_state(sens, n_out)
     if events is not None:
         events.reset(qv, engine)
     cdef int status

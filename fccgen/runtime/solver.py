@@ -266,7 +266,8 @@ class CompiledSolver:
     def simulate(self, t_end=None, dt=None, method=None, output_dt=None, project=True,
                  q0=None, v0=None, progress=None, rtol=None, atol=None,
                  reactions=True, event_tol=1e-12, rest_speed=1e-6, error=None,
-                 error_on=None, inputs=None, **method_options) -> Result:
+                 error_on=None, inputs=None, sensitivities=None,
+                 **method_options) -> Result:
         """Integrate from (q0, v0), used as given, to t_end. q0 None: the consistent
         :meth:`initial_state`; only v0 None: the model's initial speeds projected at q0.
 
@@ -295,10 +296,17 @@ class CompiledSolver:
         (times, values), sampled at each output time and held until the next
         (fccgen.runs.inputs, docs/model-file.md "Inputs"); an input not given keeps
         its start value.
+        sensitivities: parameter keys (``with_parameters`` keys, e.g.
+        ``["bodies.arm.mass", "loads[0].stiffness"]``); their derivatives are
+        integrated with the motion and read with ``result.sensitivity(column, key)``
+        (fccgen.sensitivity, docs/sensitivities.md).
         """
         if error is not None and inputs:
             raise ValueError("an error target (error=) chooses its own runs; give "
                              "inputs to a run with a method and step instead")
+        if sensitivities is not None and error is not None:
+            raise ValueError("sensitivities are integrated with a fixed-step run: give "
+                             "dt, not an error target")
         if error is not None:
             from ..target_error import simulate_to_error
             return simulate_to_error(self, error, error_on, t_end=t_end, output_dt=output_dt,
@@ -311,7 +319,8 @@ class CompiledSolver:
         args = dict(t_end=t_end, dt=dt, method=method, output_dt=output_dt,
                     project=project, q0=q0, v0=v0, progress=progress, rtol=rtol,
                     atol=atol, reactions=reactions, event_tol=event_tol,
-                    rest_speed=rest_speed, inputs=inputs, **method_options)
+                    rest_speed=rest_speed, inputs=inputs,
+                    sensitivities=sensitivities, **method_options)
         # On the sparse path, a run whose motion leaves the pattern of A read at the
         # written positions (a model written in a plane that moves out of it) stops at
         # the first such assembly and is run again on the full pattern, once.
@@ -319,10 +328,15 @@ class CompiledSolver:
 
     def _simulate_once(self, t_end, dt, method, output_dt, project, q0, v0, progress,
                        rtol, atol, reactions, event_tol, rest_speed, inputs=None,
-                       **method_options) -> Result:
+                       sensitivities=None, **method_options) -> Result:
         """One run (:meth:`simulate`)."""
         d = self.plan.model.simulate
         m = registry.get(d.method if method is None else method, METHODS)
+        keys = None
+        if sensitivities is not None:
+            from ..sensitivity import run as sensitivity_run
+            keys = sensitivity_run.check_request(self, sensitivities, m.name,
+                                                 bool(project) and m.projects)
         opts = registry.options_for(m, rtol, atol, method_options)
         sched = registry.schedule(m, d, t_end, dt, output_dt, opts)
         held = input_run(self.plan, inputs, m.name, sched)
@@ -330,29 +344,37 @@ class CompiledSolver:
             self._asm.put_params(held.slots, held.table[0, held.columns])
         try:
             return self._simulate_held(m, opts, sched, held, dt, project, q0, v0,
-                                       progress, reactions, event_tol, rest_speed)
+                                       progress, reactions, event_tol, rest_speed, keys)
         finally:
             if held is not None:                 # direct calls see the start values
                 self._asm.put_params(held.slots, [self.plan.model.inputs[held.names[c]]
                                                   for c in held.columns])
 
     def _simulate_held(self, m, opts, sched, held, dt, project, q0, v0, progress,
-                       reactions, event_tol, rest_speed) -> Result:
-        """One run (:meth:`simulate`) with the inputs set (``held``)."""
+                       reactions, event_tol, rest_speed, keys=None) -> Result:
+        """One run (:meth:`simulate`) with the inputs set (``held``); keys: the
+        parameters of its sensitivities (checked), or None."""
+        sens = None
+        if keys is not None:
+            from ..sensitivity import run as sensitivity_run
         self.set_time(0.0)
         self.setup_store.start_run()
         with single_threaded_blas():      # the set-up's SVDs: as the run's solves
             q0, v0 = self._start_state(q0, v0)
             decision = self.decide_rank(q0)
         project = bool(project) and m.projects
+        if keys is not None:
+            from .params import module_directory
+            sens = sensitivity_run.setup(self, keys, module_directory(self.module).parents[1])
         report = run_reporter(progress, sched.t_end)
         events = self._event_set(event_tol, rest_speed)
-        tracker, untracked = work_tracker(self.plan, self.module, m.name, self.sparse)
+        tracker, untracked = work_tracker(self.plan, self.module, m.name,
+                                          self.sparse and keys is None)
         kept = {}
 
         def run():
             arrays, stats = self._run(m, sched, opts, project, q0, v0, report, events,
-                                      tracker, held)
+                                      tracker, held, sens)
             kept["work"] = arrays.get("work") if tracker is not None else None
             return arrays, stats
         try:
@@ -381,7 +403,7 @@ class CompiledSolver:
                                                                 result.events)
         add_driver_columns(self, result)
         check_driver_branches(self.plan, result)
-        used = self.dense_engine() if m.name == "ali3p" else self._engine
+        used = self.dense_engine() if m.name == "ali3p" or sens else self._engine
         stats = used.rank_statistics()
         rank_rule.report_run(result, decision, stats,
                              driven=bool(driver_rows(self.plan)))
@@ -392,6 +414,8 @@ class CompiledSolver:
         check_energy(result, self.plan,
                      kinetic_peak(self, result, stats.get("kinetic_energy_peak")),
                      kept.get("work"), untracked)
+        if sens is not None:
+            sensitivity_run.attach(self, result, keys, sens)
         return add_reactions(self, result) if reactions else result
 
     def dense_engine(self):
@@ -531,10 +555,10 @@ class CompiledSolver:
         return q0, v0
 
     def _run(self, m, sched, opts, project, q0, v0, report, events=None, work=None,
-             held=None):
+             held=None, sens=None):
         """(arrays, stats) of one run of method m (held: inputs that change over the
-        run, fccgen.runs.inputs; rk4 and baumgarte only)."""
-        s, e = sched, self._engine
+        run, fccgen.runs.inputs; rk4 and baumgarte only; sens: rk4's sensitivities)."""
+        s, e = sched, (self._engine if sens is None else self.dense_engine())
         held = None if held is None or held.constant or not len(held.slots) else (
             held.slots, held.columns, held.table)
         if model_events(self.plan) and m.name not in ("rk4", "dopri5"):
@@ -543,7 +567,7 @@ class CompiledSolver:
         if m.name == "rk4":
             return simulate_rk4(e, q0, v0, s.t_end, s.dt, s.n_steps, s.every, project,
                                 report, self.progress_interval, events=events, work=work,
-                                inputs=held)
+                                inputs=held, sens=sens)
         if m.name == "baumgarte":
             return simulate_baumgarte(e, q0, v0, s.t_end, s.dt, s.n_steps, s.every,
                                       opts["alpha"], opts["beta"], report,

@@ -397,3 +397,21 @@ void fcc_dense_apply(fcc_dense *s, const double *Q, const double *w, const doubl
             x[i] += col[i] * acc;
     }
 }
+
+void fcc_dense_multipliers(const fcc_dense *s, const double *r, double *lam, double *y)
+{
+    int i, k, n = s->n, rank = s->r;
+    double acc;
+    memcpy(y, r, (size_t)n * sizeof(double));
+    for (k = 0; k < rank; k++)              /* y <- Q^T r = H_{r-1} ... H_0 r */
+        reflect(s, k, y);
+    for (i = rank - 1; i >= 0; i--) {       /* R11 z = y[:r], R upper in A */
+        acc = y[i];
+        for (k = i + 1; k < rank; k++)
+            acc -= s->A[k * n + i] * y[k];
+        y[i] = acc / s->A[i * n + i];
+    }
+    memset(lam, 0, (size_t)s->m * sizeof(double));
+    for (i = 0; i < rank; i++)              /* A = B^T diag(scale): lam = scale P z */
+        lam[s->jpvt[i] - 1] = y[i] * s->scale[s->jpvt[i] - 1];
+}

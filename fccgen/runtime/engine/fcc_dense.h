@@ -63,6 +63,10 @@ int fcc_dense_factor(fcc_dense *s, const double *M, const double *B);
 void fcc_dense_apply(fcc_dense *s, const double *Q, const double *w, const double *b,
                      double *x);
 
+/* Multipliers lam of B^T lam = r (r in the range of B^T: r = Q - M x of a solve) by the
+ * pivoted QR of the last factorisation; rows past the rank get 0. y: n numbers of room. */
+void fcc_dense_multipliers(const fcc_dense *s, const double *r, double *lam, double *y);
+
 #define FCC_DENSE_NO_LAPACK (-100000)
 
 #endif

@@ -26,6 +26,8 @@ static int stage(fcc_engine *e, fcc_rk4 *r, int k, const double *q, const double
         if (rc == 0 && r->ev != NULL)         /* active lock rows (events) */
             rc = fcc_ev_constrain(e, r->ev, q, v, r->t0, a);
     }
+    if (rc == 0 && r->sens != NULL)           /* the sensitivities' stage (fcc_sens.h) */
+        rc = fcc_sens_rk4_stage(e, r->sens, k, q, v, a);
     if (rc == 0 && r->pw != NULL)             /* the stage's power (fcc_work.h) */
         r->p[k - 1] = fcc_stage_power(e, r->pw, q, v, a);
     return rc;
@@ -37,6 +39,8 @@ static int step(fcc_engine *e, fcc_rk4 *r, double t, double h)
 {
     int i, n = e->n;
     double h2 = 0.5 * h, h6 = h / 6.0, w0 = r->w;
+    if (r->sens != NULL)
+        fcc_sens_begin_step(r->sens, h);
     fcc_put_time(e->asmb, t);
     if (stage(e, r, 1, r->q, r->v, r->a1, e->factor_valid) < 0) return -1;
     for (i = 0; i < n; i++) {
@@ -92,6 +96,8 @@ static int after_step(fcc_engine *e, fcc_rk4 *r)
         e->err_where = FCC_AT_VELOCITIES;
         if (fcc_project_velocities(e, r->q, r->v, e->b_fresh) < 0)
             return -1;
+        if (r->sens != NULL && fcc_sens_project(e, r->sens, r->q, r->v) < 0)
+            return -1;
         if (r->ev != NULL && fcc_ev_correct(e, r->ev, r->q, r->v) < 0)
             return -1;
     } else {
@@ -110,6 +116,8 @@ void fcc_rk4_record(fcc_engine *e, fcc_rk4 *r, double t)
     cerr = fcc_write_record(e, &r->out, r->n_out, r->q, r->v);
     if (r->w_out != NULL)
         r->w_out[r->n_out] = r->w;
+    if (r->sens != NULL)
+        fcc_sens_record(r->sens, r->n_out);
     if (!(cerr <= r->max_cerr))
         r->max_cerr = cerr;
     r->n_out++;

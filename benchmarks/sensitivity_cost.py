@@ -1,0 +1,77 @@
+"""The cost of a run with n_p sensitivities against the same run without them, on the
+unlatched scissor boom of 12 units (examples/make_scissor_boom.py, latch=False: the
+latch is an event, and runs with events do not carry sensitivities yet).
+
+    python benchmarks/sensitivity_cost.py [--units 12] [--t-end 0.5] [--repeats 5]
+
+The parameters are the torsion springs' stiffnesses, then the bars' masses, n_p = 1, 5
+and 20. For each n_p: the median over the repeats of the run's own time (the
+integration, result.info["wall_time"]; warm: the parameter-derivative module is built
+before timing), its ratio to the plain run's, the target 1 + 0.5 n_p (issue 25), and
+the whole call's time (the set-up of the parameters' directions and the columns'
+chain rule included). Sensitivities run on the dense path, so the ratio is taken
+against the plain run on the dense path; the plain run on the model's own path
+(sparse at this size) is printed too. Single-threaded BLAS.
+"""
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import argparse  # noqa: E402
+import statistics  # noqa: E402
+import sys  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / "examples"))
+
+
+def main() -> None:
+    import fccgen
+    import make_scissor_boom
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--units", type=int, default=12)
+    ap.add_argument("--t-end", type=float, default=0.5)
+    ap.add_argument("--repeats", type=int, default=5)
+    args = ap.parse_args()
+    work = Path(tempfile.mkdtemp(prefix="sens_cost_"))
+    model = work / "boom.yaml"
+    model.write_text(make_scissor_boom.model_text(args.units, latch=False))
+    solver = fccgen.load(model, work / "generated", linear_solver="dense")
+    own = fccgen.load(model, work / "generated")
+    springs = [f"loads[{k}].stiffness" for k, ld in enumerate(solver.plan.model.loads)
+               if getattr(ld, "stiffness", None) is not None]
+    masses = [f"bodies.{name}.mass" for name, _ in solver.plan.bodies]
+    keys = (springs + masses)[:20]
+    run = dict(t_end=args.t_end, dt=1e-3, method="rk4", output_dt=0.01, reactions=False)
+    solver.simulate(**run, sensitivities=keys[:1])            # builds the d/dp module
+
+    def timed(sens, which=solver):
+        runs, whole = [], []
+        for _ in range(args.repeats):
+            start = time.perf_counter()
+            result = which.simulate(**run, sensitivities=sens)
+            whole.append(time.perf_counter() - start)
+            runs.append(result.info["wall_time"])
+        return statistics.median(runs), statistics.median(whole)
+
+    plain, _ = timed(None)
+    sparse, _ = timed(None, own)
+    print(f"scissor boom, {args.units} units ({solver.plan.n_q} coordinates), rk4 dt 1e-3 "
+          f"to t = {args.t_end}: plain run {plain * 1e3:.1f} ms on the dense path "
+          f"({sparse * 1e3:.1f} ms on the model's own path, {own.linear_solver})")
+    print("| n_p | run (ms) | ratio | target 1 + 0.5 n_p | whole call (ms) |")
+    print("| --- | --- | --- | --- | --- |")
+    for n_p in (1, 5, 20):
+        t_run, t_whole = timed(keys[:n_p])
+        print(f"| {n_p} | {t_run * 1e3:.1f} | {t_run / plain:.2f} | {1 + 0.5 * n_p:.1f} | "
+              f"{t_whole * 1e3:.1f} |")
+
+
+if __name__ == "__main__":
+    main()

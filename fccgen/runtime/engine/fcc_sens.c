@@ -1,0 +1,218 @@
+/* Forward sensitivities (fcc_sens.h): the tangent sweep over the elements, the
+ * stages of RK4 on the sensitivities, the linearised projections. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "fcc_sens.h"
+
+enum { SQ, SV, SQS, SV2, SV3, SV4, SA1, SA2, SA3, SA4, N_ROWS };
+
+static double *row(const fcc_sens *s, int j, int which)
+{
+    return s->S + ((size_t)j * N_ROWS + (size_t)which) * (size_t)s->n;
+}
+
+int fcc_sens_init(fcc_sens *s, const fcc_model *model, const fcc_dp_table *dp, int np,
+                  const double *dP)
+{
+    int c, n = model->n_q, m = model->n_g, L = model->local_size, G = model->g_max;
+    size_t total;
+    memset(s, 0, sizeof(*s));
+    if (dp == NULL || dp->abi_version != FCC_DP_ABI_VERSION || np < 1
+        || dp->n_classes != model->table->n_classes)
+        return FCC_ERR_ARGUMENT;
+    for (c = 0; c < dp->n_classes; c++)
+        if (strcmp(dp->classes[c].name, model->table->classes[c].name) != 0
+            || dp->classes[c].tangent == NULL)
+            return FCC_ERR_ARGUMENT;
+    s->dp = dp;
+    s->model = model;
+    s->n = n;
+    s->m = m;
+    s->np = np;
+    s->dP = dP;
+    total = (size_t)np * N_ROWS * (size_t)n + 4 * (size_t)n + 5 * (size_t)(m + 1)
+            + 5 * (size_t)L + (size_t)(G + 1) + (size_t)(L + 3 * G + 1);
+    s->S = calloc(total, sizeof(double));
+    if (s->S == NULL)
+        return FCC_ERR_MEMORY;
+    s->r = s->S + (size_t)np * N_ROWS * (size_t)n;
+    s->rhs = s->r + n;
+    s->y = s->rhs + n;
+    s->zero = s->y + n;
+    s->lam = s->zero + n + m + 1;      /* zero: n + m + 1 zeros (a, lam, sq, sv) */
+    s->b = s->lam + m + 1;
+    s->gp = s->b + m + 1;
+    s->phi = s->gp + m + 1;
+    s->lq = s->phi + m + 1;
+    s->lv = s->lq + L;
+    s->la = s->lv + L;
+    s->lsq = s->la + L;
+    s->lsv = s->lsq + L;
+    s->llam = s->lsv + L;
+    s->lout = s->llam + G + 1;
+    return FCC_OK;
+}
+
+void fcc_sens_free(fcc_sens *s)
+{
+    free(s->S);
+    s->S = NULL;
+}
+
+void fcc_sens_start(fcc_sens *s, const double *S0)
+{
+    int j, n = s->n;
+    for (j = 0; j < s->np; j++) {
+        memcpy(row(s, j, SQ), S0 + (size_t)j * 2 * n, (size_t)n * sizeof(double));
+        memcpy(row(s, j, SV), S0 + (size_t)j * 2 * n + n, (size_t)n * sizeof(double));
+    }
+}
+
+void fcc_sens_begin_step(fcc_sens *s, double h)
+{
+    s->h = h;
+}
+
+/* The tangent kernels of every element along (sq, sv, dP_j) at (q, v) with the
+ * accelerations a and multipliers lam: dR1 into rhs, dR2 into b, (dg/dp) dP_j into
+ * gp, dPhi into phi. */
+static void sweep(fcc_engine *e, fcc_sens *s, const double *q, const double *v,
+                  const double *a, const double *lam, const double *sq,
+                  const double *sv, const double *dPj)
+{
+    const fcc_model *md = s->model;
+    const double *params = e->asmb->params;
+    int el, i, nq, ng, row0;
+    const int *idx;
+    const fcc_dp_class *k;
+    memset(s->rhs, 0, (size_t)s->n * sizeof(double));
+    for (el = 0; el < md->n_el; el++) {
+        k = &s->dp->classes[md->cls[el] - md->table->classes];
+        nq = k->n_q;
+        ng = k->n_g;
+        idx = md->qidx + md->qptr[el];
+        row0 = md->gptr[el];
+        for (i = 0; i < nq; i++) {
+            s->lq[i] = q[idx[i]];
+            s->lv[i] = v[idx[i]];
+            s->la[i] = a[idx[i]];
+            s->lsq[i] = sq[idx[i]];
+            s->lsv[i] = sv[idx[i]];
+        }
+        for (i = 0; i < ng; i++)
+            s->llam[i] = lam[row0 + i];
+        k->tangent(s->lq, s->lv, params + md->pptr[el], s->la, s->llam, s->lsq, s->lsv,
+                   dPj + md->pptr[el], s->lout);
+        for (i = 0; i < nq; i++)
+            s->rhs[idx[i]] += s->lout[i];
+        for (i = 0; i < ng; i++) {
+            s->b[row0 + i] = s->lout[nq + i];
+            s->gp[row0 + i] = -s->lout[nq + ng + i];
+            s->phi[row0 + i] = -s->lout[nq + 2 * ng + i];
+        }
+    }
+}
+
+/* lam of the stage's solve: B^T lam = f - h - M a (f, h, M assembled at the stage). */
+static void multipliers(fcc_engine *e, fcc_sens *s, const double *a)
+{
+    const fcc_assembly *as = e->asmb;
+    int i, j, n = s->n;
+    double acc;
+    const double *Mi;
+    for (i = 0; i < n; i++) {
+        Mi = as->M + (size_t)i * n;
+        acc = as->f[i] - as->h[i];
+        for (j = 0; j < n; j++)
+            acc -= Mi[j] * a[j];
+        s->r[i] = acc;
+    }
+    fcc_dense_multipliers(&e->sol, s->r, s->lam, s->y);
+}
+
+static int bad(fcc_engine *e, const double *x, int n)
+{
+    if (fcc_finite(x, n))
+        return 0;
+    return fcc_fail(e, FCC_ERR_NONFINITE_RESULT, 0, 0);
+}
+
+int fcc_sens_rk4_stage(fcc_engine *e, fcc_sens *s, int k, const double *q,
+                       const double *v, const double *a)
+{
+    static const int stage_q[4] = {SQ, SQS, SQS, SQS}, stage_v[4] = {SV, SV2, SV3, SV4};
+    int i, j, n = s->n, np_all = s->model->n_p;
+    double h = s->h, h2 = 0.5 * h, h6 = h / 6.0;
+    double *sq, *sv, *sqs, *sa;
+    multipliers(e, s, a);
+    for (j = 0; j < s->np; j++) {
+        sa = row(s, j, SA1 + k - 1);
+        sweep(e, s, q, v, a, s->lam, row(s, j, stage_q[k - 1]), row(s, j, stage_v[k - 1]),
+              s->dP + (size_t)j * np_all);
+        fcc_solve_constrained(e, s->rhs, NULL, s->b, sa);
+        if (bad(e, sa, n))
+            return -1;
+        sq = row(s, j, SQ);
+        sv = row(s, j, SV);
+        sqs = row(s, j, SQS);
+        if (k == 1 || k == 2) {          /* stage k + 1 at t + h/2 */
+            const double *svk = row(s, j, k == 1 ? SV : SV2);
+            double *svn = row(s, j, k == 1 ? SV2 : SV3);
+            for (i = 0; i < n; i++) {
+                sqs[i] = sq[i] + h2 * svk[i];
+                svn[i] = sv[i] + h2 * sa[i];
+            }
+        } else if (k == 3) {             /* stage 4 at t + h */
+            const double *sv3 = row(s, j, SV3);
+            double *sv4 = row(s, j, SV4);
+            for (i = 0; i < n; i++) {
+                sqs[i] = sq[i] + h * sv3[i];
+                sv4[i] = sv[i] + h * sa[i];
+            }
+        } else {                         /* the step's end */
+            const double *sv2 = row(s, j, SV2), *sv3 = row(s, j, SV3), *sv4 = row(s, j, SV4);
+            const double *a1 = row(s, j, SA1), *a2 = row(s, j, SA2), *a3 = row(s, j, SA3);
+            for (i = 0; i < n; i++) {
+                sq[i] += h6 * (sv[i] + 2.0 * sv2[i] + 2.0 * sv3[i] + sv4[i]);
+                sv[i] += h6 * (a1[i] + 2.0 * a2[i] + 2.0 * a3[i] + sa[i]);
+            }
+        }
+    }
+    return 0;
+}
+
+int fcc_sens_project(fcc_engine *e, fcc_sens *s, const double *q, const double *v)
+{
+    int j, n = s->n, np_all = s->model->n_p;
+    double *sq, *sv;
+    for (j = 0; j < s->np; j++) {
+        sq = row(s, j, SQ);
+        sv = row(s, j, SV);
+        /* positions: gp = -(dg/dp) dP_j does not depend on the direction's q part */
+        sweep(e, s, q, v, s->zero, s->zero, s->zero, s->zero, s->dP + (size_t)j * np_all);
+        fcc_solve_constrained(e, NULL, sq, s->gp, s->y);
+        memcpy(sq, s->y, (size_t)n * sizeof(double));
+        /* speeds: phi = -dPhi[s_q, dP_j] with the projected s_q */
+        sweep(e, s, q, v, s->zero, s->zero, sq, s->zero, s->dP + (size_t)j * np_all);
+        fcc_solve_constrained(e, NULL, sv, s->phi, s->y);
+        memcpy(sv, s->y, (size_t)n * sizeof(double));
+        if (bad(e, sq, n) || bad(e, sv, n))
+            return -1;
+    }
+    return 0;
+}
+
+void fcc_sens_record(const fcc_sens *s, long rec)
+{
+    int j, n = s->n;
+    double *o;
+    if (s->out == NULL)
+        return;
+    for (j = 0; j < s->np; j++) {
+        o = s->out + ((size_t)rec * s->np + j) * 2 * (size_t)n;
+        memcpy(o, row(s, j, SQ), (size_t)n * sizeof(double));
+        memcpy(o + n, row(s, j, SV), (size_t)n * sizeof(double));
+    }
+}

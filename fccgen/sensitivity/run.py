@@ -1,0 +1,77 @@
+"""A run with forward sensitivities: the checks, the set-up (fccgen.sensitivity.
+parameters, the parameter-derivative module) and the sensitivities' columns.
+
+The engine carries d(q, v)/dp through RK4's own stages and the linearised
+projections (engine/fcc_sens.h); this module turns the records into
+``d(<column>)/d(<key>)`` for the coordinate and speed columns and, by the chain rule
+through the same output functions, for every other column of the state.
+"""
+from __future__ import annotations
+
+
+from ..errors import ModelError
+from .columns import column_name, column_sensitivities
+from .parameters import directions
+
+
+def split_keys(keys) -> list[str]:
+    """Parameter keys from a list or one comma-separated string (commas inside [k]
+    never occur: a key's component is one index)."""
+    if isinstance(keys, str):
+        keys = keys.split(",")
+    return [str(k).strip() for k in keys if str(k).strip()]
+
+
+def check_request(solver, keys, method: str, project: bool) -> list[str]:
+    """The keys as a list of strings, or ModelError / ValueError saying what cannot be
+    done (and why) before anything runs."""
+    model = solver.plan.model
+    keys = split_keys(keys)
+    if not keys:
+        raise ValueError("sensitivities: name at least one parameter key "
+                         "(e.g. bodies.arm.mass)")
+    if len(set(keys)) != len(keys):
+        raise ValueError(f"sensitivities: a key is named twice: {', '.join(keys)}")
+    if method != "rk4":
+        raise ValueError(f"sensitivities are integrated by the rk4 method (the model's "
+                         f"or method='rk4'), not by {method}")
+    if not project:
+        raise ValueError("sensitivities need the projected rk4 (project=True)")
+    if model.events:
+        raise ModelError(model.source, None, "events", "sensitivities of a run with "
+                         "events (the event times' derivatives and the jumps at latches "
+                         "and bounces) are not supported yet; remove the events or run "
+                         "without sensitivities", show_value=False)
+    if solver.linear_solver == "sparse":
+        raise ValueError("sensitivities run on the dense path: load the solver with "
+                         "linear_solver='dense' or 'auto'")
+    return keys
+
+
+def setup(solver, keys, build_dir):
+    """The engine's Sensitivities for ``keys`` (checked) of ``solver``."""
+    from ..runtime._sens import Sensitivities
+    from .build import load_dp
+    dP, S0 = directions(solver, keys)
+    module = load_dp(solver.plan, build_dir)
+    return Sensitivities(solver.dense_engine().asm, module, dP, S0)
+
+
+def attach(solver, result, keys, sens) -> None:
+    """Add the columns ``d(<column>)/d(<key>)`` of every column of the state and key
+    (fccgen.sensitivity.columns) to ``result``; ``info["sensitivities"]``: the keys."""
+    records = sens.records
+    if records.shape[0] != len(result.t) or records.shape[2] != 2 * solver.plan.n_q:
+        raise AssertionError("sensitivity records do not match the run's records")
+    worst = 0.0
+    for j, key in enumerate(keys):
+        cols, err = column_sensitivities(solver, result, key, records[:, j, :],
+                                         sens.dP[j])
+        worst = max(worst, err)
+        for col in list(result.columns):
+            if col in cols:
+                result.columns[column_name(col, key)] = cols[col]
+                if col in result.hidden:
+                    result.hidden.add(column_name(col, key))
+    result.info["sensitivities"] = list(keys)
+    result.info["sensitivity_column_error"] = worst
