@@ -269,7 +269,7 @@ def sensitivity(path, params, *, t_end=None, dt=None, output_dt=None, out=None,
     ``t`` and the columns ``d(<column>)/d(<param>)`` (CSV, NPZ or HDF5, with how they
     were made). Returns the full result (its columns and the sensitivities')."""
     from .results import Result, check_output
-    from .sensitivity.run import split_keys
+    from .runtime.sensitivity.run import split_keys
     out = None if out is None else check_output(out)
     keys = split_keys(params)
     solver = load(path, build_dir, force=force, progress=progress, **(solver_options or {}))

@@ -483,8 +483,13 @@ def _run(args, progress) -> int:
               f"    import {built.module_name}")
         return 0
     if args.command == "sensitivity":
-        from .sensitivity.cli import run_sensitivity
-        return run_sensitivity(args, progress)
+        from .runtime.sensitivity.summary import summary
+        result = api.sensitivity(args.model, args.params, t_end=args.t_end, dt=args.dt,
+                                 output_dt=args.output_dt, out=args.out,
+                                 build_dir=args.build_dir, force=args.force,
+                                 progress=progress)
+        print(summary(result, args.out))
+        return 0
     if args.command == "export":
         from .export.cli import run_export
         return run_export(args, progress)

@@ -1,5 +1,5 @@
 """The compiled parameter derivatives of the element kernels (SymPy, fccgen.derive.
-parameters, printed and compiled by fccgen.sensitivity.build) against the NumPy
+parameters, printed and compiled by fccgen.runtime.sensitivity.build) against the NumPy
 version (five-point differences of the hand-written NumPy kernels in each parameter).
 Structural zeros (``cls.zeros``) are folded out of the compiled class, so their
 derivatives are not compared: a value that unfolds one needs a new build and
@@ -21,7 +21,7 @@ from kernel_checks import random_case
 from fccgen.api import plan_model
 from fccgen.derive.parameters import PARAMETER_KERNELS
 from fccgen.numeric.parameter_derivatives import kernel_dp
-from fccgen.sensitivity.build import build_dp, load_dp
+from fccgen.runtime.sensitivity.build import build_dp, load_dp
 
 MODELS = ("double_pendulum", "four_bar_driven", "rsup")
 

@@ -33,7 +33,7 @@ import pytest
 
 from conftest import ROOT
 
-from fccgen.sensitivity.parameters import current_value
+from fccgen.runtime.sensitivity.parameters import current_value
 
 RUN = dict(t_end=0.3, dt=1e-3, method="rk4")
 CASES = {

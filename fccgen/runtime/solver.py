@@ -299,7 +299,7 @@ class CompiledSolver:
         sensitivities: parameter keys (``with_parameters`` keys, e.g.
         ``["bodies.arm.mass", "loads[0].stiffness"]``); their derivatives are
         integrated with the motion and read with ``result.sensitivity(column, key)``
-        (fccgen.sensitivity, docs/sensitivities.md).
+        (fccgen.runtime.sensitivity, docs/sensitivities.md).
         """
         if error is not None and inputs:
             raise ValueError("an error target (error=) chooses its own runs; give "
@@ -334,7 +334,7 @@ class CompiledSolver:
         m = registry.get(d.method if method is None else method, METHODS)
         keys = None
         if sensitivities is not None:
-            from ..sensitivity import run as sensitivity_run
+            from .sensitivity import run as sensitivity_run
             keys = sensitivity_run.check_request(self, sensitivities, m.name,
                                                  bool(project) and m.projects)
         opts = registry.options_for(m, rtol, atol, method_options)
@@ -356,7 +356,7 @@ class CompiledSolver:
         parameters of its sensitivities (checked), or None."""
         sens = None
         if keys is not None:
-            from ..sensitivity import run as sensitivity_run
+            from .sensitivity import run as sensitivity_run
         self.set_time(0.0)
         self.setup_store.start_run()
         with single_threaded_blas():      # the set-up's SVDs: as the run's solves

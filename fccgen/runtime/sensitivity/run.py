@@ -1,4 +1,4 @@
-"""A run with forward sensitivities: the checks, the set-up (fccgen.sensitivity.
+"""A run with forward sensitivities: the checks, the set-up (fccgen.runtime.sensitivity.
 parameters, the parameter-derivative module) and the sensitivities' columns.
 
 The engine carries d(q, v)/dp through RK4's own stages and the linearised
@@ -9,7 +9,7 @@ through the same output functions, for every other column of the state.
 from __future__ import annotations
 
 
-from ..errors import ModelError
+from ...errors import ModelError
 from .columns import column_name, column_sensitivities
 from .parameters import directions
 
@@ -50,7 +50,7 @@ def check_request(solver, keys, method: str, project: bool) -> list[str]:
 
 def setup(solver, keys, build_dir):
     """The engine's Sensitivities for ``keys`` (checked) of ``solver``."""
-    from ..runtime._sens import Sensitivities
+    from .._sens import Sensitivities
     from .build import load_dp
     dP, S0 = directions(solver, keys)
     module = load_dp(solver.plan, build_dir)
@@ -59,7 +59,7 @@ def setup(solver, keys, build_dir):
 
 def attach(solver, result, keys, sens) -> None:
     """Add the columns ``d(<column>)/d(<key>)`` of every column of the state and key
-    (fccgen.sensitivity.columns) to ``result``; ``info["sensitivities"]``: the keys."""
+    (fccgen.runtime.sensitivity.columns) to ``result``; ``info["sensitivities"]``: the keys."""
     records = sens.records
     if records.shape[0] != len(result.t) or records.shape[2] != 2 * solver.plan.n_q:
         raise AssertionError("sensitivity records do not match the run's records")

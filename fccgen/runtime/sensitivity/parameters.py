@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import ModelError
-from ..runtime.params import _target, _get, split_key
+from ...errors import ModelError
+from ..params import _target, _get, split_key
 
 RUN_SETTINGS = ("t_end", "dt", "output_dt")
 # The relative size of the difference: large, so that rounding (eps |P| / d) is small.

@@ -17,7 +17,7 @@ import dataclasses
 
 import numpy as np
 
-from ..results import _with_joint_columns, result_from_arrays
+from ...results import _with_joint_columns, result_from_arrays
 
 NO_SENSITIVITY = ("constraint_error",)
 # The direction's step: this fraction of the model's length (positions), of the
@@ -31,7 +31,7 @@ def column_name(column: str, key: str) -> str:
 
 def _shifted_solver(solver, dP_j: np.ndarray, eps: float):
     """A solver of the same module whose element parameters are P + eps dP_j."""
-    from ..runtime.params import solver_options
+    from ..params import solver_options
     plan = copy.copy(solver.plan)
     start, elements = 0, []
     for el in plan.elements:

@@ -12,14 +12,14 @@ import hashlib
 from importlib.resources import files
 from pathlib import Path
 
-from .. import __version__
-from ..build import BuiltModule, _built, load_module
-from ..build.cache import cache_key, check_entry
-from ..build.compile import (FLAG_POLICY, compile_args, compile_sources,
+from ...version import __version__
+from ...build import BuiltModule, _built, load_module
+from ...build.cache import cache_key, check_entry
+from ...build.compile import (FLAG_POLICY, compile_args, compile_sources,
                              extension_filename, install, link_args)
-from ..build.store import build_lock, clean_stale, entry_dir
-from ..progress import Progress, Reporter
-from ..render import environment
+from ...build.store import build_lock, clean_stale, entry_dir
+from ...progress import Progress, Reporter
+from ...render import environment
 
 DP_HEADER = "fcc_dp.h"
 DP_FORMAT = 2              # bump when the kernels' meaning or layout changes
@@ -32,8 +32,8 @@ def dp_hash(classes) -> str:
 
 
 def _print_all(classes, progress: Progress | None):
-    from ..derive import derive_class
-    from ..printing.parameters import PrintedDp, print_parameter_kernels, print_tangent
+    from ...derive import derive_class
+    from ...printing.parameters import PrintedDp, print_parameter_kernels, print_tangent
     say = Reporter(progress, "derive", total=len(classes))
     printed = []
     for k, cls in enumerate(classes, 1):
@@ -46,7 +46,7 @@ def _print_all(classes, progress: Progress | None):
 
 def render(model_name: str, module_name: str, printed: list, s_hash: str,
            flags: list[str]) -> dict[str, str]:
-    from ..derive.parameters import PARAMETER_KERNELS
+    from ...derive.parameters import PARAMETER_KERNELS
     env = environment()
     table = f"fccgen_dp_{model_name}"
     n_ops = sum(p.n_ops for p in printed)

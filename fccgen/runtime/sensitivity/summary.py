@@ -1,0 +1,28 @@
+"""What ``fccgen sensitivity MODEL --params KEY,KEY [--out S.csv]`` prints about the
+run of :func:`fccgen.api.sensitivity`: the run, the largest derivative for each
+parameter, and where the results went."""
+from __future__ import annotations
+
+import numpy as np
+
+
+def summary(result, out=None) -> str:
+    """The lines the command prints for ``result`` (written to ``out`` if given)."""
+    keys = result.info["sensitivities"]
+    lines = [f"rk4: {result.info.get('steps')} steps to t = {result.t[-1]:.6g} with the "
+             f"sensitivities to {', '.join(keys)} in "
+             f"{result.info.get('wall_time', 0.0):.3g} s"]
+    for key in keys:
+        cols = [c for c in result.names if not c.startswith("d(")
+                and f"d({c})/d({key})" in result.columns]
+        best = max(cols, key=lambda c: np.max(np.abs(result.sensitivity(c, key))))
+        s = result.sensitivity(best, key)
+        lines.append(f"  d/d({key}): largest in d({best})/d({key}) = "
+                     f"{s[np.argmax(np.abs(s))]:.6g}, at t_end {s[-1]:.6g}")
+    if out:
+        n = sum(1 for c in result.columns if c.startswith("d(") and c not in result.hidden)
+        lines.append(f"results: {out} ({len(result.t)} rows, {n} columns "
+                     "d(<column>)/d(<param>))")
+    else:
+        lines.append("no --out given: results not written")
+    return "\n".join(lines)
