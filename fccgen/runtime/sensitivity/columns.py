@@ -17,7 +17,7 @@ import dataclasses
 
 import numpy as np
 
-from ...results import _with_joint_columns, result_from_arrays
+from ...results.result import _with_joint_columns, result_from_arrays
 
 NO_SENSITIVITY = ("constraint_error",)
 # The direction's step: this fraction of the model's length (positions), of the
