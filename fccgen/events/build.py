@@ -11,16 +11,13 @@ from __future__ import annotations
 
 import hashlib
 from dataclasses import dataclass
-from pathlib import Path
 
 import sympy
 
 from ..version import __version__
-from ..build import BuiltModule, _built, load_module
-from ..build.cache import cache_key, check_entry
-from ..build.compile import (FLAG_POLICY, compile_args, compile_sources,
-                             extension_filename, link_args)
-from ..build.store import build_lock, clean_stale, entry_dir
+from ..build import BuiltModule, load_module
+from ..build.companion import build_companion
+from ..build.compile import link_args
 from ..printing.c99 import KernelPrinter, slot_map
 from ..render import environment
 from .symbolic import EventSystem, event_system
@@ -106,30 +103,11 @@ def build_events(plan, out_dir="generated", *, force: bool = False) -> BuiltModu
     system = event_system(plan)
     e_hash = event_hash(system)
     module_name = f"{model.name}_events"
-    key = cache_key(module_name, [], FLAG_POLICY, e_hash)
-    entry = entry_dir(Path(out_dir).absolute(), module_name, key)
-    clean_stale(entry.parent)
-    manifest, _ = (None, None) if force else check_entry(entry, key, module_name)
-    if manifest is not None:
-        return _built(entry, manifest, True, {})
-    with build_lock(entry):
-        manifest, _ = (None, None) if force else check_entry(entry, key, module_name)
-        if manifest is not None:
-            return _built(entry, manifest, True, {})
-        kernels = print_kernels(system)
-        n_ops = sum(k.n_ops for k in kernels)
-        flags = compile_args(n_ops)
-        sources = render(model.name, module_name, system, [e.name for e in model.events],
-                         kernels, e_hash, flags)
-        tmp = compile_sources(sources, entry, module_name)
-        manifest = {"fccgen_version": __version__, "model_name": module_name,
-                    "cache_key": key, "structure_hash": e_hash, "n_ops": {"events": n_ops},
-                    "flags": flags, "timings": {},
-                    "extension": extension_filename(module_name),
-                    "sources": sorted(sources)}
-        from ..build.compile import install
-        install(tmp, entry, module_name, manifest)
-    return _built(entry, manifest, False, {})
+    return build_companion(
+        module_name, e_hash, "events", out_dir, force, lambda: print_kernels(system),
+        lambda kernels, flags: render(model.name, module_name, system,
+                                      [e.name for e in model.events], kernels, e_hash,
+                                      flags))
 
 
 def needs_events_module(plan) -> bool:

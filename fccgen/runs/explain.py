@@ -1,12 +1,6 @@
-"""Say which part of a model a solver failure comes from.
-
-A singular reduced mass matrix (M not positive definite on the null space of B) is a
-property of the model, not of the numbers the integrator happened to meet: some
-motion allowed by the constraints carries no mass or inertia. The eigenvector of the
-smallest eigenvalue of N^T M N (N a basis of the null space of B) is that motion; its
-largest coordinates name the points and vectors that move without inertia, and the
-bodies and constraints that use them are the items to look at.
-"""
+"""Say which part of a model a solver failure comes from: the failure as a located
+error (file, line, item; fccgen.runs.locate), and for a singular reduced mass matrix
+the motion that carries no mass or inertia (fccgen.runs.massless)."""
 from __future__ import annotations
 
 import numpy as np

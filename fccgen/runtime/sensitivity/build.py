@@ -10,14 +10,11 @@ from __future__ import annotations
 
 import hashlib
 from importlib.resources import files
-from pathlib import Path
 
 from ...version import __version__
-from ...build import BuiltModule, _built, load_module
-from ...build.cache import cache_key, check_entry
-from ...build.compile import (FLAG_POLICY, compile_args, compile_sources,
-                             extension_filename, install, link_args)
-from ...build.store import build_lock, clean_stale, entry_dir
+from ...build import BuiltModule, load_module
+from ...build.companion import build_companion
+from ...build.compile import link_args
 from ...progress import Progress, Reporter
 from ...render import environment
 
@@ -67,28 +64,9 @@ def build_dp(plan, out_dir="generated", *, force: bool = False,
     classes = list(plan.classes)
     s_hash = dp_hash(classes)
     module_name = f"{plan.model.name}_dp"
-    key = cache_key(module_name, [], FLAG_POLICY, s_hash)
-    entry = entry_dir(Path(out_dir).absolute(), module_name, key)
-    clean_stale(entry.parent)
-    manifest, _ = (None, None) if force else check_entry(entry, key, module_name)
-    if manifest is not None:
-        return _built(entry, manifest, True, {})
-    with build_lock(entry):
-        manifest, _ = (None, None) if force else check_entry(entry, key, module_name)
-        if manifest is not None:
-            return _built(entry, manifest, True, {})
-        printed = _print_all(classes, progress)
-        n_ops = sum(p.n_ops for p in printed)
-        flags = compile_args(n_ops)
-        sources = render(plan.model.name, module_name, printed, s_hash, flags)
-        tmp = compile_sources(sources, entry, module_name)
-        manifest = {"fccgen_version": __version__, "model_name": module_name,
-                    "cache_key": key, "structure_hash": s_hash, "n_ops": {"dp": n_ops},
-                    "flags": flags, "timings": {},
-                    "extension": extension_filename(module_name),
-                    "sources": sorted(sources)}
-        install(tmp, entry, module_name, manifest)
-    return _built(entry, manifest, False, {})
+    return build_companion(
+        module_name, s_hash, "dp", out_dir, force, lambda: _print_all(classes, progress),
+        lambda printed, flags: render(plan.model.name, module_name, printed, s_hash, flags))
 
 
 def load_dp(plan, out_dir="generated", *, force: bool = False,
