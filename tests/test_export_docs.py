@@ -68,3 +68,25 @@ def test_the_c_lines_name_functions_of_the_header(folder):
     header = (folder / "rsup_c" / "rsup.h").read_text()
     for call in set(re.findall(r"\b(rsup_[a-z_]+)\(", blocks("c")[0])):
         assert f"{call}(" in header, call
+
+
+def test_the_inputs_section_works_as_written(folder):
+    """The inputs section's FMU, driven from FMPy, equals simulate(inputs=...) to
+    rounding, and its C lines compile and run against the panel's C project."""
+    pytest.importorskip("fmpy")
+    done = run_python(blocks("python")[1], folder, check=False)
+    assert done.returncode == 0, done.stderr
+    assert float(done.stdout.split()[-1]) < 1e-10
+    from fccgen.export import export_c
+    project = export_c(folder / "examples" / "panel_input.yaml", folder / "panel_c",
+                       folder / "generated")
+    body = blocks("c")[1].replace("\n", "\n    ")
+    (project / "snippet.c").write_text('#include <stdio.h>\n#include "panel_input.h"\n'
+                                       f"int main(void)\n{{\n    {body}\n"
+                                       '    printf("%.17g\\n", angle);\n    return 0;\n}\n')
+    for cmd in (["make", "-s"], [CC, "-std=c99", "-Wall", "-Werror", "-I.", "snippet.c",
+                                 "libpanel_input.a", "-lm", "-o", "snippet"],
+                ["./snippet"]):
+        done = subprocess.run(cmd, cwd=project, capture_output=True, text=True)
+        assert done.returncode == 0, f"{cmd}: {done.stdout}\n{done.stderr}"
+    assert 0 < float(done.stdout) < 1

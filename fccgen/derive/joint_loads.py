@@ -71,8 +71,11 @@ def components(s: ClassSymbols) -> tuple[sympy.Matrix, dict]:
     and every joint quantity z written in intermediate symbols Y (S, C, S', C' of an
     angle; s, s' of a position), Y -> its polynomial in q, v, p."""
     from ..mechanism.expressions import parse_expression
+    from .mechanism import input_symbols
     t = sympy.Symbol("t", real=True)
-    symbols, values, inter = {"t": t}, {t: s.scalar("t")}, {}
+    symbols, values = input_symbols(s)
+    inter = {}
+    symbols["t"], values[t] = t, s.scalar("t")
     for joint, family in s.cls.joint_families:
         build, names = QUANTITIES[family]
         for name, expr in zip(names, build(s, f"{joint}.{family}.", inter)):

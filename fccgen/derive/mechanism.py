@@ -91,10 +91,21 @@ def _functions_of_time(s: ClassSymbols) -> sympy.Matrix:
     restricted grammar over t, with t the parameter the runtime writes."""
     from ..mechanism.expressions import parse_expression
     t = sympy.Symbol("t", real=True)
+    symbols, values = input_symbols(s)
+    symbols["t"], values[t] = t, s.scalar("t")
     parts = s.cls.function.split(";")
-    return sympy.Matrix([parse_expression(x, {"t": t}, source="<load class>", line=None,
-                                          item=s.cls.name).subs(t, s.scalar("t"))
+    return sympy.Matrix([parse_expression(x, symbols, source="<load class>", line=None,
+                                          item=s.cls.name).xreplace(values)
                          for x in parts])
+
+
+def input_symbols(s: ClassSymbols) -> tuple[dict, dict]:
+    """(name -> real symbol, symbol -> the class's parameter) of the inputs the class
+    reads: an input is a parameter held constant over a step (its derivative in t is
+    zero), written by the runtime between steps."""
+    from ..plan.classes import input_parameter
+    symbols = {n: sympy.Symbol(n, real=True) for n in s.cls.inputs}
+    return symbols, {x: s.scalar(input_parameter(n)) for n, x in symbols.items()}
 
 
 def force_t(s: ClassSymbols) -> Outputs:

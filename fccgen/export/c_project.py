@@ -268,7 +268,9 @@ def keep_initial_speeds(solver, keys, result):
 
 def model_inputs(plan) -> list:
     """(name, start value, parameter slots) of the model's inputs."""
-    return []
+    from ..runtime.inputs import input_slots
+    slots = input_slots(plan)
+    return [(name, float(x0), slots[name]) for name, x0 in plan.model.inputs.items()]
 
 
 def render_files(solver, name, result, table, keys, inputs) -> dict[str, str]:

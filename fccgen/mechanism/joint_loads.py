@@ -32,20 +32,20 @@ class JointUse:
     triples: tuple[str, ...]
 
 
-def used_families(function: str, joint_names) -> list[tuple[str, str]]:
+def used_families(function: str, joint_names, inputs=()) -> list[tuple[str, str]]:
     """(joint, family) pairs named in ``function`` ("ex;ex;ex", checked by the
     grammar when the model was loaded), in order of first use; read again by the
     grammar over every joint quantity, never evaluated."""
     import sympy
 
     from .expressions import parse_expression
-    names = {"t"} | {f"{j}.{q}" for j in joint_names for q in FAMILY}
+    names = {"t", *inputs} | {f"{j}.{q}" for j in joint_names for q in FAMILY}
     symbols = {n: sympy.Symbol(n, real=True) for n in names}
     out = []
     for part in function.split(";"):
         e = parse_expression(part, symbols, source="<load>", line=None, item="value")
         for s in sorted(e.free_symbols, key=str):
-            if s.name == "t":
+            if s.name == "t" or s.name in inputs:         # the time, the model's inputs
                 continue
             joint, quantity = s.name.rsplit(".", 1)
             pair = (joint, FAMILY[quantity])
@@ -58,7 +58,8 @@ def with_joint_uses(lowerer, ld):
     """``ld`` (a Force or Torque) with its JointUse list set; other loads unchanged."""
     if not isinstance(ld, (Force, Torque)) or not ld.function:
         return ld
-    pairs = used_families(ld.function, lowerer.by_joint)
+    pairs = used_families(ld.function, lowerer.by_joint,
+                          tuple(getattr(lowerer.model, "inputs", {})))
     if not pairs:
         return ld
     uses = []

@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import ModelError
+from .inputs import NOT_IN_DRIVERS, refuse_inputs
 from .fields import Reader, child, listing
 from .types import GROUND, Driver, Joint, Where
 from .yamlnodes import YMap, YNode, YScalar
@@ -133,8 +134,11 @@ class DriverReader(Reader):
         else:
             text = node.plain()
         t = sympy.Symbol("t", real=True)
-        expr = parse_expression(text, {"t": t}, source=self.source, line=node.line,
-                                item=item)
+        inputs = getattr(self, "inputs", {})
+        expr = parse_expression(text, {"t": t, **{n: sympy.Symbol(n, real=True)
+                                                  for n in inputs}},
+                                source=self.source, line=node.line, item=item)
+        refuse_inputs(self, expr, inputs, node.line, item, text, NOT_IN_DRIVERS)
         text = " ".join((text if isinstance(text, str) else repr(text)).split())
         if not integrate:
             self.smooth_at_start(expr, t, node.line, item, text)

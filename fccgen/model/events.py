@@ -22,6 +22,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from .inputs import NOT_IN_EVENTS, refuse_inputs
 from .fields import Reader, child
 from .types import Joint, Where
 from .yamlnodes import YNode, YScalar
@@ -102,8 +103,13 @@ class EventReader(Reader):
         from ..mechanism.expressions import parse_event_function
         when = e["when"]
         text = when.value if isinstance(when, YScalar) else None
-        s, direction = parse_event_function(text, self.symbols, source=self.source,
+        import sympy
+        inputs = getattr(self, "inputs", {})
+        symbols = {**self.symbols, **{n: sympy.Symbol(n, real=True) for n in inputs}}
+        s, direction = parse_event_function(text, symbols, source=self.source,
                                             line=when.line, item=child(item, "when"))
+        refuse_inputs(self, s, inputs, when.line, child(item, "when"), text,
+                      NOT_IN_EVENTS)
         if "direction" in e:
             direction = self.choice(e["direction"], child(item, "direction"), DIRECTIONS,
                                     "direction")

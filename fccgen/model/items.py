@@ -8,6 +8,7 @@ import numpy as np
 
 from ..methods import METHODS as REGISTRY
 from ..run_settings import LINEAR_SOLVERS, RunSettingError, schedule
+from .inputs import NOT_IN_POINT_FORCES, refuse_inputs
 from .fields import Reader, child, listing
 from .types import (Angle, AngularVelocity, Body, BodyPoint, Constraint, Distance, Force,
                     Initial, JointSpring, Load, Point, PointOnLine, PointOnPlane,
@@ -185,9 +186,11 @@ class ItemReader(Reader):
         from ..mechanism.expressions import parse_expression
         from .events import joint_quantities
         seq = self.sequence(node, item, 3)
+        point_force = names is not None
         if names is None:
             names = ["t", *(q for j in self.joints.values() for q in joint_quantities(j))]
-        t = {n: sympy.Symbol(n, real=True) for n in names}
+        inputs = getattr(self, "inputs", {})
+        t = {n: sympy.Symbol(n, real=True) for n in [*names, *inputs]}
         parts = []
         for k, n in enumerate(seq.items):
             text = n.value if isinstance(n, YScalar) and isinstance(
@@ -195,7 +198,12 @@ class ItemReader(Reader):
                                                    else n.plain())
             expr = parse_expression(text, t, source=self.source, line=n.line,
                                     item=child(item, k))
-            self.load_expression_rules(expr, t, n.line, child(item, k), text)
+            if point_force:
+                refuse_inputs(self, expr, inputs, n.line, child(item, k), text,
+                              NOT_IN_POINT_FORCES)
+            # the start's checks with the inputs at their start values
+            at_start = expr.subs({t[name]: x for name, x in inputs.items()})
+            self.load_expression_rules(at_start, t, n.line, child(item, k), text)
             parts.append(" ".join((text if isinstance(text, str) else repr(text)).split()))
         return np.zeros(3), ";".join(parts)
 
@@ -218,9 +226,11 @@ class ItemReader(Reader):
                                 "computed without them)", text)
         value = expr.subs({s: 0 for s in symbols.values()})
         if not finite_value(value):
+            held = ", every input at its start value" if getattr(self, "inputs", None) \
+                else ""
             raise self.fail(line, item, "is not a finite number at the start (t = 0, "
-                            f"every joint quantity 0: {sympy.sstr(value)}); 1/A.angle, "
-                            "log(t), sin(t)/t are not", text)
+                            f"every joint quantity 0{held}: {sympy.sstr(value)}); "
+                            "1/A.angle, log(t), sin(t)/t are not", text)
 
     def point_force(self, node: YNode, item: str) -> PointForce:
         """``{type: force, point: P, value: [x, y, z]}``: a force on a moving point (a

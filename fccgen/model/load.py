@@ -15,6 +15,7 @@ from ..methods import EVENT_METHODS, names as _method_names
 from . import checks
 from .events import EventReader
 from .fields import IDENTIFIER, IDENTIFIER_RULE, Reader, child, listing
+from .inputs import read_inputs
 from .items import ItemReader
 from .cables import CableReader
 from .drivers import DriverReader
@@ -32,7 +33,7 @@ MAX_NAME_LENGTH = 64          # the model name becomes a module name and a C sym
 # Keys of each kind of mapping: (required, optional).
 TOP_KEYS = (("name", "points", "bodies"),
             ("gravity", "vectors", "constraints", "loads", "initial", "simulate", "joints",
-             "drivers", "events", "cables"))
+             "drivers", "events", "cables", "inputs"))
 POINT_KEYS = (("at",), ("fixed",))
 VECTOR_KEYS = (("along",), ("fixed",))
 BODY_KEYS = (("points", "vector", "mass", "inertia"), ("center",))
@@ -113,26 +114,38 @@ class _ModelReader(Reader):
         joints = []
         if "joints" in e:
             joints = self.mechanism.joints(e["joints"], [*self.bodies, *self.pose_bodies])
+        inputs = {}
+        if "inputs" in e:                  # before the sections whose expressions read them
+            inputs = read_inputs(self, e["inputs"], self.claim,
+                                 set(TOP_KEYS[0]) | set(TOP_KEYS[1]))
+        self.driver_reader.inputs = inputs
         drivers = []
         if "drivers" in e:
             drivers = self.driver_reader.drivers(e["drivers"], joints, self.points)
         items = ItemReader(self.source, self.points, {**self.bodies, **self.pose_bodies},
                            self.vectors)
         items.joints = {j.name: j for j in joints}
+        items.inputs = inputs
         constraints = items.constraints(e["constraints"]) if "constraints" in e else []
         loads = items.loads(e["loads"]) if "loads" in e else []
         initial = items.initial(e["initial"], joints) if "initial" in e else Initial()
         simulate = items.simulate(e.get("simulate"), METHODS,
                                   self.values_per_output(cables))
-        events = EventReader(self.source, self.points, joints, drivers).events(
-            e.get("events"))
+        event_reader = EventReader(self.source, self.points, joints, drivers)
+        event_reader.inputs = inputs
+        events = event_reader.events(e.get("events"))
+        for ev in events:
+            if ev.name in inputs:
+                raise self.fail(ev.where.line, "events", "names an event like the input "
+                                f"on line {self.names[ev.name][1]}; names must differ",
+                                ev.name)
         self.check_event_method(events, simulate, e.get("simulate"))
         return Model(name=name, source=self.source, gravity=gravity, points=self.points,
                      vectors=self.vectors, bodies=self.bodies, constraints=constraints,
                      loads=loads, initial=initial, simulate=simulate,
                      where={k: self.where(line) for k, line in top.key_lines.items()},
                      pose_bodies=self.pose_bodies, joints=joints, drivers=drivers,
-                     events=events, cables=cables)
+                     events=events, cables=cables, inputs=inputs)
 
     def check_event_method(self, events, simulate, node) -> None:
         """Events are located by the rk4 and dopri5 methods only (the compiled run

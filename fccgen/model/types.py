@@ -319,6 +319,7 @@ class Model:
     events: list = field(default_factory=list)    # fccgen.model.events.Event
     cables: dict = field(default_factory=dict)    # name -> fccgen.model.cables.Cable
     slopes: dict = field(default_factory=dict)    # name -> Slope (cable nodes, lowered)
+    inputs: dict = field(default_factory=dict)    # name -> start value (docs/model-file.md)
 
     @property
     def moving_points(self) -> list[Point]:

@@ -32,6 +32,7 @@ import numpy as np
 
 from .elements import KIND_KERNELS, ForceKernels, TorqueKernels, turned
 from .kinematics import cross
+from .mechanism_kernels import input_values
 
 # -- first-order forward differentiation over several variables -----------------------
 
@@ -150,6 +151,8 @@ class _JointLoad:
         super().__init__(cls, q, v, p)
         x, n = self.x, cls.n_q
         env = {"t": (x.s["t"], np.zeros(2 * n))}       # gradient over (q, q')
+        for name, value in input_values(cls, x.s).items():   # constant over a step
+            env[name] = (value, np.zeros(2 * n))
         for joint, family in cls.joint_families:
             prefix = f"{joint}.{family}."
             if family == "angle":

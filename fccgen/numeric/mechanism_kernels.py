@@ -106,6 +106,12 @@ KIND_KERNELS.update({"driver_angle": DriverAngleKernels,
 
 
 
+def input_values(cls, scalars) -> dict:
+    """name -> value of the inputs the class reads (its parameters "input:NAME")."""
+    from ..plan.classes import input_parameter
+    return {n: scalars[input_parameter(n)] for n in cls.inputs}
+
+
 class _TimedLoad:
     """A load of time (kinds force_t, torque_t): the constant-load kernels with the
     components (names) set to the class's three functions at the parameter t."""
@@ -114,8 +120,9 @@ class _TimedLoad:
     def __init__(self, cls, q, v, p):
         super().__init__(cls, q, v, p)
         t = self.x.s["t"]
+        inputs = input_values(cls, self.x.s)
         for name, text in zip(self.names, cls.function.split(";")):
-            self.x.s[name] = time_function(text)(t)[0]
+            self.x.s[name] = time_function(text)(t, inputs)[0]
 
 
 class ForceTKernels(_TimedLoad, ForceKernels):

@@ -65,6 +65,9 @@ class Recorder:
         out["energy"].append(s.energy(q, v))
         out["constraint_error"].append(_amax(s.constraints(q)))
         out["work"].append(float(work))
+        hold = getattr(s, "hold_inputs", None)  # solvers with inputs (NumericSolver)
+        if hold is not None:
+            hold(len(out["t"]) - 1)             # the inputs' row of this record
 
     def arrays(self) -> dict[str, np.ndarray]:
         """The records (with "work" only when a power was integrated: tracked)."""

@@ -26,6 +26,8 @@ from ..results import InitialState, Result, timed_run
 from .constrained import RankKeeper, constrained_solve, scaled_residual
 from ..runtime.energy_check import check_energy, kinetic_peak
 from ..runtime.guards import check_constraint_drift, divergence_bounds
+from ..runtime.inputs import input_run
+from ..plan.classes import input_parameter
 from .dopri5 import simulate_dopri5
 from .runs import RunContext, simulate_baumgarte, simulate_rk4, simulate_scipy
 from .work import work_power
@@ -63,6 +65,7 @@ class NumericSolver:
                             for k, el in enumerate(plan.elements)
                             if "t" in el.cls.param_names]
         self.t = 0.0
+        self._held = None                 # the inputs of a run (fccgen.runtime.inputs)
         # turn counting of springs and loads of joint angles (numeric/references.py)
         self.references = AngleReferences(plan, self._params, self._index)
 
@@ -71,6 +74,21 @@ class NumericSolver:
         accepted step of a run; numeric/references.py)."""
         if self.references:
             self.references.rebase(q)
+
+    def hold_inputs(self, record: int) -> None:
+        """Set the inputs to their row of the record just written (a run with inputs
+        that change: fccgen.runtime.inputs; they hold until the next record)."""
+        held = self._held
+        if held is not None and not held.constant:
+            self._put_inputs(held, held.table[record])
+
+    def _put_inputs(self, held, row) -> None:
+        """Write the inputs' values ``row`` (in held.names order) into the parameters
+        of the elements that read them."""
+        for k, el in enumerate(self.plan.elements):
+            for name in el.cls.inputs:
+                self._params[k][el.cls.param_names.index(input_parameter(name))] = \
+                    row[held.names.index(name)]
 
     def set_time(self, t) -> None:
         """Evaluate the kernels at the time t from now on (models with drivers)."""
@@ -283,14 +301,18 @@ class NumericSolver:
     def simulate(self, t_end=None, dt=None, method=None, output_dt=None, project=True,
                  q0=None, v0=None, progress=None, rtol=None, atol=None,
                  reactions=True, event_tol=1e-12, rest_speed=1e-6, error=None,
-                 error_on=None, **method_options) -> Result:
+                 error_on=None, inputs=None, **method_options) -> Result:
         """Integrate from (q0, v0), used as given; when q0 is None the consistent
         initial state is used, and when only v0 is None plan.v_target is projected at
         q0. The arguments mean what they mean for
         :meth:`fccgen.runtime.CompiledSolver.simulate`; defaults of t_end, dt, method
         and output_dt come from the model file; error, error_on: an error target
         (fccgen.target_error). Events (numeric/events.py) are located by rk4 and dopri5
-        with projection, as in the compiled runtime."""
+        with projection, as in the compiled runtime. inputs: as the compiled
+        runtime's (fccgen.runtime.inputs): sampled at the output times, held between."""
+        if error is not None and inputs:
+            raise ValueError("an error target (error=) chooses its own runs; give "
+                             "inputs to a run with a method and step instead")
         if error is not None:
             from ..target_error import simulate_to_error
             return simulate_to_error(self, error, error_on, t_end=t_end, output_dt=output_dt,
@@ -303,6 +325,22 @@ class NumericSolver:
         m = registry.get(d.method if method is None else method, tuple(INTEGRATORS))
         opts = registry.options_for(m, rtol, atol, method_options)
         sched = registry.schedule(m, d, t_end, dt, output_dt, opts)
+        held = input_run(self.plan, inputs, m.name, sched)
+        if held is None:
+            return self._simulate_held(m, opts, sched, dt, project, q0, v0, progress,
+                                       reactions, event_tol, rest_speed)
+        self._held = held
+        self._put_inputs(held, held.table[0])
+        try:
+            return self._simulate_held(m, opts, sched, dt, project, q0, v0, progress,
+                                       reactions, event_tol, rest_speed)
+        finally:
+            self._held = None
+            self._put_inputs(held, [self.plan.model.inputs[n] for n in held.names])
+
+    def _simulate_held(self, m, opts, sched, dt, project, q0, v0, progress, reactions,
+                       event_tol, rest_speed) -> Result:
+        """One run (:meth:`simulate`) with the inputs set."""
         self.set_time(0.0)
         if q0 is None:
             init = self.initial_state()

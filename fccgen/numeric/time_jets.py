@@ -80,17 +80,19 @@ UNARY = {
 }
 
 
-def _eval(node: ast.AST, t: Jet) -> Jet:
+def _eval(node: ast.AST, t: Jet, env=None) -> Jet:
     if isinstance(node, ast.Constant) and isinstance(node.value, (int, float)) \
             and not isinstance(node.value, bool):
         return _const(node.value)
     if isinstance(node, ast.Name) and node.id in ("t", "pi"):
         return t if node.id == "t" else _const(math.pi)
+    if isinstance(node, ast.Name) and env and node.id in env:   # an input: constant
+        return _const(env[node.id])
     if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.USub, ast.UAdd)):
-        u = _eval(node.operand, t)
+        u = _eval(node.operand, t, env)
         return tuple(-x for x in u) if isinstance(node.op, ast.USub) else u
     if isinstance(node, ast.BinOp):
-        a, b = _eval(node.left, t), _eval(node.right, t)
+        a, b = _eval(node.left, t, env), _eval(node.right, t, env)
         if isinstance(node.op, ast.Add):
             return tuple(x + y for x, y in zip(a, b))
         if isinstance(node.op, ast.Sub):
@@ -102,7 +104,7 @@ def _eval(node: ast.AST, t: Jet) -> Jet:
         if isinstance(node.op, ast.Pow):
             return _power(a, b)
     if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and not node.keywords:
-        args = [_eval(a, t) for a in node.args]
+        args = [_eval(a, t, env) for a in node.args]
         name = node.func.id
         if name in UNARY and len(args) == 1:
             return UNARY[name](args[0])
@@ -136,14 +138,15 @@ def table_jet(text: str) -> Callable[[float], Jet]:
 @lru_cache(maxsize=None)
 def time_function(text: str) -> Callable[[float], Jet]:
     """t -> (f(t), f'(t), f''(t)) of the expression ``text`` in t (or of a table,
-    :func:`table_jet`)."""
+    :func:`table_jet`); ``evaluate(t, inputs)`` reads the model's inputs (name ->
+    value, held constant: zero derivatives) from the mapping ``inputs``."""
     if text.startswith("table:"):
         return table_jet(text)
     tree = ast.parse(text.strip(), mode="eval").body
 
-    def evaluate(time: float) -> Jet:
+    def evaluate(time: float, inputs=None) -> Jet:
         try:
-            return _eval(tree, (float(time), 1.0, 0.0))
+            return _eval(tree, (float(time), 1.0, 0.0), inputs)
         except ValueError as exc:         # the user's text, never a syntax tree
             raise ValueError(f"the expression {text.strip()!r}: {exc}") from None
     return evaluate

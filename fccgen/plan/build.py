@@ -13,7 +13,7 @@ from ..model.types import (Angle, Attached, BodyPoint, Distance, DriverRow, Forc
                            TorsionSpring, Where)
 from .cables import (cable_columns, cable_elements, point_force_element,
                      slope_normal_element)
-from .classes import END_FOLDABLE, FOLDABLE, ElementClass
+from .classes import END_FOLDABLE, FOLDABLE, INPUT_KINDS, ElementClass, input_parameter
 from .geometry import body_frame_numbers, body_rotation, point_coefficients
 from .joint_loads import joint_load_element
 
@@ -133,6 +133,11 @@ class _Builder:
 
     def element(self, kind, label, where, scalars: dict, triples: list, ends=(),
                 function: str = ""):
+        from ..model.inputs import names_read
+        known = getattr(self.model, "inputs", {})
+        inputs = names_read(function, known) if kind in INPUT_KINDS else ()
+        scalars = {**scalars, **{input_parameter(n): float(known[n])
+                                 for n in inputs}}
         fixed, slots, fixed_vals = [], [], []
         for _, model_name in triples:
             moving, val = self.triple(model_name)
@@ -144,7 +149,7 @@ class _Builder:
         foldable = FOLDABLE[kind] | {n for n in scalars if n.split(".")[-1] in END_FOLDABLE
                                      and "." in n}
         zeros = frozenset(n for n, v in scalars.items() if n in foldable and v == 0.0)
-        cls = ElementClass(kind, tuple(ends), tuple(fixed), zeros, function)
+        cls = ElementClass(kind, tuple(ends), tuple(fixed), zeros, function, inputs)
         params = np.array([scalars[n] for n in cls.scalar_names] + fixed_vals, float)
         return Element(cls, label, tuple(slots), params, where)
 

@@ -150,6 +150,15 @@ TIMED_LOAD_KINDS.update(TIMED_POINT_KINDS)
 MECHANISM_KINDS.update(CABLE_KINDS)
 MECHANISM_KINDS.update(TIMED_POINT_KINDS)
 FUNCTION_KINDS = (*DRIVER_KINDS, *TIMED_LOAD_KINDS, *JOINT_LOAD_KINDS)
+# Loads whose expressions may read the model's inputs (docs/model-file.md, "Inputs"):
+# each input a class reads is one more scalar, "input:NAME", that the runtime writes
+# between steps (as it writes "t" at every stage).
+INPUT_KINDS = ("force_t", "torque_t", *JOINT_LOAD_KINDS)
+
+
+def input_parameter(name: str) -> str:
+    """The scalar name of the input ``name`` in the classes that read it."""
+    return f"input:{name}"
 for _kind, (_scalars, _ends, _triples, _foldable, _rows) in MECHANISM_KINDS.items():
     KIND_SCALARS[_kind] = _scalars
     KIND_ENDS[_kind] = _ends
@@ -168,6 +177,8 @@ class ElementClass:
     zeros: frozenset[str]          # scalar names folded to zero
     function: str = ""             # drivers: f(t); timed loads: "ex;ex;ex" (grammar of
                                    # fccgen.mechanism.expressions, in t)
+    inputs: tuple[str, ...] = ()   # the model's inputs the function reads (sorted): each
+                                   # a parameter "input:NAME" the runtime writes
 
     def __post_init__(self):
         if self.kind not in KIND_SCALARS:
@@ -182,6 +193,8 @@ class ElementClass:
         if bool(self.function) != (self.kind in FUNCTION_KINDS):
             raise ValueError(f"{self.kind}: a function of time belongs to driver and "
                              "timed-load classes only, and every one of them has one")
+        if self.inputs and self.kind not in INPUT_KINDS:
+            raise ValueError(f"{self.kind}: only loads of time read inputs")
 
     @cached_property
     def joint_families(self) -> tuple[tuple[str, str], ...]:
@@ -201,7 +214,7 @@ class ElementClass:
         for end, end_kind in zip(KIND_ENDS[self.kind], self.ends):
             if end_kind == "body_point":
                 names += [f"{end}.{s}" for s in BODY_POINT_SCALARS]
-        return tuple(names)
+        return tuple(names) + tuple(input_parameter(n) for n in self.inputs)
 
     @cached_property
     def triple_names(self) -> tuple[str, ...]:
@@ -265,6 +278,8 @@ class ElementClass:
                "fixed": [int(f) for f in self.fixed], "zeros": sorted(self.zeros)}
         if self.function:
             key["function"] = self.function
+        if self.inputs:
+            key["inputs"] = list(self.inputs)
         return json.dumps(key, sort_keys=True, separators=(",", ":"))
 
     @cached_property

@@ -173,6 +173,20 @@ cdef class Assembler:
             raise MemoryError("cannot allocate the time slots")
         fcc_put_time(&self.a, self.a.t)
 
+    def put_params(self, slots, values):
+        """Write values[i] into the concatenated parameters at slots[i] (the model's
+        inputs, fccgen.runtime.inputs): later assemblies read them."""
+        cdef int[::1] s = np.ascontiguousarray(slots, dtype=np.intc)
+        cdef double[::1] x = np.ascontiguousarray(values, dtype=float)
+        cdef int j
+        if s.shape[0] != x.shape[0]:
+            raise ValueError("need one value per slot")
+        for j in range(s.shape[0]):
+            if s[j] < 0 or s[j] >= self.model.n_p:
+                raise ValueError(f"parameter slot {s[j]} out of range ({self.model.n_p})")
+        for j in range(s.shape[0]):
+            self.a.params[s[j]] = x[j]
+
     def set_time(self, double t):
         """Evaluate every later assembly at the time t (see set_time_slots)."""
         fcc_put_time(&self.a, t)

@@ -25,9 +25,35 @@ from ._messages import error_message
 from fccgen.results import keep_rows
 
 
+cdef struct held_inputs:
+    # the model's inputs held between records (fccgen.runtime.inputs): after record j
+    # the slots take row j of the table; then the run's wall-clock pause rule
+    fcc_rk4 *r
+    double *params
+    double *deadline
+    int n_slots, n_cols
+    const int *slot
+    const int *col
+    const double *table
+    long applied             # the record whose row the parameters hold
+
+
+cdef int pause_holding_inputs(void *ctx) noexcept nogil:
+    """The pause callback of a run with inputs (called after every step): a step
+    that wrote record j sets the inputs to row j, for the steps up to the next one."""
+    cdef held_inputs *h = <held_inputs *>ctx
+    cdef long j = h.r.n_out - 1
+    cdef int i
+    if j != h.applied:
+        for i in range(h.n_slots):
+            h.params[h.slot[i]] = h.table[j * h.n_cols + h.col[i]]
+        h.applied = j
+    return past_deadline(h.deadline)
+
+
 def simulate_rk4(Engine engine, q0, v0, double t_end, double dt, long n_steps,
                  long output_every, bint project, progress=None,
-                 double progress_interval=0.5, events=None, work=None):
+                 double progress_interval=0.5, events=None, work=None, inputs=None):
     """Classical RK4 from (q0, v0) (used as given) over n_steps steps of dt, the last
     one shortened to end at t_end; after each step, if project, position then velocity
     projection. Records t = 0, every output_every steps and t_end.
@@ -39,14 +65,19 @@ def simulate_rk4(Engine engine, q0, v0, double t_end, double dt, long n_steps,
     newton_iterations (total), max_newton_iterations, projection_failures,
     max_constraint_error. Raises SimulationError (with the time and what failed) on a
     singular mass matrix, a non-finite state or one past the divergence bounds.
+
+    inputs: None, or (slots, columns, table) of fccgen.runtime.inputs: the parameter
+    slots[i] holds table[j, columns[i]] from record j to record j + 1 (row 0 from the
+    start; one row per record).
     """
     return _simulate(engine, q0, v0, t_end, dt, n_steps, output_every, project, False,
-                     0.0, 0.0, progress, progress_interval, events, work)
+                     0.0, 0.0, progress, progress_interval, events, work, inputs)
 
 
 def simulate_baumgarte(Engine engine, q0, v0, double t_end, double dt, long n_steps,
                        long output_every, double alpha, double beta, progress=None,
-                       double progress_interval=0.5, events=None, work=None):
+                       double progress_interval=0.5, events=None, work=None,
+                       inputs=None):
     """RK4 on the index-1 equations with Baumgarte stabilisation,
     B q'' = -(dB/dt) q' - 2 alpha B q' - beta^2 g, without projection; otherwise as
     :func:`simulate_rk4` (same arguments, records and stats; events: a set without
@@ -54,12 +85,12 @@ def simulate_baumgarte(Engine engine, q0, v0, double t_end, double dt, long n_st
     if not (alpha >= 0 and beta >= 0):
         raise ValueError("Baumgarte alpha and beta must be non-negative")
     return _simulate(engine, q0, v0, t_end, dt, n_steps, output_every, False, True,
-                     alpha, beta, progress, progress_interval, events, work)
+                     alpha, beta, progress, progress_interval, events, work, inputs)
 
 
 def _simulate(Engine engine, q0, v0, double t_end, double dt, long n_steps,
               long output_every, bint project, bint baumgarte, double alpha, double beta,
-              progress, double progress_interval, events=None, work=None):
+              progress, double progress_interval, events=None, work=None, inputs=None):
     """The shared driver of simulate_rk4 and simulate_baumgarte."""
     if engine.c.running:
         raise RuntimeError("this engine is already running a simulation")
@@ -96,6 +127,28 @@ def _simulate(Engine engine, q0, v0, double t_end, double dt, long n_steps,
     r.out.cerr = array_data(arrays["constraint_error"])
     r.saved = array_data(saved)
     r.pause, r.pause_ctx = past_deadline, &deadline
+    cdef held_inputs held
+    cdef int i
+    cdef int[::1] in_slot, in_col
+    cdef double[::1] in_table
+    if inputs is not None:
+        in_slot = np.ascontiguousarray(inputs[0], dtype=np.intc)
+        in_col = np.ascontiguousarray(inputs[1], dtype=np.intc)
+        table = np.ascontiguousarray(inputs[2], dtype=float)
+        if (table.ndim != 2 or table.shape[0] != n_out or in_slot.shape[0] != in_col.shape[0]
+                or in_slot.shape[0] == 0 or np.any(np.asarray(in_col) < 0)
+                or np.any(np.asarray(in_col) >= table.shape[1])
+                or np.any(np.asarray(in_slot) < 0)
+                or np.any(np.asarray(in_slot) >= engine.asm.model.n_p)):
+            raise ValueError("inputs: slots, columns and a table of one row per record")
+        in_table = table.reshape(-1)
+        held.r, held.params, held.deadline = &r, engine.c.asmb.params, &deadline
+        held.n_slots, held.n_cols = in_slot.shape[0], table.shape[1]
+        held.slot, held.col, held.table = &in_slot[0], &in_col[0], &in_table[0]
+        held.applied = 0
+        for i in range(held.n_slots):              # row 0 from the start
+            held.params[held.slot[i]] = held.table[held.col[i]]
+        r.pause, r.pause_ctx = pause_holding_inputs, &held
     r.ev = ev_state(events)
     r.pw = power_state(work)
     r.w_out = array_data(work_out)

@@ -33,6 +33,7 @@ from .energy_check import check_energy, kinetic_peak, work_tracker
 from .guards import check_constraint_drift
 from .setup_reuse import SetupStore, kept_decision, kept_initial_state
 from .turns import REBASING, turn_check
+from .inputs import input_run
 
 
 def _available_methods() -> tuple[str, ...]:
@@ -292,7 +293,7 @@ class CompiledSolver:
     def simulate(self, t_end=None, dt=None, method=None, output_dt=None, project=True,
                  q0=None, v0=None, progress=None, rtol=None, atol=None,
                  reactions=True, event_tol=1e-12, rest_speed=1e-6, error=None,
-                 error_on=None, **method_options) -> Result:
+                 error_on=None, inputs=None, **method_options) -> Result:
         """Integrate from (q0, v0), used as given, to t_end. q0 None: the consistent
         :meth:`initial_state`; only v0 None: the model's initial speeds projected at q0.
 
@@ -317,7 +318,14 @@ class CompiledSolver:
         error_on: the points or columns it is measured on): the method and its setting
         are chosen by a measured pilot and the run reports ``info["error_estimate"]``
         (fccgen.target_error, docs/accuracy.md).
+        inputs: the model's inputs, name -> a number, a function of t or a table
+        (times, values), sampled at each output time and held until the next
+        (fccgen.runtime.inputs, docs/model-file.md "Inputs"); an input not given keeps
+        its start value.
         """
+        if error is not None and inputs:
+            raise ValueError("an error target (error=) chooses its own runs; give "
+                             "inputs to a run with a method and step instead")
         if error is not None:
             from ..target_error import simulate_to_error
             return simulate_to_error(self, error, error_on, t_end=t_end, output_dt=output_dt,
@@ -330,20 +338,34 @@ class CompiledSolver:
         args = dict(t_end=t_end, dt=dt, method=method, output_dt=output_dt,
                     project=project, q0=q0, v0=v0, progress=progress, rtol=rtol,
                     atol=atol, reactions=reactions, event_tol=event_tol,
-                    rest_speed=rest_speed, **method_options)
+                    rest_speed=rest_speed, inputs=inputs, **method_options)
         # On the sparse path, a run whose motion leaves the pattern of A read at the
         # written positions (a model written in a plane that moves out of it) stops at
         # the first such assembly and is run again on the full pattern, once.
         return self._engine_call(lambda engine: self._simulate_once(**args))
 
     def _simulate_once(self, t_end, dt, method, output_dt, project, q0, v0, progress,
-                       rtol, atol, reactions, event_tol, rest_speed,
+                       rtol, atol, reactions, event_tol, rest_speed, inputs=None,
                        **method_options) -> Result:
         """One run (:meth:`simulate`)."""
         d = self.plan.model.simulate
         m = registry.get(d.method if method is None else method, METHODS)
         opts = registry.options_for(m, rtol, atol, method_options)
         sched = registry.schedule(m, d, t_end, dt, output_dt, opts)
+        held = input_run(self.plan, inputs, m.name, sched)
+        if held is not None:                     # the start's values (constant: all)
+            self._asm.put_params(held.slots, held.table[0, held.columns])
+        try:
+            return self._simulate_held(m, opts, sched, held, dt, project, q0, v0,
+                                       progress, reactions, event_tol, rest_speed)
+        finally:
+            if held is not None:                 # direct calls see the start values
+                self._asm.put_params(held.slots, [self.plan.model.inputs[held.names[c]]
+                                                  for c in held.columns])
+
+    def _simulate_held(self, m, opts, sched, held, dt, project, q0, v0, progress,
+                       reactions, event_tol, rest_speed) -> Result:
+        """One run (:meth:`simulate`) with the inputs set (``held``)."""
         self.set_time(0.0)
         self.setup_store.start_run()
         q0, v0 = self._start_state(q0, v0)
@@ -356,7 +378,7 @@ class CompiledSolver:
 
         def run():
             arrays, stats = self._run(m, sched, opts, project, q0, v0, report, events,
-                                      tracker)
+                                      tracker, held)
             kept["work"] = arrays.get("work") if tracker is not None else None
             return arrays, stats
         try:
@@ -513,19 +535,25 @@ class CompiledSolver:
             v0 = self.project_velocities(q0, self.plan.v_target)
         return q0, v0
 
-    def _run(self, m, sched, opts, project, q0, v0, report, events=None, work=None):
-        """(arrays, stats) of one run of method m."""
+    def _run(self, m, sched, opts, project, q0, v0, report, events=None, work=None,
+             held=None):
+        """(arrays, stats) of one run of method m (held: inputs that change over the
+        run, fccgen.runtime.inputs; rk4 and baumgarte only)."""
         s, e = sched, self._engine
+        held = None if held is None or held.constant or not len(held.slots) else (
+            held.slots, held.columns, held.table)
         if model_events(self.plan) and m.name not in ("rk4", "dopri5"):
             raise ValueError(f"events are located by the rk4 and dopri5 methods, not "
                              f"by {m.name}")
         if m.name == "rk4":
             return simulate_rk4(e, q0, v0, s.t_end, s.dt, s.n_steps, s.every, project,
-                                report, self.progress_interval, events=events, work=work)
+                                report, self.progress_interval, events=events, work=work,
+                                inputs=held)
         if m.name == "baumgarte":
             return simulate_baumgarte(e, q0, v0, s.t_end, s.dt, s.n_steps, s.every,
                                       opts["alpha"], opts["beta"], report,
-                                      self.progress_interval, events=events, work=work)
+                                      self.progress_interval, events=events, work=work,
+                                      inputs=held)
         if m.name == "dopri5":
             return simulate_dopri5(e, q0, v0, s.t_end, s.output_dt, opts["rtol"],
                                    opts["atol"], s.dt or 0.0, project, report,
