@@ -158,3 +158,27 @@ def test_a_bus_torque_driven_from_fmpy_equals_simulate_inputs(fmu, sparse):
     assert_equal_runs(fmu_run(fmu, input=signal), result)
     plain = solver.simulate(t_end=LATCHED, output_dt=0.01, reactions=False)
     assert np.max(np.abs(plain["bus.wz"] - result["bus.wz"])) > 1e-3   # the torque acted
+
+
+def test_a_stop_event_ends_the_exported_run_where_simulate_ends(build_dir, tmp_path):
+    """pendulum_limit with its log event made a stop: the example's last row is the
+    stop's time and state, as simulate's last record; step_to returns 1 from then on."""
+    text = (EXAMPLES / "pendulum_limit.yaml").read_text()
+    assert "do: log" in text
+    model = tmp_path / "pendulum_stop.yaml"
+    model.write_text(text.replace("do: log", "do: stop")
+                     .replace("name: pendulum_limit", "name: pendulum_stop"))
+    folder = export_c(model, tmp_path / "stop_c", build_dir)
+    run([MAKE, "-s", f"CC={CC}", f"CFLAGS={STRICT}"], folder)
+    run(["./pendulum_stop_example", "out.csv"], folder)
+    assert run(["./pendulum_stop_selftest"], folder).strip() == "selftest passed"
+    rows = np.loadtxt(folder / "out.csv", delimiter=",", skiprows=1, ndmin=2)
+    result = fccgen.load(model, build_dir, linear_solver="sparse").simulate(reactions=False)
+    assert result.t[-1] < 3.0 - 1e-9 and result.events[-1]["action"] == "stop"
+    assert rows.shape[0] == len(result.t) and rows[-1, 0] == pytest.approx(result.t[-1],
+                                                                           abs=1e-15)
+    scale = np.maximum(np.max(np.abs(rows), axis=0), 1e-300)
+    want = np.column_stack([result.t] + [result[n] for n in
+                                         (folder / "out.csv").read_text().split("\n")[0]
+                                         .split(",")[1:]])
+    assert np.all(np.abs(rows - want) <= 1e-12 * scale)
