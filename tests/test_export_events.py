@@ -18,7 +18,9 @@ them as fccgen simulate does.
   except constraint_error: max |g| after the projection is rounding (1e-12 of the
   model's size), whose digits differ once a parameter is set as base + slope (x - x0)
   instead of from the model file; it is compared to 1e-11 absolute (below the
-  position tolerance, 1e-11 here).
+  position tolerance, 1e-11 here);
+* a stop event (pendulum_limit's log event made a stop) ends the C example and the
+  FMU (fmi2Discard, fmi2LastSuccessfulTime) where simulate's run ends.
 """
 from __future__ import annotations
 
@@ -182,3 +184,10 @@ def test_a_stop_event_ends_the_exported_run_where_simulate_ends(build_dir, tmp_p
                                          (folder / "out.csv").read_text().split("\n")[0]
                                          .split(",")[1:]])
     assert np.all(np.abs(rows - want) <= 1e-12 * scale)
+    # the FMU: doStep returns fmi2Discard, FMPy reads fmi2LastSuccessfulTime and ends
+    fmpy = pytest.importorskip("fmpy")
+    from fccgen.export.fmu import export_fmu
+    fmu_rows = fmpy.simulate_fmu(str(export_fmu(model, tmp_path / "stop.fmu", build_dir)),
+                                 stop_time=3.0, output_interval=0.01)
+    assert fmu_rows["time"][-1] == pytest.approx(result.t[-1], abs=1e-15)
+    assert fmu_rows["A.angle"][-1] == pytest.approx(result["A.angle"][-1], rel=1e-12)
