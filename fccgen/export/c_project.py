@@ -5,7 +5,9 @@ DIR receives the model's generated kernels, the engine's C sources (renamed to t
 model's prefix by ``<name>_names.h``), the constants the Python build's set-up decided
 (``<name>_data.h``), the API (``<name>.h``, ``<name>_api.c``), ``example.c``,
 ``selftest.c`` (golden values of a Python run at export time), ``Makefile``,
-``CMakeLists.txt`` and ``README.md``. It builds with a C99 compiler and libm alone.
+``CMakeLists.txt`` and ``README.md``; for a model with events or turn-counting springs
+also the event kernels (``events.c``, ``events.h``) and their settings (fccgen.export
+.c_events). It builds with a C99 compiler and libm alone.
 """
 from __future__ import annotations
 
