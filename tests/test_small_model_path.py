@@ -21,8 +21,8 @@ from fccgen.runtime._sparse import SparseEngine
 # (examples with events too: both paths run them, engine/fcc_events.c)
 SPARSE = ["a01_pendulum", "double_pendulum", "four_bar", "four_bar_driven", "free_body",
           "rsup", "spatial_double_pendulum", "spherical_pendulum",
-          "solar_array_boom_latched", "tape_spring_hinge", "panel_latch", "panel_input", "tape_spring_table",
-          "pendulum_limit", "solar_array"]
+          "solar_array_boom_latched", "tape_spring_hinge", "panel_latch", "panel_input",
+          "tape_spring_table", "pendulum_limit", "solar_array", "solar_array_input"]
 # examples of SPARSE_MIN_COORDINATES coordinates or more (members' nodes and slopes)
 LARGE = {"a02_n_four_bar", "scissor_boom", "cantilever", "flexible_pendulum",
          "solar_array_boom", "andrews"}

@@ -441,31 +441,15 @@ class CompiledSolver:
                 raise ValueError(f"model {model.name!r} has events: give the solver its "
                                  "event module (fccgen.events.build.load_events)")
             return None
-        from ..events.constants import values
         from ._events import EventSet
-        qty = list(self.events_module.QUANTITY_NAMES)
-
-        def row(joint, kinds):
-            for kind in kinds:
-                if joint is not None and f"{joint}.{kind}" in qty:
-                    return qty.index(f"{joint}.{kind}")
-            return -1
-        rows = [row(e.joint, ("angle", "position")) for e in model.events]
-        rows2 = [row(e.joint, ("position",)) if r >= 0 and qty[r].endswith(".angle")
-                 else -1 for e, r in zip(model.events, rows)]
-        angle_rows = [k for k, name in enumerate(qty) if name.endswith(".angle")]
-        constants = values(self.plan, [qty[k].split(".")[0] for k in angle_rows])
-        events = EventSet(self.events_module, self.n_q,
-                          [e.direction for e in model.events],
-                          [e.action for e in model.events], rows, rows2,
-                          [e.restitution for e in model.events], angle_rows, tol=tol,
-                          v_rest=rest_speed, constants=constants)
-        from ..events.references import reference_slots
-        slots = reference_slots(self.plan)
-        if slots:
-            names = [qty[k].split(".")[0] for k in angle_rows]
-            events.mirror(self._asm, [slot for slot, _ in slots],
-                          [names.index(name) for _, name in slots])
+        from .event_settings import MAX_PER_STEP, event_settings
+        st = event_settings(self.plan, self.events_module)
+        events = EventSet(self.events_module, self.n_q, st.directions, st.actions,
+                          st.rows, st.rows2, st.restitution, st.angle_rows, tol=tol,
+                          v_rest=rest_speed, max_per_step=MAX_PER_STEP,
+                          constants=st.constants)
+        if st.mirror_slots:
+            events.mirror(self._asm, st.mirror_slots, st.mirror_angles)
         return events
 
     def decide_rank(self, q) -> rank_rule.RankDecision:

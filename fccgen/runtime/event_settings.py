@@ -1,0 +1,49 @@
+"""The settings of a model's compiled events (engine/fcc_events.h, fcc_event_spec):
+per event its direction, action, joint rows and restitution; the angle quantities'
+rows; the event kernels' constants; and where the element kernels keep copies of the
+angle references (torsion springs, loads of joint angles). One source for the Python
+build's EventSet (fccgen.runtime.solver) and the export's data header
+(fccgen.export.c_events)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+# more events than this in one step: a Zeno sequence, the contact rests
+MAX_PER_STEP = 50
+
+
+@dataclass(frozen=True)
+class EventSettings:
+    directions: list          # per event: "rising", "falling" or "either"
+    actions: list             # per event: an fccgen.runtime._events.ACTIONS name
+    rows: list                # per event: its joint's first quantity row, or -1
+    rows2: list               # ... second row (cylindrical), or -1
+    restitution: list
+    angle_rows: list          # the quantity rows that are joint angles
+    constants: list           # the event kernels' numbers after the angle references
+    mirror_slots: list        # element parameter index of each copied reference (th)
+    mirror_angles: list       # ... its angle (index among the angle quantities)
+
+
+def event_settings(plan, module) -> EventSettings:
+    """The settings of ``module`` (the model's event module) for ``plan``."""
+    from ..events.constants import values
+    from ..events.references import reference_slots
+    events = plan.model.events
+    qty = list(module.QUANTITY_NAMES)
+
+    def row(joint, kinds):
+        for kind in kinds:
+            if joint is not None and f"{joint}.{kind}" in qty:
+                return qty.index(f"{joint}.{kind}")
+        return -1
+    rows = [row(e.joint, ("angle", "position")) for e in events]
+    rows2 = [row(e.joint, ("position",)) if r >= 0 and qty[r].endswith(".angle")
+             else -1 for e, r in zip(events, rows)]
+    angle_rows = [k for k, name in enumerate(qty) if name.endswith(".angle")]
+    names = [qty[k].split(".")[0] for k in angle_rows]
+    slots = reference_slots(plan)
+    return EventSettings([e.direction for e in events], [e.action for e in events],
+                         rows, rows2, [e.restitution for e in events], angle_rows,
+                         [float(x) for x in values(plan, names)],
+                         [slot for slot, _ in slots], [names.index(n) for _, n in slots])

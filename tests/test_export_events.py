@@ -1,0 +1,193 @@
+"""Events and turn-counting springs in the exports (docs/export.md, "Events"): the
+event kernels and their settings travel in the project and the exported engine runs
+them as fccgen simulate does.
+
+* examples/solar_array.yaml (two lock events), pendulum_limit (a log event) and
+  tape_spring_hinge (no event, a spring whose angle counts turns): the project builds
+  under -std=c99 -Wall -Wextra -pedantic -Werror, its example's CSV equals fccgen
+  simulate on the sparse path to 1e-12 of each column's largest magnitude (the same C
+  engine, events located by the same Illinois iterations, only the compiler's flags
+  differ; measured 2e-16), and its selftest passes;
+* no heap allocation from the solar array's start to its end (3000 steps, both
+  latches): the events' work is allocated at create;
+* FMPy runs the FMU of examples/solar_array_input.yaml (the solar array with a bus
+  torque input) over 2.5 s, through both latches: with the input at its start value
+  it equals fccgen simulate of solar_array.yaml; with a panel mass set through
+  start_values it equals with_parameters; with the input driven from a table it
+  equals simulate(inputs=...) with the table. To 1e-10 of each column's magnitude,
+  except constraint_error: max |g| after the projection is rounding (1e-12 of the
+  model's size), whose digits differ once a parameter is set as base + slope (x - x0)
+  instead of from the model file; it is compared to 1e-11 absolute (below the
+  position tolerance, 1e-11 here);
+* a stop event (pendulum_limit's log event made a stop) ends the C example and the
+  FMU (fmi2Discard, fmi2LastSuccessfulTime) where simulate's run ends.
+"""
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import EXAMPLES
+
+import fccgen
+from fccgen.export import export_c
+
+CC = shutil.which("cc") or shutil.which("gcc")
+MAKE = shutil.which("make")
+STRICT = "-std=c99 -Wall -Wextra -pedantic -Werror -O2"
+HERE = Path(__file__).resolve().parent
+LATCHED = 2.5          # s: past both latches (1.25 s and 2.06 s)
+
+pytestmark = pytest.mark.skipif(CC is None or MAKE is None
+                                or not sys.platform.startswith("linux"),
+                                reason="needs a C compiler, make and GNU ld (Linux)")
+
+
+def run(cmd, cwd):
+    done = subprocess.run(cmd, cwd=cwd, capture_output=True, text=True)
+    assert done.returncode == 0, f"{cmd}: {done.stdout}\n{done.stderr}"
+    return done.stdout
+
+
+@pytest.fixture(scope="session")
+def sparse(build_dir):
+    cache = {}
+
+    def get(name):
+        if name not in cache:
+            cache[name] = fccgen.load(EXAMPLES / f"{name}.yaml", build_dir,
+                                      linear_solver="sparse")
+        return cache[name]
+    return get
+
+
+@pytest.fixture(scope="session")
+def project(build_dir, tmp_path_factory):
+    root = tmp_path_factory.mktemp("export_events")
+    cache = {}
+
+    def get(name):
+        if name not in cache:
+            folder = export_c(EXAMPLES / f"{name}.yaml", root / name, build_dir)
+            run([MAKE, "-s", f"CC={CC}", f"CFLAGS={STRICT}"], folder)
+            cache[name] = folder
+        return cache[name]
+    return get
+
+
+@pytest.mark.parametrize("name", ["solar_array", "pendulum_limit", "tape_spring_hinge"])
+def test_the_example_runs_the_events_as_simulate(name, project, sparse):
+    folder = project(name)
+    run([f"./{name}_example", "out.csv"], folder)
+    names = (folder / "out.csv").read_text().splitlines()[0].split(",")
+    rows = np.loadtxt(folder / "out.csv", delimiter=",", skiprows=1, ndmin=2)
+    result = sparse(name).simulate(reactions=False)
+    assert rows.shape == (len(result.t), len(names))
+    for k, column in enumerate(names):
+        want = result.t if column == "t" else result[column]
+        scale = max(float(np.max(np.abs(want))), 1e-300)
+        assert np.max(np.abs(rows[:, k] - want)) <= 1e-12 * scale, column
+    if name == "solar_array":          # both latches happened in the run compared
+        assert [e["name"] for e in result.events] == ["panel_latch", "root_latch"]
+    assert run([f"./{name}_selftest"], folder).strip() == "selftest passed"
+
+
+def test_no_heap_allocation_while_the_solar_array_latches(project, tmp_path):
+    folder = project("solar_array")
+    exe = tmp_path / "alloc"
+    run([CC, "-std=c99", "-O2", f"-I{folder}", "-DMODEL=solar_array",
+         "-DHEADER=solar_array.h", str(HERE / "c" / "export_alloc.c"),
+         str(folder / "libsolar_array.a"), "-o", str(exe),
+         "-Wl,--wrap=malloc,--wrap=calloc,--wrap=realloc,--wrap=free", "-lm"], tmp_path)
+    lines = run([str(exe)], tmp_path).splitlines()
+    assert int(lines[0].split()[1]) > 20          # the set-up's, events' work included
+    words = lines[1].split()
+    assert words[0] == "allocations" and int(words[1]) == 0 and int(words[3]) == 3000
+
+
+@pytest.fixture(scope="session")
+def fmu(build_dir, tmp_path_factory):
+    from fccgen.export.fmu import export_fmu
+    return export_fmu(EXAMPLES / "solar_array_input.yaml",
+                      tmp_path_factory.mktemp("fmu_events") / "solar_array_input.fmu",
+                      build_dir)
+
+
+def assert_equal_runs(rows, result):
+    assert np.array_equal(rows["time"], result.t)
+    for name in rows.dtype.names[1:]:
+        want = result[name]
+        if name == "constraint_error":
+            assert np.max(np.abs(rows[name] - want)) <= 1e-11
+            continue
+        scale = max(float(np.max(np.abs(want))), 1e-300)
+        assert np.max(np.abs(rows[name] - want)) <= 1e-10 * scale, name
+
+
+def fmu_run(fmu, **kw):
+    fmpy = pytest.importorskip("fmpy")
+    return fmpy.simulate_fmu(str(fmu), stop_time=LATCHED, output_interval=0.01, **kw)
+
+
+def test_the_fmu_latches_as_simulate(fmu, sparse):
+    result = sparse("solar_array").simulate(t_end=LATCHED, output_dt=0.01, reactions=False)
+    assert [e["name"] for e in result.events] == ["panel_latch", "root_latch"]
+    assert_equal_runs(fmu_run(fmu), result)
+
+
+def test_a_panel_mass_from_start_values_equals_with_parameters(fmu, sparse):
+    values = {"bodies.panel2.mass": 12.0}
+    solver = sparse("solar_array").with_parameters(values)
+    result = solver.simulate(t_end=LATCHED, output_dt=0.01, reactions=False)
+    assert len(result.events) == 2 and result.events[0]["t"] > 1.3   # later latches
+    assert_equal_runs(fmu_run(fmu, start_values=values), result)
+
+
+def test_a_bus_torque_driven_from_fmpy_equals_simulate_inputs(fmu, sparse):
+    times = np.array([0.0, 0.5, 1.0, 1.6, LATCHED])
+    torque = np.array([0.0, 0.8, -0.5, 0.3, 0.0])
+    signal = np.array(list(zip(times, torque)),
+                      dtype=[("time", np.float64), ("bus_torque", np.float64)])
+    solver = sparse("solar_array_input")
+    result = solver.simulate(t_end=LATCHED, output_dt=0.01, reactions=False,
+                             inputs={"bus_torque": (times, torque)})
+    assert len(result.events) == 2
+    assert_equal_runs(fmu_run(fmu, input=signal), result)
+    plain = solver.simulate(t_end=LATCHED, output_dt=0.01, reactions=False)
+    assert np.max(np.abs(plain["bus.wz"] - result["bus.wz"])) > 1e-3   # the torque acted
+
+
+def test_a_stop_event_ends_the_exported_run_where_simulate_ends(build_dir, tmp_path):
+    """pendulum_limit with its log event made a stop: the example's last row is the
+    stop's time and state, as simulate's last record; step_to returns 1 from then on."""
+    text = (EXAMPLES / "pendulum_limit.yaml").read_text()
+    assert "do: log" in text
+    model = tmp_path / "pendulum_stop.yaml"
+    model.write_text(text.replace("do: log", "do: stop")
+                     .replace("name: pendulum_limit", "name: pendulum_stop"))
+    folder = export_c(model, tmp_path / "stop_c", build_dir)
+    run([MAKE, "-s", f"CC={CC}", f"CFLAGS={STRICT}"], folder)
+    run(["./pendulum_stop_example", "out.csv"], folder)
+    assert run(["./pendulum_stop_selftest"], folder).strip() == "selftest passed"
+    rows = np.loadtxt(folder / "out.csv", delimiter=",", skiprows=1, ndmin=2)
+    result = fccgen.load(model, build_dir, linear_solver="sparse").simulate(reactions=False)
+    assert result.t[-1] < 3.0 - 1e-9 and result.events[-1]["action"] == "stop"
+    assert rows.shape[0] == len(result.t) and rows[-1, 0] == pytest.approx(result.t[-1],
+                                                                           abs=1e-15)
+    scale = np.maximum(np.max(np.abs(rows), axis=0), 1e-300)
+    want = np.column_stack([result.t] + [result[n] for n in
+                                         (folder / "out.csv").read_text().split("\n")[0]
+                                         .split(",")[1:]])
+    assert np.all(np.abs(rows - want) <= 1e-12 * scale)
+    # the FMU: doStep returns fmi2Discard, FMPy reads fmi2LastSuccessfulTime and ends
+    fmpy = pytest.importorskip("fmpy")
+    from fccgen.export.fmu import export_fmu
+    fmu_rows = fmpy.simulate_fmu(str(export_fmu(model, tmp_path / "stop.fmu", build_dir)),
+                                 stop_time=3.0, output_interval=0.01)
+    assert fmu_rows["time"][-1] == pytest.approx(result.t[-1], abs=1e-15)
+    assert fmu_rows["A.angle"][-1] == pytest.approx(result["A.angle"][-1], rel=1e-12)
