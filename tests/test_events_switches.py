@@ -156,10 +156,11 @@ def test_initial_angles_share_one_event_module(build_dir, tmp_path, monkeypatch)
     there (the example's point arm_center moved by with_parameters) its angle still
     reads 0 at the start and follows the arm: the angle from the arm's centre,
     atan2(-z, x) - phi, to 1e-12 rad (rounding of the atan2 of both)."""
+    import fccgen.build.companion as companion
     import fccgen.events.build as events_build
     compiles = []
-    real = events_build.compile_sources
-    monkeypatch.setattr(events_build, "compile_sources",
+    real = companion.compile_sources
+    monkeypatch.setattr(companion, "compile_sources",
                         lambda *a, **k: compiles.append(a[2]) or real(*a, **k))
     built = []
     for phi in (0.0, 0.3):
