@@ -18,21 +18,8 @@
 #include "kernels.h"
 #include "model_data.h"
 
-static __thread long allocations;      /* this thread's calls, while counting */
-static __thread int counting;
-
-void *__real_malloc(size_t n);
-void *__real_calloc(size_t n, size_t size);
-void *__real_realloc(void *p, size_t n);
-void __real_free(void *p);
-void *__wrap_malloc(size_t n) { allocations += counting; return __real_malloc(n); }
-void *__wrap_calloc(size_t n, size_t size)
-{
-    allocations += counting;
-    return __real_calloc(n, size);
-}
-void *__wrap_realloc(void *p, size_t n) { allocations += counting; return __real_realloc(p, n); }
-void __wrap_free(void *p) { allocations += counting; __real_free(p); }
+#define ALLOC_COUNT_STORAGE static __thread   /* each thread's calls, while counting */
+#include "alloc_count.h"
 
 typedef struct instance {
     fcc_assembly a;

@@ -12,21 +12,7 @@
 #define API(f) CAT(MODEL, CAT(_, f))
 #include STR(HEADER)
 
-static long allocations;
-static int counting;
-
-void *__real_malloc(size_t n);
-void *__real_calloc(size_t n, size_t size);
-void *__real_realloc(void *p, size_t n);
-void __real_free(void *p);
-void *__wrap_malloc(size_t n) { allocations += counting; return __real_malloc(n); }
-void *__wrap_calloc(size_t n, size_t size)
-{
-    allocations += counting;
-    return __real_calloc(n, size);
-}
-void *__wrap_realloc(void *p, size_t n) { allocations += counting; return __real_realloc(p, n); }
-void __wrap_free(void *p) { allocations += counting; __real_free(p); }
+#include "alloc_count.h"
 
 int main(void)
 {
