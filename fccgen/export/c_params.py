@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..plan import make_plan
-from ..runtime.params import set_parameters
+from ..runtime.params import set_parameters, value_of
 
 # relative agreement of the straight-line and additivity checks (plan arithmetic is
 # a few roundings per parameter)
@@ -42,15 +42,8 @@ def candidate_keys(model) -> list[str]:
 
 
 def current_value(model, key: str) -> float:
-    """The number a key addresses now."""
-    from ..runtime.params import _target, split_key
-    tokens = split_key(key)
-    component = tokens.pop() if len(tokens) > 1 and isinstance(tokens[-1], int) else None
-    obj, name, _ = _target(model, tokens, key)
-    value = getattr(obj, name)
-    if name == "inertia":
-        return float(np.asarray(value)[component, component])
-    return float(value if component is None else np.asarray(value)[component])
+    """The number a key addresses now, in the model file's terms."""
+    return float(value_of(model, key))
 
 
 def flat_params(plan) -> np.ndarray:

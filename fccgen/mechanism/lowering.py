@@ -58,6 +58,11 @@ class Lowering:
     labels: dict[str, list[str]] = field(default_factory=dict)   # joint -> labels
     drivers: list = field(default_factory=list)       # fccgen.model.types.Driver
     made: list = field(default_factory=list)          # points and vectors it named
+    # body -> (r_i, R, F): the FCC frame's origin and rotation at the initial
+    # configuration and the pose frame of the file (columns x, y, z, global), so that
+    # numbers the file gives in its own terms (an inertia in ``frame``, the global mass
+    # centre) can be set again in those terms (fccgen.runtime.params)
+    poses: dict = field(default_factory=dict)
 
     def internal(self) -> list[str]:
         """The points and vectors the lowering made that a user did not name: all it
@@ -171,7 +176,9 @@ class _Lowerer:
         made = [n for n in [*self.points, *self.vectors]
                 if n not in m.points and n not in m.vectors]
         out.mechanism = Lowering(self.lowered, self.frames, self.labels,
-                                 list(m.drivers), made)
+                                 list(m.drivers), made,
+                                 {n: (*self.rotations[n], np.asarray(b.frame, float))
+                                  for n, b in m.pose_bodies.items()})
         return out
 
     def driver_vectors(self, d) -> tuple[str, str, str]:

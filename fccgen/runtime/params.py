@@ -158,16 +158,70 @@ def check_key(model, key: str) -> None:
     _target(model, tokens, str(key))
 
 
+def _pose(model, tokens: list):
+    """(r_i, R, F) of a body the file gave by its pose (``bodies.NAME`` with ``center``
+    and ``frame``), else None: its inertia and centre are stored in the FCC body frame,
+    and its keys address them in the file's terms (docs/model-file.md)."""
+    if tokens[0] != "bodies" or len(tokens) < 2:
+        return None
+    poses = getattr(getattr(model, "mechanism", None), "poses", None) or {}
+    return poses.get(tokens[1])
+
+
+def _six(I: np.ndarray) -> np.ndarray:
+    return np.array([I[0, 0], I[1, 1], I[2, 2], I[0, 1], I[0, 2], I[1, 2]])
+
+
+def _file_terms(pose, name: str, value):
+    """A body's stored inertia or centre as the model file gives it."""
+    ri, R, F = pose
+    if name == "inertia":
+        FR = F.T @ R
+        return FR @ np.asarray(value, float) @ FR.T
+    return ri + R @ np.asarray(value, float)
+
+
+def _stored_terms(pose, name: str, value):
+    """The inverse of :func:`_file_terms`."""
+    ri, R, F = pose
+    if name == "inertia":
+        FR = F.T @ R
+        I = FR.T @ np.asarray(value, float) @ FR
+        return 0.5 * (I + I.T)
+    return R.T @ (np.asarray(value, float) - ri)
+
+
+def value_of(model, key: str):
+    """The number (or list) at ``key``, in the model file's terms; an inertia as its
+    six components [Ixx, Iyy, Izz, Ixy, Ixz, Iyz] in the body's ``frame``."""
+    tokens = split_key(str(key))
+    component = tokens.pop() if len(tokens) > 1 and isinstance(tokens[-1], int) else None
+    obj, name, _ = _target(model, tokens, str(key))
+    value = _get(obj, name)
+    pose = _pose(model, tokens)
+    if pose is not None and name in ("inertia", "center"):
+        value = _file_terms(pose, name, value)
+    if name == "inertia":
+        value = _six(np.asarray(value, float))
+    if component is None:
+        return value if np.ndim(value) == 0 else np.asarray(value, float)
+    return float(np.asarray(value, float)[component]) \
+        if component < np.size(value) else float("nan")
+
+
 def _set_one(model, key: str, value) -> None:
     tokens = split_key(key)
     component = tokens.pop() if len(tokens) > 1 and isinstance(tokens[-1], int) else None
     obj, name, where = _target(model, tokens, key)
     line = getattr(where, "line", None)
     src = model.source
+    pose = _pose(model, tokens) if name in ("inertia", "center") else None
     if name == "inertia":
-        _set_inertia(obj, value, component, key, src, line)
+        _set_inertia(obj, value, component, key, src, line, pose)
         return
     old = _get(obj, name)
+    if pose is not None:
+        old = _file_terms(pose, name, old)
     if np.ndim(old) == 0:
         if component is not None:
             raise ModelError(src, line, key, f"{name} is one number, not a list",
@@ -191,6 +245,8 @@ def _set_one(model, key: str, value) -> None:
         problem = checks.unit_vector_problem(new)
         if problem:
             raise ModelError(src, line, key, problem, show_value=False)
+    if pose is not None:
+        new = _stored_terms(pose, name, new)
     _put(obj, name, tuple(new) if isinstance(old, tuple) else new)
 
 
@@ -201,11 +257,11 @@ def _check_rule(rule: str, x: float, key, source, line) -> None:
         raise ModelError(source, line, key, "must be a number >= 0", x)
 
 
-def _set_inertia(body, value, component, key, source, line) -> None:
+def _set_inertia(body, value, component, key, source, line, pose=None) -> None:
     """Inertia as [Ixx, Iyy, Izz, Ixy, Ixz, Iyz] (or 3 principal values); a component
-    indexes that list of six."""
-    I = body.inertia
-    six = np.array([I[0, 0], I[1, 1], I[2, 2], I[0, 1], I[0, 2], I[1, 2]])
+    indexes that list of six. A pose-form body's are in its ``frame``, as in the file."""
+    I = body.inertia if pose is None else _file_terms(pose, "inertia", body.inertia)
+    six = _six(I)
     if component is not None:
         if component > 5:
             raise ModelError(source, line, key, "an inertia component is 0 to 5 "
@@ -220,7 +276,7 @@ def _set_inertia(body, value, component, key, source, line) -> None:
     problem = checks.inertia_problem(tensor)
     if problem:
         raise ModelError(source, line, key, problem, show_value=False)
-    body.inertia = tensor
+    body.inertia = tensor if pose is None else _stored_terms(pose, "inertia", tensor)
 
 
 def _check_body_geometry(model, body) -> None:

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...errors import ModelError
-from ..params import _target, _get, split_key
+from ..params import _target, split_key, value_of
 
 RUN_SETTINGS = ("t_end", "dt", "output_dt")
 # The relative size of the difference: large, so that rounding (eps |P| / d) is small.
@@ -31,22 +31,16 @@ def current_value(model, key: str) -> float:
     if name in RUN_SETTINGS:
         raise ModelError(model.source, line, key, "is a setting of the run, not a number "
                          "of the model: it has no sensitivity", show_value=False)
-    if name == "inertia":
-        I = obj.inertia
-        six = [I[0, 0], I[1, 1], I[2, 2], I[0, 1], I[0, 2], I[1, 2]]
-        if component is None:
-            raise ModelError(model.source, line, key, "an inertia sensitivity is per "
-                             "component: add [k], k = 0..5 (Ixx, Iyy, Izz, Ixy, Ixz, Iyz)",
-                             show_value=False)
-        return float(six[component]) if component < 6 else float("nan")
-    value = _get(obj, name)
-    if np.ndim(value) == 0:
-        return float(value)
-    if component is None:
+    if name == "inertia" and component is None:
+        raise ModelError(model.source, line, key, "an inertia sensitivity is per "
+                         "component: add [k], k = 0..5 (Ixx, Iyy, Izz, Ixy, Ixz, Iyz)",
+                         show_value=False)
+    value = value_of(model, key)
+    if np.ndim(value) != 0:
         raise ModelError(model.source, line, key, f"{name} is a list: a sensitivity is "
                          "with respect to one number, add its component [k]",
                          show_value=False)
-    return float(np.asarray(value, dtype=float)[component]) if component < 3 else float("nan")
+    return float(value)
 
 
 def _numbers(solver, key: str, x: float):
