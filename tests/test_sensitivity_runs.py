@@ -40,8 +40,8 @@ CASES = {
     "double_pendulum": ["bodies.rod1.mass", "bodies.rod2.inertia[1]",
                         "bodies.rod2.center[0]", "gravity[1]"],
     "four_bar_driven": ["bodies.coupler.mass", "bodies.rocker.center[0]",
-                        "bodies.crank.inertia[1]"],
-    "rsup": ["bodies.slider.mass", "bodies.rod.inertia[1]", "bodies.crank.center[0]"],
+                        "bodies.crank.inertia[2]"],
+    "rsup": ["bodies.slider.mass", "bodies.rod.inertia[1]", "bodies.crank.center[2]"],
     "sprung_pendulum": ["loads[0].stiffness", "loads[0].damping", "loads[0].length",
                         "loads[1].value[0]"],
     # torsion springs on joint angles counted over turns (references re-based between
