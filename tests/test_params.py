@@ -59,6 +59,21 @@ def test_with_parameters_is_editing_the_model_file(solver, build_dir, tmp_path, 
     assert changed.module is solver.module               # nothing rebuilt or reloaded
 
 
+
+def test_inertia_components_set_together_are_judged_as_one_tensor(solver):
+    """rod2's [1.2e-4, 0.03206, 0.03206]: Iyy = 0.05 alone breaks Iyy <= Ixx + Izz,
+    with Izz = 0.05 beside it the tensor is fine; its rules still hold for the set."""
+    with pytest.raises(ModelError, match="triangle inequality"):
+        solver.with_parameters({"bodies.rod2.inertia[1]": 0.05})
+    moved = solver.with_parameters({"bodies.rod2.inertia[1]": 0.05,
+                                    "bodies.rod2.inertia[2]": 0.05})
+    assert np.allclose(value_of(moved.plan.model, "bodies.rod2.inertia"),
+                       [1.2e-4, 0.05, 0.05, 0, 0, 0], rtol=1e-15, atol=0)
+    with pytest.raises(ModelError, match=r"inertia\[1\], bodies.rod2.inertia\[2\]: "
+                                         "principal moments"):
+        solver.with_parameters({"bodies.rod2.inertia[1]": 0.05,
+                                "bodies.rod2.inertia[2]": 0.2})
+
 RSUP = EXAMPLES / "rsup.yaml"
 
 

@@ -69,10 +69,20 @@ def _unknown(key, source, why="is not a number fccgen can set") -> ModelError:
 
 def set_parameters(model, values: dict):
     """A copy of ``model`` with the given numbers set and checked (ModelError when a
-    key names nothing settable or a value breaks a rule of the model file)."""
+    key names nothing settable or a value breaks a rule of the model file). A body's
+    inertia is checked once all its components are set, so that several components
+    moved together are judged as the tensor they make."""
     model = copy.deepcopy(model)
+    inertias = {}
     for key, value in values.items():
-        _set_one(model, str(key), value)
+        touched = _set_one(model, str(key), value)
+        if touched is not None:
+            inertias.setdefault(id(touched[0]), (touched[0], []))[1].append(touched[1:])
+    for body, keys in inertias.values():
+        problem = checks.inertia_problem(body.inertia)
+        if problem:
+            raise ModelError(model.source, keys[-1][1], ", ".join(k for k, _ in keys),
+                             problem, show_value=False)
     for body in model.bodies.values():
         _check_body_geometry(model, body)
     return model
@@ -209,7 +219,9 @@ def value_of(model, key: str):
         if component < np.size(value) else float("nan")
 
 
-def _set_one(model, key: str, value) -> None:
+def _set_one(model, key: str, value):
+    """Set one number; for an inertia, (body, key, line) for the check that waits until
+    every key is set (set_parameters), else None."""
     tokens = split_key(key)
     component = tokens.pop() if len(tokens) > 1 and isinstance(tokens[-1], int) else None
     obj, name, where = _target(model, tokens, key)
@@ -218,7 +230,7 @@ def _set_one(model, key: str, value) -> None:
     pose = _pose(model, tokens) if name in ("inertia", "center") else None
     if name == "inertia":
         _set_inertia(obj, value, component, key, src, line, pose)
-        return
+        return obj, key, line
     old = _get(obj, name)
     if pose is not None:
         old = _file_terms(pose, name, old)
@@ -272,10 +284,7 @@ def _set_inertia(body, value, component, key, source, line, pose=None) -> None:
         if seq.shape not in ((3,), (6,)):
             raise ModelError(source, line, key, "must be a list of 3 or 6 numbers", value)
         six = np.array([_number(v, key, source, line) for v in seq])
-    tensor = checks.inertia_tensor(six)
-    problem = checks.inertia_problem(tensor)
-    if problem:
-        raise ModelError(source, line, key, problem, show_value=False)
+    tensor = checks.inertia_tensor(six)       # its rules: set_parameters, once all are set
     body.inertia = tensor if pose is None else _stored_terms(pose, "inertia", tensor)
 
 
