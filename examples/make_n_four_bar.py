@@ -12,6 +12,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from fccgen.example_models import size_arguments
+
 LENGTH = 1.0          # m, every bar
 MASS = 1.0            # kg, every bar, uniformly distributed
 GRAVITY = 9.81        # N/kg, along -y
@@ -81,9 +83,10 @@ def model_text(n: int) -> str:
 
 
 def main(argv: list[str]) -> int:
-    n = int(argv[0]) if argv else 40
-    if len(argv) > 1:
-        path = Path(argv[1])
+    args = size_arguments(argv, __doc__, 40, "N, the number of four-bar loops")
+    n = args.n
+    if args.path is not None:
+        path = args.path
     elif n == 40:
         path = Path(__file__).resolve().parent / "a02_n_four_bar.yaml"
     else:

@@ -16,6 +16,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from fccgen.example_models import size_arguments
+
 PANEL_MASS = 10.0          # kg
 PANEL_INERTIA = (1.667, 0.834, 0.834)   # kg m^2 about the centre, body frame
 BUS_MASS = 200.0           # kg
@@ -62,8 +64,9 @@ def _x(k: int) -> float:
 
 
 def main(argv: list[str]) -> int:
-    n = int(argv[1]) if len(argv) > 1 else 10
-    path = Path(argv[2]) if len(argv) > 2 else Path(f"{model_name(n)}.yaml")
+    args = size_arguments(argv[1:], __doc__, 10, "N, the number of panels")
+    n = args.n
+    path = args.path if args.path is not None else Path(f"{model_name(n)}.yaml")
     path.write_text(model_text(n), encoding="utf-8")
     print(f"wrote {path} ({n} panels, {n} hinges)")
     return 0

@@ -17,6 +17,8 @@ import math
 import sys
 from pathlib import Path
 
+from fccgen.example_models import size_arguments
+
 LENGTH = 1.0          # m, every rod
 MASS = 1.0            # kg, every rod, uniformly distributed
 CART_MASS = 1.0       # kg
@@ -99,8 +101,9 @@ def model_text(n: int) -> str:
 
 
 def main(argv: list[str]) -> int:
-    n = int(argv[0]) if argv else 2
-    path = Path(argv[1]) if len(argv) > 1 else Path(f"{model_name(n)}.yaml")
+    args = size_arguments(argv, __doc__, 2, "n, the number of rods")
+    n = args.n
+    path = args.path if args.path is not None else Path(f"{model_name(n)}.yaml")
     path.write_text(model_text(n))
     print(f"{path}: n = {n}, {n + 1} bodies, {3 * (n + 2)} coordinates")
     return 0

@@ -15,6 +15,8 @@ import math
 import sys
 from pathlib import Path
 
+from fccgen.example_models import size_arguments
+
 LENGTH = 1.0          # m, every bar
 MASS = 0.5            # kg, every bar, uniformly distributed
 AXIAL = 1.0e-5        # kg m^2, a small axial inertia (no effect: bars turn about z)
@@ -168,10 +170,11 @@ def model_text(n: int, *, latch: bool = True) -> str:
 
 
 def main(argv: list[str]) -> int:
-    n = int(argv[1]) if len(argv) > 1 else 12
+    args = size_arguments(argv[1:], __doc__, 12, "N, the number of scissor units")
+    n = args.n
     default = (Path(__file__).resolve().parent / "scissor_boom.yaml" if n == 12
                else Path(f"{model_name(n)}.yaml"))
-    path = Path(argv[2]) if len(argv) > 2 else default
+    path = args.path if args.path is not None else default
     path.write_text(model_text(n))
     print(f"wrote {path} ({n} units)")
     return 0

@@ -32,6 +32,8 @@ import math
 import sys
 from pathlib import Path
 
+from fccgen.example_models import size_arguments
+
 LENGTH = 1.0          # m, every bar
 MASS = 0.5            # kg, every bar, uniformly distributed
 AXIAL = 1.0e-5        # kg m^2, a small axial inertia
@@ -130,8 +132,9 @@ def model_text(n: int) -> str:
 
 
 def main(argv: list[str]) -> int:
-    n = int(argv[1]) if len(argv) > 1 else 4
-    path = Path(argv[2]) if len(argv) > 2 else Path(f"{model_name(n)}.yaml")
+    args = size_arguments(argv[1:], __doc__, 4, "N, the number of bays")
+    n = args.n
+    path = args.path if args.path is not None else Path(f"{model_name(n)}.yaml")
     path.write_text(model_text(n))
     print(f"wrote {path} ({n} bays, {6 * n} bars)")
     return 0

@@ -4,6 +4,7 @@ folder: :func:`example_path` names one, :func:`copy_examples` (``fccgen examples
 copies them all into a folder."""
 from __future__ import annotations
 
+import argparse
 import shutil
 from importlib import resources
 from pathlib import Path
@@ -57,3 +58,18 @@ def copy_examples(dest="examples", overwrite: bool = False) -> list[Path]:
         shutil.copyfile(src, target)
         written.append(target)
     return written
+
+
+def size_arguments(argv: list[str], doc: str, default: int, what: str) -> argparse.Namespace:
+    """The command line of a model-writing script (examples/make_*.py): a size n
+    (``what``, e.g. "N, the number of bays") and the file to write, both optional;
+    ``--help`` prints the script's docstring ``doc``."""
+    parser = argparse.ArgumentParser(description=doc,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("n", nargs="?", type=int, default=default,
+                        help=f"{what} (default: %(default)s)")
+    parser.add_argument("path", nargs="?", type=Path, help="the model file to write")
+    args = parser.parse_args(argv)
+    if args.n < 1:
+        parser.error(f"{what.split(',')[0]} must be at least 1, not {args.n}")
+    return args

@@ -238,7 +238,8 @@ def test_a_table_outside_the_model_folder_is_refused_unless_named(tmp_path, monk
     ("tables:\n  sin: {file: line.csv}\n", TABLE_LOAD, "tables.sin",
      "is a name of the expression grammar"),
     ("tables:\n  panel: {file: line.csv}\n", TABLE_LOAD, "tables.panel",
-     "name already used"),
+     "name already used by the body on line 3 (the names of points, vectors, bodies, "
+     "joints, drivers, cables, inputs and tables must all differ)"),
     ("tables:\n  moment: line.csv\n", TABLE_LOAD, "tables.moment", "must be a mapping"),
     (TABLES, '{type: torque, body: panel, value: [0, 0, "moment + H.angle"]}',
      "loads[0].value[2]", "'moment' is a table: call it"),

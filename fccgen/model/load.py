@@ -183,8 +183,8 @@ class _ModelReader(Reader):
         return name
 
     def claim(self, name: str, kind: str, line: int, item: str):
-        """Check a point/vector/body name and reserve it: names become result columns,
-        so they must be unique across points, vectors and bodies."""
+        """Check a name and reserve it: names become result columns and the names
+        expressions read, so they must be unique across every kind that has one."""
         if not IDENTIFIER.fullmatch(name):
             raise self.fail(line, item, IDENTIFIER_RULE, name)
         if len(name) > MAX_NAME_LENGTH:
@@ -193,8 +193,9 @@ class _ModelReader(Reader):
         if name in self.names:
             other, other_line = self.names[name]
             raise self.fail(line, item, f"name already used by the {other} on line "
-                                        f"{other_line} (point, vector and body names "
-                                        "must differ)", name)
+                                        f"{other_line} (the names of points, vectors, "
+                                        "bodies, joints, drivers, cables, inputs and "
+                                        "tables must all differ)", name)
         self.names[name] = (kind, line)
 
     # -- points and vectors ------------------------------------------------------------

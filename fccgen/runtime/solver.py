@@ -104,7 +104,10 @@ class CompiledSolver:
         self.row_groups = plan.row_groups
         self.linear_solver = linear_solver_choice(plan.model.simulate, linear_solver)
         self.setup_store = SetupStore(self)      # set-ups kept per start (setup_reuse)
-        # events run on both paths (engine/fcc_events.c): auto chooses by size alone
+        # events run on both paths (engine/fcc_events.c): auto chooses by size alone.
+        # For a small model under auto this is only the size's guess until a run's rank
+        # decision settles it (_choose_small_path); a run's info["path"] says which
+        # path it took.
         self.sparse = use_sparse(self.linear_solver, self.n_q)
         # auto below SPARSE_MIN_COORDINATES: dense until a rank decision shows the
         # sparse solve well posed (paths.small_model_path), decided again every run
