@@ -67,10 +67,9 @@ def test_a_wide_twin_that_disagrees_is_replaced_by_the_classic_one(a01, monkeypa
 
 
 def fit(method="dopri5", measured=1.0, cost_exponent=0.2, coarsest=1e-6):
-    f = Fit(method, "rtol" if method == "dopri5" else "dt", 1.0,
-            rungs=[(coarsest, 100.0, 10, 0)], measured_order=measured,
-            cost_exponent=cost_exponent)
-    return f
+    return Fit(method, "rtol" if method == "dopri5" else "dt", 1.0,
+               rungs=[(coarsest, 100.0, 10, 0)], measured_order=measured,
+               cost_exponent=cost_exponent)
 
 
 @pytest.mark.parametrize("kwargs, value, expected", [
@@ -87,3 +86,24 @@ def fit(method="dopri5", measured=1.0, cost_exponent=0.2, coarsest=1e-6):
 def test_the_twin_widens_only_where_the_pilot_shows_it_may(kwargs, value, expected):
     assert twin_factor(kwargs.get("method", "dopri5"), value, fit(**kwargs)) == expected
     assert twin_factor("dopri5", 1e-9, None) == 16.0
+
+
+def test_a_wide_twin_that_fails_is_replaced_by_the_classic_one(a01, monkeypatch):
+    # the wide twin's short run over the pilot's piece fails (as a run that leaves the
+    # motion does): the classic twin runs and the estimate says why
+    from fccgen.errors import FccgenError
+    from fccgen.target_error.pilot import Pilot
+    run = Pilot.run
+
+    def failing(self, method, setting, t_end, output_dt=None, stage="pilot"):
+        if stage == "error estimate check":
+            raise FccgenError("the step size underflowed")
+        return run(self, method, setting, t_end, output_dt, stage)
+    monkeypatch.setattr(Pilot, "run", failing)
+    result, true = run_and_true_error(a01)
+    acc = result.info["accuracy"]
+    assert acc["twin_check"]["ok"] is False
+    assert acc["twin_value"] / acc["value"] == pytest.approx(16.0)
+    assert "failed (the step size underflowed)" in acc["estimate"]
+    estimate = result.info["error_estimate"]
+    assert true <= LEVEL and true / 10 <= estimate <= 10 * true, (true, estimate)

@@ -17,7 +17,7 @@ import warnings
 
 import numpy as np
 
-from ..errors import RunWarning
+from ..errors import FccgenError, RunWarning
 from . import estimate as estimates
 from . import pilot as pilots
 from .choice import (CANDIDATES, RTOL_MAX, RTOL_MIN, SAFETY, Choice, choose, predict,
@@ -45,6 +45,7 @@ DOMINANCE = 1.25
 # piece; when that piece, in whole output intervals of the wide twin, is more than this
 # share of the run, the check would cost what the wide twin saves: the classic one runs.
 CHECK_SHARE = 0.25
+WIDE_FAILURES = (FccgenError, ArithmeticError, np.linalg.LinAlgError)
 
 
 def simulate_to_error(solver, error, error_on=None, *, t_end=None, output_dt=None,
@@ -89,7 +90,7 @@ def simulate_to_error(solver, error, error_on=None, *, t_end=None, output_dt=Non
             if progress is not None:
                 progress(f"error target {error:g}: {again.reason}")
             first = (choice, found, pilots.evaluations(result.info)
-                     + pilots.evaluations(twin.info))
+                     + pilots.evaluations(twin.info) + (found.check or {}).get("cost", 0))
             reuse = (choice.value / again.value) ** again.order >= estimates.MIN_RATIO
             previous, choice = result, again
             result, twin, found = _attempt(solver, frame, choice,
@@ -121,15 +122,16 @@ def _attempt(solver, frame, choice, progress, reactions, twin=None):
         t_check = wide_out * math.ceil(frame.t_piece / wide_out - 1e-9)
         if t_check <= CHECK_SHARE * frame.t_end:
             # both twins over the piece first: the whole wide twin runs only if they agree
-            pieces = [frame.run(choice.method, value, t_check, out,
-                                stage="error estimate check")
-                      for value, out in ((wide_value, wide_out), classic)]
-            check = estimates.piece_check(result, *pieces, frame, choice, wide_value,
-                                          classic[0], t_check)
-            check.update(cost=sum(evaluations(p.info) for p in pieces))
+            check = _check_wide(frame, choice, result, (wide_value, wide_out), classic,
+                                t_check)
+            twin = None
             if check["ok"] is not False:
-                twin = frame.run(choice.method, wide_value, frame.t_end, wide_out,
-                                 stage="error estimate")
+                try:
+                    twin = frame.run(choice.method, wide_value, frame.t_end, wide_out,
+                                     stage="error estimate")
+                except WIDE_FAILURES as exc:
+                    check.update(ok=False, failed=" ".join(str(exc).split()))
+            if twin is not None:
                 found = estimates.global_estimate(result, twin, frame, choice, wide_value)
                 found.check = check
                 return result, twin, found
@@ -140,6 +142,22 @@ def _attempt(solver, frame, choice, progress, reactions, twin=None):
     found = estimates.global_estimate(result, twin, frame, choice, twin_value)
     found.check = check
     return result, twin, found
+
+
+def _check_wide(frame, choice, result, wide, classic, t_check: float) -> dict:
+    """estimate.piece_check of the wide twin against the classic one over [0, t_check]
+    (both run there), with the cost of the two short runs; a wide twin that fails
+    (leaves the motion, the step underflows) fails the check."""
+    try:
+        pieces = [frame.run(choice.method, value, t_check, out,
+                            stage="error estimate check") for value, out in (wide, classic)]
+    except WIDE_FAILURES as exc:
+        return dict(wide=math.inf, classic=math.nan, t_check=t_check, ratio=math.nan,
+                    ok=False, cost=0.0, failed=" ".join(str(exc).split()))
+    check = estimates.piece_check(result, *pieces, frame, choice, wide[0], classic[0],
+                                  t_check)
+    check.update(cost=sum(evaluations(p.info) for p in pieces))
+    return check
 
 
 def _repeat(choice, found, error: float, output_dt: float):
@@ -169,6 +187,9 @@ def _checked(check, choice) -> str:
     if check is None:
         return ""
     where = f"over [0, {check['t_check']:.4g}]"
+    if check.get("failed"):
+        return (f"; a wider twin ({choice.setting} = {check['replaced']:.4g}) failed "
+                f"({check['failed']}), so it was not used")
     if check.get("replaced") is not None:
         return (f"; a wider twin ({choice.setting} = {check['replaced']:.4g}) estimated "
                 f"{check['wide']:.3g} {where} where this twin estimated "
