@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from .pilot import KAPPA, Fit, fixed_step
+from .pilot import KAPPA, NOMINAL_ORDER, PILOT_FRACTION, Fit, fixed_step
 
 # Aim at half the target: the pilot's prediction is an extrapolation (in the setting
 # and in time); the final estimate checks it. Halving the error costs 2^(1/4) = 1.19x
@@ -27,6 +27,15 @@ CANDIDATES = ("dopri5", "rk4", "ali3p")
 # Andrews' mechanism) or its stability (rk4 on the heavy top: stable at dt = 5 ms,
 # diverging at 10 ms).
 EXTRAPOLATION = {"dopri5": 4.0, "rk4": 4.0, "ali3p": 4.0}
+# The coarse twin of the estimate, widest first: rk4 at 4, 3 or 2 times the run's step
+# (a quarter, a third or half a run), dopri5 at a tolerance 256, 64 or 16 times looser
+# (about 0.33, 0.44 or 0.57 of a run); the widest whose setting the pilot's rungs cover
+# (twin_factor), checked on the pilot's piece (estimate.piece_check).
+WIDE_TWIN = {"rk4": (4, 3, 2), "dopri5": (256.0, 64.0, 16.0)}
+# ... only when the pilot measured an order within this share of the nominal one: a
+# lower or higher one (A01 at 1e-3: rk4 3.5, A02: dopri5 0.77) is a pre-asymptotic
+# range, where the wide twin's estimate was 2.2 to 2.9 times the classic one's.
+ORDER_MATCH = 0.1
 
 
 @dataclass
@@ -40,25 +49,48 @@ class Choice:
     roundoff: float = 0.0         # round-off per step (pilot.ROUNDOFF_PER_STEP)
     reason: str = ""
     candidates: list = field(default_factory=list)
+    fit: Fit | None = field(default=None, repr=False)   # the pilot's fit of the method
 
     @property
     def label(self) -> str:
         return f"{self.method} with {self.setting} = {self.value:.4g}"
 
 
-def twin_setting(method: str, value: float, output_dt: float) -> tuple[float, float]:
-    """(setting, output_dt) of the coarse twin of a run: twice the step (on every
-    output time when the doubled step still divides the output interval, else on
-    every other one), or a tolerance KAPPA times looser."""
+def twin_factor(method: str, value: float, fit: Fit | None) -> float:
+    """How much coarser the twin of a run is: the widest of WIDE_TWIN[method] whose
+    setting stays within one pilot rung (KAPPA) beyond the pilot's coarsest rung, where
+    the order the estimate divides by was measured (the fit's rungs), when the pilot
+    measured the method's nominal order (within ORDER_MATCH: the rungs are in the
+    asymptotic range); KAPPA (a step twice the run's, a tolerance 16 times looser)
+    otherwise."""
+    if (fit is None or not fit.rungs or method not in WIDE_TWIN
+            or not abs(fit.measured_order / NOMINAL_ORDER[method] - 1) <= ORDER_MATCH):
+        return KAPPA[method]
+    bound = KAPPA[method] * fit.rungs[0][0]
+    classic = twin_share(fit)
+    # the check runs both twins over about the pilot's piece: worth it only if the wide
+    # twin saves more than that (dopri5 on the solar array: its steps barely follow rtol)
+    return next((k for k in WIDE_TWIN[method] if k * value <= bound * (1 + 1e-9)
+                 and twin_share(fit, k) + PILOT_FRACTION * (twin_share(fit, k) + classic)
+                 < classic), KAPPA[method])
+
+
+def twin_setting(method: str, value: float, output_dt: float,
+                 factor: float | None = None) -> tuple[float, float]:
+    """(setting, output_dt) of the coarse twin of a run: ``factor`` (default KAPPA)
+    times the step, on every output time the coarser step still divides (every
+    m-th one otherwise), or a tolerance ``factor`` times looser."""
+    k = KAPPA[method] if factor is None else factor
     if method == "dopri5":
-        return value * KAPPA[method], output_dt
-    n = round(output_dt / value)
-    return 2 * value, (output_dt if n % 2 == 0 else 2 * output_dt)
+        return value * k, output_dt
+    n, k = round(output_dt / value), int(round(k))
+    return k * value, output_dt * (k // math.gcd(n, k))
 
 
-def twin_share(fit: Fit) -> float:
+def twin_share(fit: Fit, factor: float | None = None) -> float:
     """The twin's cost as a share of the run's."""
-    return KAPPA[fit.method] ** -fit.cost_exponent
+    k = KAPPA[fit.method] if factor is None else factor
+    return k ** -fit.cost_exponent
 
 
 def predict(fit: Fit, target: float, t_end: float, output_dt: float) -> dict:
@@ -70,10 +102,11 @@ def predict(fit: Fit, target: float, t_end: float, output_dt: float) -> dict:
     else:
         s = fixed_step(output_dt, s)
     run_cost = fit.cost_at(s, t_end)
+    share = twin_share(fit, twin_factor(fit.method, s, fit))
     return dict(method=fit.method, setting=fit.setting, value=s,
                 predicted_error=fit.error_at(s, t_end),
                 predicted_roundoff=fit.roundoff * fit.steps_at(s, t_end),
-                predicted_cost=run_cost * (1 + twin_share(fit)), run_cost=run_cost)
+                predicted_cost=run_cost * (1 + share), run_cost=run_cost)
 
 
 def choose(fits: list[Fit], target: float, t_end: float, output_dt: float) -> Choice:
@@ -95,7 +128,7 @@ def choose(fits: list[Fit], target: float, t_end: float, output_dt: float) -> Ch
     fit = next(f for f in fits if f.method == best["method"])
     choice = Choice(best["method"], best["setting"], best["value"],
                     best["predicted_error"], best["predicted_cost"], fit.order,
-                    roundoff=fit.roundoff, candidates=rows)
+                    roundoff=fit.roundoff, candidates=rows, fit=fit)
     others = "; ".join(f"{r['method']}: {_line(r)}" for r in rows if r is not best)
     choice.reason = (f"{choice.label}: predicted error {best['predicted_error']:.2g} "
                      f"(target {target:.3g}) for about {best['predicted_cost']:.3g} "

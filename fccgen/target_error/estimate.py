@@ -28,6 +28,11 @@ CONVERGENCE_SLACK = 4.0
 # E, so it always is unless a tolerance limit clamps it): the estimate then divides
 # their distance by R - 1 >= 1, and no second twin runs.
 MIN_RATIO = 2.0
+# A wide twin (choice.WIDE_TWIN) whose estimate over the pilot's piece is more than
+# PIECE_SLACK times off the classic twin's there is replaced by the classic one; below
+# PIECE_NOISE times the projections' noise the piece cannot judge it.
+PIECE_SLACK = 2.0
+PIECE_NOISE = 10.0
 
 
 @dataclass
@@ -41,6 +46,7 @@ class Estimate:
     events: dict | None            # event_time_error, event_position_error; None: differ
     texts: list = field(default_factory=list)      # what the estimate says (warnings)
     reused: bool = False           # the twin is the first run of a repeat (no cost)
+    check: dict | None = None      # piece_check of a wide twin (None: the classic twin)
 
 
 def global_estimate(result, twin, frame, choice, twin_value: float,
@@ -64,6 +70,33 @@ def global_estimate(result, twin, frame, choice, twin_value: float,
     elif found.events["event_position_error"] > found.value:
         found.value = found.events["event_position_error"]
     return found
+
+
+def piece_check(result, wide, piece, frame, choice, wide_value: float,
+                piece_value: float, t_check: float) -> dict:
+    """A wide twin checked against an independent one: over [0, t_check] (the pilot's
+    piece, in whole output intervals of the wide twin) the classic twin ``piece`` (twice
+    the step, or a tolerance 16 times looser) runs too, and the two Richardson
+    estimates of the run's error there must agree within PIECE_SLACK: a wide twin that
+    left the range where the error follows the order (beyond its stability or its
+    asymptotic range) disagrees. ``ok`` None: both are within PIECE_NOISE times the
+    projections' noise, too small to judge."""
+    found = []
+    for twin, value in ((wide, wide_value), (piece, piece_value)):
+        t, d = distance(result, twin, frame.what, frame.t_end)
+        near = t <= t_check * (1 + 1e-9)
+        ratio = (value / choice.value) ** choice.order
+        found.append(float(np.max(d[near])) / (ratio - 1) if np.any(near) else math.nan)
+    w, c = found
+    out = dict(wide=w, classic=c, t_check=t_check, ratio=math.nan, ok=False)
+    if not (math.isfinite(w) and math.isfinite(c)):
+        return out
+    if max(w, c) <= PIECE_NOISE * frame.noise:
+        out["ok"] = None
+        return out
+    out["ratio"] = max(w, frame.noise) / max(c, frame.noise)
+    out["ok"] = bool(1 / PIECE_SLACK <= out["ratio"] <= PIECE_SLACK)
+    return out
 
 
 def event_errors(result, twin, what, ratio: float):

@@ -17,14 +17,15 @@ import warnings
 
 import numpy as np
 
-from ..errors import RunWarning
+from ..errors import FccgenError, RunWarning
 from . import estimate as estimates
 from . import pilot as pilots
 from .choice import (CANDIDATES, RTOL_MAX, RTOL_MIN, SAFETY, Choice, choose, predict,
-                     twin_setting)
+                     twin_factor, twin_setting)
 from .compare import compared
 from .estimate import singular_warning
 from .ladder import measure
+from .pilot import KAPPA, evaluations
 from .singular import approach, approach_warning
 
 DEFAULT_OUTPUTS = 500      # output times of a run that names no output_dt
@@ -40,6 +41,11 @@ STIFF_MIN_STEPS = 50       # ... read from its finest pilot rung when it took th
 # than this multiple of dopri5's: its order, measured above 4 on A02 (4.9), can make
 # the full fit up to 1.2 times cheaper than the optimistic one at order 4.
 DOMINANCE = 1.25
+# A wide twin (choice.WIDE_TWIN) is checked against the classic one over the pilot's
+# piece; when that piece, in whole output intervals of the wide twin, is more than this
+# share of the run, the check would cost what the wide twin saves: the classic one runs.
+CHECK_SHARE = 0.25
+WIDE_FAILURES = (FccgenError, ArithmeticError, np.linalg.LinAlgError)
 
 
 def simulate_to_error(solver, error, error_on=None, *, t_end=None, output_dt=None,
@@ -84,7 +90,7 @@ def simulate_to_error(solver, error, error_on=None, *, t_end=None, output_dt=Non
             if progress is not None:
                 progress(f"error target {error:g}: {again.reason}")
             first = (choice, found, pilots.evaluations(result.info)
-                     + pilots.evaluations(twin.info))
+                     + pilots.evaluations(twin.info) + (found.check or {}).get("cost", 0))
             reuse = (choice.value / again.value) ** again.order >= estimates.MIN_RATIO
             previous, choice = result, again
             result, twin, found = _attempt(solver, frame, choice,
@@ -107,10 +113,51 @@ def _attempt(solver, frame, choice, progress, reactions, twin=None):
         twin, twin_value = twin
         return result, twin, estimates.global_estimate(result, twin, frame, choice,
                                                        twin_value, reused=True)
-    twin_value, twin_out = twin_setting(choice.method, choice.value, frame.output_dt)
+    factor = twin_factor(choice.method, choice.value, choice.fit)
+    classic = twin_setting(choice.method, choice.value, frame.output_dt)
+    check = None
+    if factor != KAPPA[choice.method]:
+        wide_value, wide_out = twin_setting(choice.method, choice.value, frame.output_dt,
+                                            factor)
+        t_check = wide_out * math.ceil(frame.t_piece / wide_out - 1e-9)
+        if t_check <= CHECK_SHARE * frame.t_end:
+            # both twins over the piece first: the whole wide twin runs only if they agree
+            check = _check_wide(frame, choice, result, (wide_value, wide_out), classic,
+                                t_check)
+            twin = None
+            if check["ok"] is not False:
+                try:
+                    twin = frame.run(choice.method, wide_value, frame.t_end, wide_out,
+                                     stage="error estimate")
+                except WIDE_FAILURES as exc:
+                    check.update(ok=False, failed=" ".join(str(exc).split()))
+            if twin is not None:
+                found = estimates.global_estimate(result, twin, frame, choice, wide_value)
+                found.check = check
+                return result, twin, found
+            check.update(replaced=wide_value)
+    twin_value, twin_out = classic
     twin = frame.run(choice.method, twin_value, frame.t_end, twin_out,
                      stage="error estimate")
-    return result, twin, estimates.global_estimate(result, twin, frame, choice, twin_value)
+    found = estimates.global_estimate(result, twin, frame, choice, twin_value)
+    found.check = check
+    return result, twin, found
+
+
+def _check_wide(frame, choice, result, wide, classic, t_check: float) -> dict:
+    """estimate.piece_check of the wide twin against the classic one over [0, t_check]
+    (both run there), with the cost of the two short runs; a wide twin that fails
+    (leaves the motion, the step underflows) fails the check."""
+    try:
+        pieces = [frame.run(choice.method, value, t_check, out,
+                            stage="error estimate check") for value, out in (wide, classic)]
+    except WIDE_FAILURES as exc:
+        return dict(wide=math.inf, classic=math.nan, t_check=t_check, ratio=math.nan,
+                    ok=False, cost=0.0, failed=" ".join(str(exc).split()))
+    check = estimates.piece_check(result, *pieces, frame, choice, wide[0], classic[0],
+                                  t_check)
+    check.update(cost=sum(evaluations(p.info) for p in pieces))
+    return check
 
 
 def _repeat(choice, found, error: float, output_dt: float):
@@ -127,12 +174,31 @@ def _repeat(choice, found, error: float, output_dt: float):
         return None
     again = Choice(choice.method, choice.setting, s, SAFETY * error,
                    math.nan, choice.order, roundoff=choice.roundoff,
-                   candidates=choice.candidates)
+                   candidates=choice.candidates, fit=choice.fit)
     again.reason = (f"{again.label}, repeated: {choice.label} ended with an estimated "
                     f"error {found.value:.2g} above the target (the pilot sees the first "
                     f"part of the run only); {again.setting} scaled by the order "
                     f"{choice.order:.3g} from that estimate. First choice: {choice.reason}")
     return again
+
+
+def _checked(check, choice) -> str:
+    """What the check over the pilot's piece said of a wide twin (estimate.piece_check)."""
+    if check is None:
+        return ""
+    where = f"over [0, {check['t_check']:.4g}]"
+    if check.get("failed"):
+        return (f"; a wider twin ({choice.setting} = {check['replaced']:.4g}) failed "
+                f"({check['failed']}), so it was not used")
+    if check.get("replaced") is not None:
+        return (f"; a wider twin ({choice.setting} = {check['replaced']:.4g}) estimated "
+                f"{check['wide']:.3g} {where} where this twin estimated "
+                f"{check['classic']:.3g}, so it was not used")
+    if check["ok"] is None:
+        return (f"; checked {where} against this twin's setting: both at the "
+                "projections' noise there")
+    return (f"; {where} its estimate was {check['ratio']:.3g} times that of a twin at "
+            "the classic setting (twice the step, or a tolerance 16 times looser)")
 
 
 def _check_target(error, chosen: dict) -> float:
@@ -236,8 +302,10 @@ def report(result, twin, frame, choice, found, error: float, first) -> None:
     info["error_estimate_time"] = found.time
     info["error_on"] = frame.what.columns
     events = found.events or dict(event_time_error=math.nan, event_position_error=math.nan)
+    check = found.check
     cost = dict(pilot=frame.cost, run=pilots.evaluations(info),
-                estimate=0.0 if found.reused else pilots.evaluations(twin.info),
+                estimate=0.0 if found.reused else (pilots.evaluations(twin.info)
+                                                   + (check or {}).get("cost", 0)),
                 repeat=first[2] if first else 0.0)
     cost["whole"] = sum(cost.values())
     info["accuracy"] = dict(
@@ -246,7 +314,8 @@ def report(result, twin, frame, choice, found, error: float, first) -> None:
         estimate=("Richardson: the distance of a coarse twin run "
                   f"({choice.setting} = {found.twin_value:.4g}"
                   f"{', the first run' if found.reused else ''}) on the same output "
-                  f"times, divided by {found.ratio:.4g} - 1"),
+                  f"times, divided by {found.ratio:.4g} - 1" + _checked(check, choice)),
+        twin_check=check,
         order=choice.order, twin_value=found.twin_value, pilot_piece=frame.t_piece,
         roundoff=found.roundoff, candidates=choice.candidates, **events,
         singular_approach=frame.singular,
