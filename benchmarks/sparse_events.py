@@ -15,6 +15,12 @@ off), in one run with single-threaded BLAS:
 * the run: median CPU of the whole natural run (the boom 2 s, latched at 1.48 s; the
   array 3 s, latched at 1.25 and 2.06 s) with its events against the same run without
   them, interleaved, divided by its number of steps.
+
+With ``--breakdown`` (needs valgrind) it counts instead, for the same step pairs,
+the instructions per step of the whole step and of its parts (callgrind, inclusive,
+collected inside ``fcc_rk4_advance`` only, over a run of 300 steps): deterministic
+where CPU times on a loaded machine are not, and it names where the latched step's
+extra cost goes.
 """
 from __future__ import annotations
 
@@ -25,7 +31,9 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import re  # noqa: E402
+import shutil  # noqa: E402
 import statistics  # noqa: E402
+import subprocess  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
@@ -73,17 +81,72 @@ def variants(text: str) -> tuple[str, str]:
     return locked, free
 
 
+BREAKDOWN_STEPS = 300
+# The parts of a step counted by --breakdown (inclusive instruction counts).
+PARTS = ("fcc_rk4_advance", "fcc_sp_accelerations", "fcc_ev_constrain",
+         "fcc_project_positions", "fcc_sp_project_velocities", "fcc_ev_correct")
+
+
+def child(path: str, build: str) -> None:
+    """The run that callgrind counts: BREAKDOWN_STEPS RK4 steps of a built model."""
+    warnings.simplefilter("ignore")
+    solver = fccgen.load(Path(path), Path(build), linear_solver="sparse")
+    Steps(solver).advance(BREAKDOWN_STEPS)
+
+
+def counted(path: Path, build: Path, out: Path) -> dict:
+    """{part: instructions per step} of one model's run under callgrind."""
+    subprocess.run(["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}",
+                    "--toggle-collect=fcc_rk4_advance", sys.executable, __file__,
+                    "--child", str(path), str(build)], check=True,
+                   capture_output=True)
+    text = subprocess.run(["callgrind_annotate", "--inclusive=yes", str(out)],
+                          check=True, capture_output=True, text=True).stdout
+    found = {}
+    for line in text.splitlines():
+        hit = re.match(r"\s*([\d,]+) \([^)]*\)\s+\S*:(\w+) ", line)
+        if hit and hit.group(2) in PARTS and hit.group(2) not in found:
+            found[hit.group(2)] = int(hit.group(1).replace(",", "")) / BREAKDOWN_STEPS
+    return {part: found.get(part, 0.0) for part in PARTS}
+
+
+def breakdown(cases, folder: Path, build: Path) -> None:
+    """Print instructions per step (thousands) of each part, locked and free."""
+    if shutil.which("valgrind") is None or shutil.which("callgrind_annotate") is None:
+        raise SystemExit("--breakdown needs valgrind and callgrind_annotate")
+    print(f"{'model':16} {'part':26} {'locked (k)':>11} {'free (k)':>9}")
+    for name, text, free_text, _ in cases:
+        counts = {}
+        for key, body in (("locked", variants(text)[0]), ("free", free_text)):
+            path = folder / f"{name.replace(' ', '_')}_{key}.yaml"
+            path.write_text(body)
+            fccgen.load(path, build, linear_solver="sparse")       # build outside
+            counts[key] = counted(path, build, folder / f"{key}.callgrind")
+        for part in PARTS:
+            print(f"{name:16} {part:26} {counts['locked'][part] / 1e3:11.1f} "
+                  f"{counts['free'][part] / 1e3:9.1f}")
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--reps", type=int, default=15)
+    parser.add_argument("--breakdown", action="store_true",
+                        help="instructions per step of each part (valgrind)")
+    parser.add_argument("--child", nargs=2, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     warnings.simplefilter("ignore")
+    if args.child:
+        child(*args.child)
+        return 0
     from make_scissor_boom import model_text
     with tempfile.TemporaryDirectory() as tmp:
         build, folder = Path(tmp) / "generated", Path(tmp)
         array = (ROOT / "examples" / "solar_array.yaml").read_text()
         cases = [("scissor boom 12", model_text(12), model_text(12, latch=False), 2.0),
                  ("solar array", array, variants(array)[1], 3.0)]
+        if args.breakdown:
+            breakdown(cases, folder, build)
+            return 0
         print(f"{'model':16} {'figure':6} {'latched (us)':>12} {'free (us)':>10} "
               f"{'ratio':>6}")
         for name, text, free_text, t_end in cases:
