@@ -25,7 +25,7 @@ degrees of freedom and is reported with its time.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -52,6 +52,10 @@ class RankDecision:
     rank: int
     n_q: int
     sigma: tuple[float, ...]      # scaled singular values, largest first
+    # how it was decided: "svd" (all singular values, one SVD per component),
+    # "certified" (fccgen.rank.sparse, no dense SVD), or the SVD after a sparse test
+    # that could not certify the gap (the reason follows "svd")
+    how: str = field(default="svd", compare=False)
 
     @property
     def dof(self) -> int:
