@@ -73,8 +73,9 @@ def set_parameters(model, values: dict):
     model = copy.deepcopy(model)
     for key, value in values.items():
         _set_one(model, str(key), value)
-    for body in model.bodies.values():
-        _check_body_geometry(model, body)
+    if any(str(key).startswith(("points.", "vectors.")) for key in values):
+        for body in model.bodies.values():       # only a point or a vector moves them
+            _check_body_geometry(model, body)
     return model
 
 
