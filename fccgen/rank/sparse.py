@@ -29,8 +29,14 @@ O(m n^2): minutes at a few thousand coordinates. Here:
    side is certified unsquared. Any disagreement, or more than MAX_NULLITY zeros, hands
    the component to the dense SVD: slow, never wrong.
 
-A decision that used step 2 is a :class:`PartialRankDecision`: its ``sigma`` holds only
-the singular values computed, and its gap is (sigma_r, the bound ||C X||_2) relative.
+   sigma_1 is bracketed (:func:`bracket`: a Ritz value below, Gershgorin above) and
+   each test takes the stricter side, so the bracket can only hand a component to the
+   SVD.
+
+A decision that used step 2 is a :class:`PartialRankDecision` (``how`` "certified"):
+its ``sigma`` holds only the singular values computed, and its gap is (sigma_r, the
+bound ||C X||_2) relative to the bracket's lower side. The SVD after a failed
+certification says so in ``how``.
 """
 from __future__ import annotations
 
