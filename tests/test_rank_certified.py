@@ -43,6 +43,11 @@ def _agree(solver) -> list[str]:
             assert new.gap[0] == pytest.approx(svd.gap[0], rel=2e-3)
             assert max(new.gap[1], svd.gap[1]) <= rank_rule.AMBIGUOUS_LOW
         how.append(new.how)
+        # what the off-constraint test takes: the rank alone, by inverse iteration
+        only = rank_rule.decide(B, solver.n_q, solver.row_groups, dense_max=1,
+                                rank_only=True)
+        assert only.rank == svd.rank, (only.how, only.rank, svd.rank)
+        assert only.how == "certified" or only.how.startswith("svd (")
     return how
 
 

@@ -53,6 +53,7 @@ from .rule import (AMBIGUOUS_LOW, DECIDE_TOL, GROW_TOL, RankDecision, dense_deci
 DENSE_COMPONENT = 500    # coordinates: a component up to this size takes the dense SVD
 ZERO_TOL = 1e-7          # sigma / sigma_1 counted as zero by the inertia (squared: 1e-14,
                          # above the rounding of G, eps ||G|| ~ 1e-15 sigma_1^2)
+ROUGH_STEPS = 20         # power steps of a rank-only bracket's lower side
 BRACKET_TOL = 1e-3       # Lanczos tolerance of sigma_1's lower bound (bracket)
 MAX_NULLITY = 64         # more zeros than this in one component: the dense SVD decides
 
@@ -74,10 +75,12 @@ class PartialRankDecision(RankDecision):
         return self.kept, self.dropped
 
 
-def decide_large(B, n_q: int, groups=None, dense_max: int = DENSE_COMPONENT) -> RankDecision:
+def decide_large(B, n_q: int, groups=None, dense_max: int = DENSE_COMPONENT,
+                 rank_only: bool = False) -> RankDecision:
     """The rank of B (dense or SciPy sparse, rows unscaled) by fccgen.rank's rule, a
     component at a time (module docstring); dense_max: the most columns of a component
-    that takes the dense SVD."""
+    that takes the dense SVD; rank_only: the certified components' gaps are bounds
+    (:func:`certified`), for callers that read only the rank."""
     B = sp.csr_matrix(B, dtype=float)
     if not np.all(np.isfinite(B.data)):
         return RankDecision(-1, n_q, ())
@@ -88,7 +91,7 @@ def decide_large(B, n_q: int, groups=None, dense_max: int = DENSE_COMPONENT) -> 
     dense = list(zip([cols for _, cols in small], component_singular_values(C, small)))
     large = [(rows, cols) for rows, cols in parts if len(cols) > dense_max]
     grams = [gram(C[rows][:, cols]) for rows, cols in large]
-    bounds = [bracket(g) for g in grams]
+    bounds = [bracket(g, rank_only) for g in grams]
     top = [s[0] for _, s in dense if s.size]
     s1 = max(top + [lo for lo, _ in bounds] + [0.0])      # sigma_1, from below
     s_hi = max(top + [hi for _, hi in bounds] + [0.0])    # ... and a bound above
@@ -101,7 +104,7 @@ def decide_large(B, n_q: int, groups=None, dense_max: int = DENSE_COMPONENT) -> 
     if any(AMBIGUOUS_LOW * s1 <= x <= GROW_TOL * s_hi for x in sigma):
         return _all_dense(C, n_q, parts)
     for (rows, cols), g in zip(large, grams):
-        found = certified(C[rows][:, cols], g, s1, s_hi)
+        found = certified(C[rows][:, cols], g, s1, s_hi, rank_only)
         if found is None:
             return _all_dense(C, n_q, parts)
         d, sigma_r, bound = found
@@ -219,30 +222,41 @@ def inertia_below(G, tau: float) -> int | None:
     return int(np.sum(lu.U.diagonal() < 0.0))
 
 
-def bracket(G) -> tuple[float, float]:
+def bracket(G, rough: bool = False) -> tuple[float, float]:
     """(low, high) with low <= sigma_1 <= high, sigma_1^2 the largest eigenvalue of G:
     low from a short Lanczos run (a Ritz value never exceeds the largest eigenvalue;
     tolerance BRACKET_TOL), high from Gershgorin (the largest absolute row sum of G).
     Measured on the A02 chain at 483 coordinates: 0.1 % apart, in 2 ms where Lanczos to
-    1e-10 takes 10 ms."""
+    1e-10 takes 10 ms. rough: the lower side is the Rayleigh quotient after
+    ROUGH_STEPS power steps from a fixed start (never above sigma_1^2 either)."""
     if G.shape[0] <= 2:
         value = largest(G)
         return value, value
+    high = float(np.sqrt(abs(G).sum(axis=1).max()))
+    if rough:
+        x = np.random.default_rng(0).standard_normal(G.shape[0])
+        for _ in range(ROUGH_STEPS):
+            x = G @ x
+            x /= np.linalg.norm(x)
+        low = float(np.sqrt(max(x @ (G @ x), 0.0)))
+        return low, max(high, low)
     try:
         ritz = eigsh(G, k=1, which="LA", v0=np.ones(G.shape[0]), tol=BRACKET_TOL,
                      return_eigenvectors=False)[0]
     except ArpackError:
         ritz = largest(G) ** 2
-    high = float(np.sqrt(abs(G).sum(axis=1).max()))
     low = float(np.sqrt(max(ritz, 0.0)))
     return low, max(high, low)
 
 
-def certified(C, G, s1: float, s_hi: float | None = None):
+def certified(C, G, s1: float, s_hi: float | None = None, rank_only: bool = False):
     """(d, sigma_r, ||C X||_2) for a component agreeing on all three signals of the
     module docstring, else None. s1: sigma_1 or a lower bound of it, s_hi an upper
     bound (default s1): each test takes the side of the bracket that makes it
-    stricter."""
+    stricter. rank_only: the null vectors X by block inverse iteration
+    (:func:`smallest_right_vectors`) in place of Lanczos, and sigma_r returned as its
+    lower bound GROW_TOL s_hi (what the inertia proves): the same rank, the same
+    unsquared check, without the kept gap's value."""
     s_hi = s1 if s_hi is None else s_hi
     d_low = inertia_below(G, (ZERO_TOL * s1) ** 2)
     d_high = inertia_below(G, (GROW_TOL * s_hi) ** 2)
@@ -250,6 +264,12 @@ def certified(C, G, s1: float, s_hi: float | None = None):
     if d_low is None or d_low != d_high or d_low > MAX_NULLITY or d_low + 1 >= n:
         return None
     d = d_low
+    if rank_only:
+        X = _null_vectors(G, d, (ZERO_TOL * s1) ** 2) if d else None
+        bound = float(np.linalg.norm(C @ X, 2)) if d else 0.0
+        if bound > AMBIGUOUS_LOW * s1:
+            return None
+        return d, GROW_TOL * s_hi, bound
     shift = -(ZERO_TOL * s1) ** 2          # G - shift is positive definite
     values, X = eigsh(G, k=d + 1, sigma=shift, which="LM", v0=np.ones(n))
     order = np.argsort(values)
@@ -260,6 +280,19 @@ def certified(C, G, s1: float, s_hi: float | None = None):
     if bound > AMBIGUOUS_LOW * s1:
         return None
     return d, float(np.sqrt(values[d])), bound
+
+
+def _null_vectors(G, d: int, shift: float, iterations: int = 3) -> np.ndarray:
+    """(n, d): orthonormal vectors of G's d smallest eigenvalues, by block inverse
+    iteration on G + shift I from a fixed random block of d + 4 columns, then
+    Rayleigh-Ritz (smallest_right_vectors' method, on a G at hand)."""
+    n = G.shape[0]
+    lu = splu((G + shift * sp.identity(n, format="csc")).tocsc())
+    X = np.random.default_rng(0).standard_normal((n, min(n, d + 4)))
+    for _ in range(iterations):
+        X, _ = np.linalg.qr(lu.solve(X))
+    _, Y = np.linalg.eigh(X.T @ (G @ X))
+    return X @ Y[:, :d]
 
 
 def scaled(B, groups=None):
