@@ -38,7 +38,7 @@ def _agree(solver) -> list[str]:
         assert new.rank == svd.rank, (new.how, new.rank, svd.rank)
         assert new.how == "certified" or new.how.startswith("svd (")
         if new.how == "certified":
-            # its gap is the SVD's: sigma_r / sigma_1 to the bracket's 1e-3, and the
+            # its gap is the SVD's: sigma_r / sigma_1 (Lanczos) to 2e-3, and the
             # first dropped one (a bound) below the rule's clear zero, as the SVD's
             assert new.gap[0] == pytest.approx(svd.gap[0], rel=2e-3)
             assert max(new.gap[1], svd.gap[1]) <= rank_rule.AMBIGUOUS_LOW
