@@ -9,7 +9,8 @@ For each N the model (examples/make_n_four_bar.py) is built once; then, in one
 process: the first 1-step call's CPU seconds and its info["setup"]; the median CPU of
 REPEATS further 1-step calls; one step's CPU, the median over REPEATS of (a 201-step
 run - a 1-step run) / 200. Columns: the first call, the next calls, both in steps'
-worth, and the first call's phases (rank decision, initial state: CPU seconds).
+worth, and the first call's phases (rank decision, the sparse path's off-constraint
+test, initial state: CPU seconds, and how the off-constraint test decided).
 """
 from __future__ import annotations
 
@@ -61,7 +62,8 @@ def main(argv=None) -> int:
     import fccgen
     make = generator()
     print(f"{'N':>4} {'n_q':>5} {'step us':>8} {'1st call ms':>11} {'next ms':>8} "
-          f"{'1st/step':>9} {'next/step':>9} {'rank ms':>8} {'initial ms':>10}")
+          f"{'1st/step':>9} {'next/step':>9} {'rank ms':>8} {'off ms':>7} {'initial ms':>10}"
+          f"  off-constraint test")
     with tempfile.TemporaryDirectory() as tmp:
         for n in args.sizes:
             path = Path(tmp) / f"chain_{n}.yaml"
@@ -71,11 +73,13 @@ def main(argv=None) -> int:
                 warnings.simplefilter("ignore")
                 m = measure(solver, args.repeats)
             s = m["setup"]
+            off = s.get("off_constraint_test", {})
             print(f"{n:>4} {solver.n_q:>5} {1e6 * m['step']:>8.1f} {1e3 * m['first']:>11.1f} "
                   f"{1e3 * m['again']:>8.2f} {m['first'] / m['step']:>9.0f} "
                   f"{m['again'] / m['step']:>9.1f} "
                   f"{1e3 * s['rank_decision']['seconds']:>8.1f} "
-                  f"{1e3 * s['initial_state']['seconds']:>10.1f}")
+                  f"{1e3 * off.get('seconds', 0.0):>7.1f} "
+                  f"{1e3 * s['initial_state']['seconds']:>10.1f}  {off.get('method', '-')}")
     return 0
 
 

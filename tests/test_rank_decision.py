@@ -12,6 +12,7 @@ from fccgen import rank as rank_rule
 from fccgen.diagnostics.check import check_model
 from fccgen.errors import RunWarning, SimulationError
 from fccgen.runtime._solve import constrained_solve
+from fccgen.runtime import setup_reuse
 
 FLAT_FOUR_BAR = """
 name: flat_four_bar
@@ -186,10 +187,11 @@ def test_a_projection_that_kills_the_motion_is_flagged(bricard_solvers, monkeypa
     solver with nothing kept: the fixture's keeps the decisions of earlier runs
     (fccgen.runtime.setup_reuse), which the miscount would not reach."""
     solver = bricard_solvers["line"].with_parameters({})
+    setup_reuse.forget()              # nor the decisions kept for every solver
     real = rank_rule.decide
 
-    def miscount(B, n_q=None, groups=None):
-        d = real(B, n_q, groups)
+    def miscount(B, n_q=None, groups=None, **options):
+        d = real(B, n_q, groups, **options)
         return rank_rule.RankDecision(d.rank + 1, d.n_q, d.sigma)
 
     monkeypatch.setattr(rank_rule, "decide", miscount)

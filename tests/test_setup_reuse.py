@@ -6,10 +6,13 @@ from __future__ import annotations
 import numpy as np
 
 from fccgen import rank as rank_rule
+from fccgen.runtime import setup_reuse
 
 
 def _fresh(compiled, name="four_bar"):
-    """A solver of the example's compiled module with nothing kept yet."""
+    """A solver of the example's compiled module with nothing kept yet (neither its
+    own set-ups nor the decisions kept for every solver of the process)."""
+    setup_reuse.forget()
     return compiled(name).with_parameters({})
 
 

@@ -21,17 +21,22 @@ __all__ = ["AMBIGUOUS_LOW", "DECIDE_TOL", "GROW_TOL", "KE_CUT_WARN", "RANK_TOL",
            "scaled_singular_values", "scales_from_norms", "sparse_solve_warning"]
 
 
-def decide(B: np.ndarray, n_q: int | None = None, groups=None) -> RankDecision:
+def decide(B: np.ndarray, n_q: int | None = None, groups=None,
+           dense_max: int | None = None, rank_only: bool = False) -> RankDecision:
     """The rank of B by the SVD gap test (see fccgen.rank.rule); groups: the
     element of each row (:func:`row_scales`). B of more than SPLIT_COLUMNS columns
     (dense or SciPy sparse) is decided a connected component at a time (its singular
     values are the union of the components': the same rule, several small SVDs in place
     of one large), components of more than fccgen.rank.sparse.DENSE_COMPONENT columns
     without a dense SVD (:func:`fccgen.rank.sparse.decide_large`: the same rule,
-    certified)."""
+    certified). dense_max: the most columns of a component that takes the dense SVD
+    (default DENSE_COMPONENT); B of more columns is decided a component at a time.
+    rank_only: for callers that read only the rank (fccgen.rank.sparse.certified)."""
     if not hasattr(B, "shape"):
         B = np.asarray(B, float)
     n_q = B.shape[1] if n_q is None else n_q
+    if dense_max is not None and B.shape[1] > dense_max:
+        return sparse.decide_large(B, n_q, groups, dense_max, rank_only)
     if B.shape[1] > SPLIT_COLUMNS:
         return sparse.decide_large(B, n_q, groups)
     B = np.asarray(B, float)

@@ -25,7 +25,7 @@ degrees of freedom and is reported with its time.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -52,6 +52,10 @@ class RankDecision:
     rank: int
     n_q: int
     sigma: tuple[float, ...]      # scaled singular values, largest first
+    # how it was decided: "svd" (all singular values, one SVD per component),
+    # "certified" (fccgen.rank.sparse, no dense SVD), or the SVD after a sparse test
+    # that could not certify the gap (the reason follows "svd")
+    how: str = field(default="svd", compare=False)
 
     @property
     def dof(self) -> int:
@@ -91,12 +95,11 @@ def scales_from_norms(norms: np.ndarray, groups=None) -> np.ndarray:
     """:func:`row_scales` from the row norms ||B_k||."""
     norms = np.asarray(norms, float)
     if groups is not None and norms.size:
-        groups = np.asarray(groups)
-        largest = np.zeros(norms.size)
-        for label in np.unique(groups):
-            rows = groups == label
-            largest[rows] = norms[rows].max()
-        norms = np.maximum(norms, ROW_FLOOR * largest)
+        _, element = np.unique(np.asarray(groups), return_inverse=True)
+        element = element.ravel()
+        largest = np.zeros(element.max() + 1)
+        np.maximum.at(largest, element, norms)        # each element's largest row
+        norms = np.maximum(norms, ROW_FLOOR * largest[element])
     return np.where(norms > 0.0, norms, 1.0)
 
 

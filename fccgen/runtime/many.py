@@ -6,6 +6,10 @@ those numbers (:mod:`fccgen.runtime.params`): its own kernels' parameters, engin
 own (a number that moves the initial positions moves its consistent initial state and
 its rank decision, fccgen.runtime.setup_reuse), so every instance gives bit for bit
 the result of ``solver.with_parameters(set).simulate(...)`` with the same options.
+What is a function of inputs a set leaves alone is shared by the instances, keyed by
+the bytes of those inputs, so sharing never changes an answer: the rank decisions (by
+the Jacobian, fccgen.runtime.setup_reuse), the sparse solve's view and its ordering
+(runtime/sparse_setup.py, paths.kept_structure).
 
 The instances run on ``threads`` worker threads. A run's per-step loop is compiled
 code that holds no Python lock (the GIL), so the loops of different instances run at

@@ -83,8 +83,9 @@ def set_parameters(model, values: dict):
         if problem:
             raise ModelError(model.source, keys[-1][1], ", ".join(k for k, _ in keys),
                              problem, show_value=False)
-    for body in model.bodies.values():
-        _check_body_geometry(model, body)
+    if any(str(key).startswith(("points.", "vectors.")) for key in values):
+        for body in model.bodies.values():       # only a point or a vector moves them
+            _check_body_geometry(model, body)
     return model
 
 

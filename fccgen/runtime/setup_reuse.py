@@ -10,13 +10,23 @@ same start takes them as they are, a changed q0 (or a solver of other numbers,
 ``with_parameters``) decides afresh. What is kept is the answer itself, so a reused
 set-up gives the run bit for bit the same start as a fresh one.
 
-``result.info["setup"]`` says what each phase of a run's set-up cost (CPU seconds) and
-whether it was reused: ``{"initial_state": {"seconds": ..., "reused": ...},
-"rank_decision": {...}, "seconds": total}``.
+The rank decisions are kept a second time, for every solver of the process, keyed by
+the bytes of the Jacobian they were made from (:func:`shared_decision`): a decision is
+a function of B, its row groups and fccgen.rank's constants alone, so a solver of other
+masses (``with_parameters``, ``simulate_many``), whose B at the same q is the same, takes
+it without an SVD, and a number that moves B (a length, a point) misses it.
+
+``result.info["setup"]`` says what each phase of a run's set-up cost (CPU seconds),
+whether it was reused and, for the decisions, how they were made (``method``:
+fccgen.rank's RankDecision.how): ``{"initial_state": {"seconds": ..., "reused": ...},
+"rank_decision": {..., "method": "svd"}, "off_constraint_test": {...}, "seconds":
+total}`` (off_constraint_test: the sparse path's test for rows dependent only on the
+constraints, CompiledSolver._manifold_redundancy).
 """
 from __future__ import annotations
 
 import hashlib
+import threading
 import time
 from collections import OrderedDict
 from dataclasses import replace
@@ -24,6 +34,9 @@ from dataclasses import replace
 import numpy as np
 
 KEPT = 8                  # set-ups kept per solver (least recently used dropped first)
+SHARED = 64               # decisions kept per process, by their Jacobian's bytes
+_shared: OrderedDict[str, object] = OrderedDict()
+_shared_lock = threading.Lock()
 
 
 class SetupStore:
@@ -65,12 +78,14 @@ class SetupStore:
         """A new run: its set-up log starts empty."""
         self.log = {}
 
-    def record(self, phase: str, seconds: float, reused: bool) -> None:
+    def record(self, phase: str, seconds: float, reused: bool, method=None) -> None:
         """Add a phase's CPU seconds (phases met twice in one run add up; reused only
-        if every time was)."""
+        if every time was; method: how a decision was made, the first one made)."""
         entry = self.log.setdefault(phase, {"seconds": 0.0, "reused": True})
         entry["seconds"] += seconds
         entry["reused"] = entry["reused"] and reused
+        if method is not None:
+            entry.setdefault("method", method)
 
     def report(self) -> dict:
         """The run's set-up for result.info["setup"]."""
@@ -79,39 +94,89 @@ class SetupStore:
         return out
 
 
-def kept_decision(solver, q, decide):
+def jacobian_key(kind: str, B, groups, *extra) -> str:
+    """The hash of a Jacobian (dense or SciPy sparse: its pattern and values), its row
+    groups and ``extra`` numbers: what a rank decision depends on."""
+    h = hashlib.sha256(kind.encode())
+    if hasattr(B, "indptr"):
+        B = B.tocsr()
+        parts = [B.indptr, B.indices, B.data]
+    else:
+        parts = [np.ascontiguousarray(B, dtype=float)]
+    h.update(repr((B.shape, extra)).encode())
+    for a in parts:
+        h.update(np.ascontiguousarray(a).tobytes())
+    if groups is not None:
+        labels = np.asarray(groups)
+        h.update(labels.tobytes() if labels.dtype.kind in "iub" else repr(list(groups)).encode())
+    return h.hexdigest()
+
+
+def forget() -> None:
+    """Drop the decisions kept for every solver of the process (each solver's own
+    set-ups stay): the next solver of new numbers decides afresh."""
+    with _shared_lock:
+        _shared.clear()
+
+
+def shared_decision(key: str, decide):
+    """(decision, reused): the process's kept decision under ``key`` (jacobian_key),
+    else ``decide()``, kept from now on (the SHARED most recent)."""
+    with _shared_lock:
+        if key in _shared:
+            _shared.move_to_end(key)
+            return _shared[key], True
+    decision = decide()
+    with _shared_lock:
+        _shared[key] = decision
+        while len(_shared) > SHARED:
+            _shared.popitem(last=False)
+    return decision, False
+
+
+def kept_decision(solver, q, jacobian, decide):
     """fccgen.rank's decision at q: the kept one for the same (q, parameters,
-    tolerances), else ``decide()`` (kept from now on)."""
+    tolerances), else the process's for the same Jacobian (``jacobian()``: B at q),
+    else ``decide(B)`` (kept from now on in both)."""
     store = solver.setup_store
     start = time.process_time()
     key = store.key("rank", q)
     decision = store.get(key)
     reused = decision is not None
     if not reused:
-        decision = decide()
+        B = jacobian()
+        decision, reused = shared_decision(
+            jacobian_key("rank", B, solver.row_groups, solver.n_q), lambda: decide(B))
         store.put(key, decision)
-    store.record("rank_decision", time.process_time() - start, reused)
+    store.record("rank_decision", time.process_time() - start, reused,
+                 getattr(decision, "how", None))
     return decision
+
+
+def _decisions_seconds(store) -> float:
+    """The seconds logged so far by the decisions (rank, off-constraint test)."""
+    return sum(store.log.get(p, {}).get("seconds", 0.0)
+               for p in ("rank_decision", "off_constraint_test"))
 
 
 def kept_initial_state(solver, compute):
     """The solver's consistent initial state: the kept one for the same written
     positions, target speeds, parameters and tolerances, else ``compute()``. Its arrays
-    are fresh copies each time (the caller owns them). Its seconds leave out the rank
-    decision made within it (logged as rank_decision)."""
+    are fresh copies each time (the caller owns them). Its seconds leave out the
+    decisions made within it (logged as rank_decision and off_constraint_test)."""
     store = solver.setup_store
     start = time.process_time()
     plan = solver.plan
     key = store.key("initial", plan.q0, plan.v_target)
     state = store.get(key)
     reused = state is not None
-    within = store.log.get("rank_decision", {}).get("seconds", 0.0)
+    within = _decisions_seconds(store)
     if not reused:
         state = compute()
         store.put(key, state)
     else:                                      # as a fresh one leaves the solver:
         solver.set_time(0.0)                   # at t = 0, the rank decided at q
         solver.decide_rank(state.q)
-    within = store.log.get("rank_decision", {}).get("seconds", 0.0) - within
+    within = _decisions_seconds(store) - within
     store.record("initial_state", time.process_time() - start - within, reused)
     return replace(state, q=np.array(state.q, dtype=float), v=np.array(state.v, dtype=float))

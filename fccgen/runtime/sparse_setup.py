@@ -17,6 +17,9 @@ mptr/bptr the start of its mass and Jacobian blocks.
 """
 from __future__ import annotations
 
+import hashlib
+import threading
+
 import numpy as np
 
 # A block entry zero where the pattern of A was taken (planar_masks) may grow to
@@ -110,7 +113,35 @@ def pinned_view(el, blocks, g0, position_tol):
     (GUARD_TOL of the row's largest) and hold (position_tol); otherwise the pattern
     trips and the solver redoes the call on the full pattern.
 
-    Returns the arguments of fcc_pattern_set_view as a dict of lists."""
+    Returns the arguments of fcc_pattern_set_view as a dict of lists (kept for the
+    process by the bytes of its inputs, _VIEWS: a solver of other masses, whose
+    Jacobian blocks at the same samples are the same, takes the same view; the caller
+    only reads it)."""
+    h = hashlib.sha256(repr(float(position_tol)).encode())
+    for a in [el.nq, el.ng, el.has_b, el.has_rate, el.qptr, el.qidx, el.gptr, el.bptr,
+              g0, *blocks]:
+        a = np.ascontiguousarray(a)
+        h.update(repr((a.dtype.str, a.shape)).encode())
+        h.update(a.tobytes())
+    key = h.hexdigest()
+    with _views_lock:
+        if key in _VIEWS:
+            return _VIEWS[key]
+    view = _pinned_view(el, blocks, g0, position_tol)
+    with _views_lock:
+        _VIEWS[key] = view
+        while len(_VIEWS) > _VIEWS_KEPT:
+            _VIEWS.pop(next(iter(_VIEWS)))
+    return view
+
+
+_VIEWS: dict = {}
+_VIEWS_KEPT = 16
+_views_lock = threading.Lock()
+
+
+def _pinned_view(el, blocks, g0, position_tol):
+    """pinned_view's analysis, not kept."""
     taken, where, norms = _constant_rows(el, blocks, g0, position_tol)
     pinned = _pin(taken, norms)
     if not pinned:
