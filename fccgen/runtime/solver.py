@@ -367,7 +367,7 @@ class CompiledSolver:
             from .params import module_directory
             sens = sensitivity_run.setup(self, keys, module_directory(self.module).parents[1])
         report = run_reporter(progress, sched.t_end)
-        events = self._event_set(event_tol, rest_speed)
+        events = self._event_set(event_tol, rest_speed, held)
         tracker, untracked = work_tracker(self.plan, self.module, m.name,
                                           self.sparse and keys is None)
         kept = {}
@@ -431,7 +431,7 @@ class CompiledSolver:
                 "max_newton": self.max_newton, "linear_solver": self.linear_solver,
                 "path": "sparse" if self.sparse else "dense"}
 
-    def _event_set(self, tol, rest_speed):
+    def _event_set(self, tol, rest_speed, held=None):
         """The compiled events of the model, with the copies of their angle references
         in the element kernels that count turns (fccgen.events.references); None: it
         has neither (or, without events, no event module was given)."""
@@ -450,6 +450,10 @@ class CompiledSolver:
                           constants=st.constants)
         if st.mirror_slots:
             events.mirror(self._asm, st.mirror_slots, st.mirror_angles)
+        if held is not None and st.input_slots:     # inputs the event functions read
+            held.event_slots = np.array(st.input_slots, np.intc)
+            held.event_columns = np.array(st.input_columns, np.intc)
+            events.put_inputs(held.event_slots, held.table[0, held.event_columns])
         return events
 
     def decide_rank(self, q) -> rank_rule.RankDecision:
@@ -543,8 +547,9 @@ class CompiledSolver:
         """(arrays, stats) of one run of method m (held: inputs that change over the
         run, fccgen.runs.inputs; rk4 and baumgarte only; sens: rk4's sensitivities)."""
         s, e = sched, (self._engine if sens is None else self.dense_engine())
-        held = None if held is None or held.constant or not len(held.slots) else (
-            held.slots, held.columns, held.table)
+        held = None if held is None or held.constant or not (
+            len(held.slots) or len(held.event_slots)) else (
+            held.slots, held.columns, held.table, held.event_slots, held.event_columns)
         if model_events(self.plan) and m.name not in ("rk4", "dopri5"):
             raise ValueError(f"events are located by the rk4 and dopri5 methods, not "
                              f"by {m.name}")
