@@ -367,7 +367,8 @@ class CompiledSolver:
             from .params import module_directory
             sens = sensitivity_run.setup(self, keys, module_directory(self.module).parents[1])
         report = run_reporter(progress, sched.t_end)
-        events = self._event_set(event_tol, rest_speed, held)
+        events = self._event_set(event_tol, rest_speed)
+        self._event_inputs(events, held)
         tracker, untracked = work_tracker(self.plan, self.module, m.name,
                                           self.sparse and keys is None)
         kept = {}
@@ -431,7 +432,7 @@ class CompiledSolver:
                 "max_newton": self.max_newton, "linear_solver": self.linear_solver,
                 "path": "sparse" if self.sparse else "dense"}
 
-    def _event_set(self, tol, rest_speed, held=None):
+    def _event_set(self, tol, rest_speed):
         """The compiled events of the model, with the copies of their angle references
         in the element kernels that count turns (fccgen.events.references); None: it
         has neither (or, without events, no event module was given)."""
@@ -450,11 +451,20 @@ class CompiledSolver:
                           constants=st.constants)
         if st.mirror_slots:
             events.mirror(self._asm, st.mirror_slots, st.mirror_angles)
-        if held is not None and st.input_slots:     # inputs the event functions read
+        return events
+
+    def _event_inputs(self, events, held) -> None:
+        """Give the run's event set the inputs its event functions read (held: the
+        run's inputs, fccgen.runs.inputs): their first values now, and where the run
+        writes the later ones (held.event_slots, held.event_columns)."""
+        if events is None or held is None:
+            return
+        from .event_settings import event_settings
+        st = event_settings(self.plan, self.events_module)
+        if st.input_slots:
             held.event_slots = np.array(st.input_slots, np.intc)
             held.event_columns = np.array(st.input_columns, np.intc)
             events.put_inputs(held.event_slots, held.table[0, held.event_columns])
-        return events
 
     def decide_rank(self, q) -> rank_rule.RankDecision:
         """Decide the rank of B at q by the SVD gap test (fccgen.rank) and keep it in
