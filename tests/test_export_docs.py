@@ -96,8 +96,9 @@ def test_the_inputs_section_works_as_written(folder):
 
 
 def test_the_events_section_works_as_written(folder):
-    """The solar array's C example equals simulate's CSV to rounding, the copy built
-    elsewhere runs, and the FMU with a heavier panel and a driven bus torque equals
+    """The solar array's C example equals simulate's CSV to rounding and writes both
+    latches to its event CSV, the event log's C lines name functions of the header,
+    the copy built elsewhere runs, and the FMU with a heavier panel and a driven bus torque equals
     with_parameters and simulate(inputs=...) through both latches."""
     c = np.genfromtxt(folder / "solar_array_c" / "sa.csv", delimiter=",", names=True)
     py = np.genfromtxt(folder / "sa_py.csv", delimiter=",", names=True)
@@ -106,6 +107,11 @@ def test_the_events_section_works_as_written(folder):
         scale = max(float(np.max(np.abs(py[name]))), 1e-300)
         assert np.max(np.abs(c[name] - py[name])) <= 1e-12 * scale, name
     assert (folder / "elsewhere" / "solar_array_c" / "solar_array.csv").is_file()
+    events = (folder / "solar_array_c" / "sa_events.csv").read_text().splitlines()
+    assert [line.split(",")[1] for line in events[1:]] == ["panel_latch", "root_latch"]
+    header = (folder / "solar_array_c" / "solar_array.h").read_text()
+    for call in set(re.findall(r"\b(solar_array_[a-z_]+)\(", blocks("c")[2])):
+        assert f"{call}(" in header, call
     pytest.importorskip("fmpy")
     done = run_python(blocks("python")[2], folder, check=False)
     assert done.returncode == 0, done.stderr

@@ -20,7 +20,10 @@ them as fccgen simulate does.
   instead of from the model file; it is compared to 1e-11 absolute (below the
   position tolerance, 1e-11 here);
 * a stop event (pendulum_limit's log event made a stop) ends the C example and the
-  FMU (fmi2Discard, fmi2LastSuccessfulTime) where simulate's run ends.
+  FMU (fmi2Discard, fmi2LastSuccessfulTime) where simulate's run ends;
+* the example's event log (FILE_events.csv, read through NAME_event_row) equals
+  simulate's event table, row by row; past the log's 64 rows the example says how
+  many events it did not keep.
 """
 from __future__ import annotations
 
@@ -94,7 +97,60 @@ def test_the_example_runs_the_events_as_simulate(name, project, sparse):
         assert np.max(np.abs(rows[:, k] - want)) <= 1e-12 * scale, column
     if name == "solar_array":          # both latches happened in the run compared
         assert [e["name"] for e in result.events] == ["panel_latch", "root_latch"]
+    if name == "tape_spring_hinge":    # no event functions: no event log
+        assert not (folder / "out_events.csv").exists()
+    else:
+        assert_event_rows(folder / "out_events.csv", result.events)
     assert run([f"./{name}_selftest"], folder).strip() == "selftest passed"
+
+
+def assert_event_rows(path, events):
+    """The example's event CSV holds simulate's event table: the same keys as
+    columns, the same names, actions and dof, the times to 1e-12 relative and the
+    numbers to 1e-12 of each column's largest magnitude (the same engine: measured
+    equal); constraint_error, rounding after the projection, to 1e-11 absolute (below
+    the position tolerance)."""
+    from fccgen.events.table import COLUMNS
+    lines = path.read_text().splitlines()
+    assert tuple(lines[0].split(",")) == COLUMNS
+    rows = [dict(zip(COLUMNS, line.split(","))) for line in lines[1:]]
+    assert len(rows) == len(events) and events
+    for column in COLUMNS:
+        got = [r[column] for r in rows]
+        want = [e[column] for e in events]
+        if column in ("name", "action"):
+            assert got == want, column
+        elif column == "dof":
+            assert [int(x) for x in got] == want
+        else:
+            got, want = np.array(got, float), np.array(want, float)
+            if column == "t":
+                assert np.all(np.abs(got - want) <= 1e-12 * np.abs(want)), column
+            elif column == "constraint_error":
+                assert np.all(np.abs(got - want) <= 1e-11), column
+            else:
+                scale = max(float(np.max(np.abs(want))), 1e-300)
+                assert np.all(np.abs(got - want) <= 1e-12 * scale), column
+
+
+def test_an_event_log_past_its_capacity_says_how_many_it_dropped(build_dir, tmp_path):
+    """A log event that fires 127 times (sin(200 t) crosses zero every pi/200 s over
+    2 s) on the panel of examples/panel_input.yaml: the exported log keeps its first
+    64 rows, equal to simulate's first 64, and the example says on stderr how many it
+    did not keep (63)."""
+    text = (EXAMPLES / "panel_input.yaml").read_text().replace(
+        "simulate:", "events:\n  - {name: tick, when: \"sin(200*t)\", do: log}\nsimulate:")
+    model = tmp_path / "panel_input.yaml"
+    model.write_text(text)
+    folder = export_c(model, tmp_path / "ticks", build_dir)
+    run([MAKE, "-s", f"CC={CC}", f"CFLAGS={STRICT}"], folder)
+    done = subprocess.run(["./panel_input_example", "ticks.csv"], cwd=folder,
+                          capture_output=True, text=True)
+    result = fccgen.load(model, build_dir, linear_solver="sparse").simulate(
+        reactions=False)
+    assert done.returncode == 0 and len(result.events) == 127
+    assert "63 events past the log's 64 rows are not in ticks_events.csv" in done.stderr
+    assert_event_rows(folder / "ticks_events.csv", result.events[:64])
 
 
 def test_no_heap_allocation_while_the_solar_array_latches(project, tmp_path):

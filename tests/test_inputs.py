@@ -4,7 +4,7 @@ simulate(inputs=...).
 * the section's rules: a clear error (file, line, item, rule, value) for a name that
   clashes with another of the model's names, with t, a function, a constant, a result
   column, a keyword or a section, for a value that is not a number, and for an input
-  read where it cannot work (drivers, events, forces on cable nodes); an input name
+  read where it cannot work (drivers, forces on cable nodes); an input name
   that carries C text is refused before anything is generated;
 * simulate(inputs={name: number}) equals the model file with that start value, bit
   for bit (the same kernels, the same parameter);
@@ -81,11 +81,12 @@ def test_an_input_is_refused_in_a_driver():
     assert "jump" in str(err)
 
 
-def test_an_input_is_refused_in_an_event():
+def test_an_event_may_read_an_input():
+    """Events read inputs (their runs: tests/test_event_inputs.py)."""
     text = PANEL.replace("simulate:", "events:\n  - {name: e, when: \"hinge.angle >= "
                          "hinge_torque\", do: stop}\nsimulate:")
-    err = model_error(text)
-    assert "events[0].when" in str(err) and "reads the input hinge_torque" in str(err)
+    model = load_model_text(text, "m.yaml")
+    assert "hinge_torque" in {s.name for s in model.events[0].function.free_symbols}
 
 
 def test_an_unknown_name_in_a_load_lists_the_inputs():

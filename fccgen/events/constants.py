@@ -22,14 +22,25 @@ from ..mechanism.joints import perpendiculars
 from ..model.types import GROUND
 from .references import HINGE_SIZE, angle_sources, event_quantities, hinge_constants
 
-SIZES = {"body": 3, "triple": 3, "angle": 12, "hinge": HINGE_SIZE}
+SIZES = {"body": 3, "triple": 3, "angle": 12, "hinge": HINGE_SIZE, "input": 1}
+
+
+def event_inputs(model) -> list[str]:
+    """The model's inputs that its event functions read, in the model file's order.
+    Their values are the last group of the constants: the runtime writes each input's
+    held value there as it writes it into the element kernels' parameters."""
+    read = set()
+    for ev in model.events:
+        read |= {s.name for s in ev.function.free_symbols}
+    return [name for name in getattr(model, "inputs", {}) if name in read]
 
 
 def layout(plan, angle_joints: list[str]) -> list[tuple[str, str]]:
     """(kind, name) of each group of constants: every body (l, alpha, beta), every
     fixed point and vector (x, y, z), every angle quantity's joint (a_A, n1, a_A x n1,
     w; or, for an angle only element kernels read, the "hinge" numbers of
-    fccgen.events.references.hinge_constants), in that order."""
+    fccgen.events.references.hinge_constants), every input the events read (its
+    value), in that order."""
     model = plan.model
     out = [("body", name) for name in model.bodies if name != GROUND]
     out += [("triple", name) for name in (*model.points, *model.vectors)
@@ -38,7 +49,8 @@ def layout(plan, angle_joints: list[str]) -> list[tuple[str, str]]:
     joints = {jl.joint.name: jl.joint for jl in lowering.joints} if lowering else {}
     events = {name for name, kind in event_quantities(model.events, joints)
               if kind == "angle"}
-    return out + [("angle" if name in events else "hinge", name) for name in angle_joints]
+    out += [("angle" if name in events else "hinge", name) for name in angle_joints]
+    return out + [("input", name) for name in event_inputs(model)]
 
 
 def _positions(model) -> dict:
@@ -94,6 +106,18 @@ def values(plan, angle_joints: list[str]) -> np.ndarray:
             out += [float(x) for x in pos[name]]
         elif kind == "hinge":
             out += [float(x) for x in hinge_constants(plan, hinges[name])]
+        elif kind == "input":
+            out.append(float(model.inputs[name]))
         else:
             out += [float(x) for x in angle_constants(model, joints[name])]
     return np.array(out, dtype=float)
+
+
+def input_positions(plan, angle_joints: list[str]) -> dict[str, int]:
+    """name -> the index among the constants of each input the events read."""
+    out, k = {}, 0
+    for kind, name in layout(plan, angle_joints):
+        if kind == "input":
+            out[name] = k
+        k += SIZES[kind]
+    return out

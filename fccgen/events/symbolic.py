@@ -17,7 +17,8 @@ of the joint's carried points and axis. Rates and speeds are d/dt = grad_q . v.
 Numbers of the initial configuration (body constants, fixed points and vectors, the
 directions a_A, n1, w of each angle) are runtime parameters too, after the angle
 references, in the order of fccgen.events.constants.layout: one module serves every
-initial configuration of a model.
+initial configuration of a model. So are the model's inputs that event functions
+read (the last of them): the runtime writes each input's held value there.
 
 Switchable rows (lock and unlock) are the joint quantities r(q) held at a value; their
 Jacobian grad_q r and bias (d/dt grad_q r) . v = v^T (d^2 r / dq^2) v are kernels too.
@@ -270,6 +271,9 @@ def _substitutions(model, frames: _Frames, system: EventSystem) -> dict:
         for c, (x, vx) in enumerate(zip(r, vel)):
             subs[sympy.Symbol(f"{name}.{'xyz'[c]}", real=True)] = x
             subs[sympy.Symbol(f"{name}.v{'xyz'[c]}", real=True)] = vx
+    for (kind, name), symbols in frames.consts.items():   # the inputs events read
+        if kind == "input":
+            subs[sympy.Symbol(name, real=True)] = symbols[0]
     used = set().union(*(ev.function.free_symbols for ev in model.events))
     for qty in system.quantities:
         rate = sympy.Symbol(f"{qty.joint}.{'rate' if qty.kind == 'angle' else 'speed'}",

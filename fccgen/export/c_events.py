@@ -18,8 +18,8 @@ from ..render.escape import c_identifier
 from . import c_data
 
 DIRECTIONS = {"rising": 1, "falling": -1, "either": 0}
-# rows of the event log the exported engine keeps (the export has no log reader; the
-# engine counts past it)
+# rows of the event log the exported engine keeps (NAME_event_row reads them; the
+# engine counts the events past it: NAME_events_dropped)
 LOG_CAP = 64
 
 
@@ -41,6 +41,7 @@ def event_header(solver) -> str:
     ne = len(st.actions)
     return "".join([
         c_data.define("HAS_EVENTS", 1), c_data.define("N_EVENTS", ne),
+        c_data.c_strings("EV_NAMES", list(module.EVENT_NAMES)),
         c_data.define("N_EV_ANGLES", len(st.angle_rows)),
         c_data.c_array("int", "EV_ANGLE_ROW", st.angle_rows),
         c_data.c_array("int", "EV_DIRECTION", [DIRECTIONS[d] for d in st.directions]),
@@ -49,6 +50,9 @@ def event_header(solver) -> str:
         c_data.c_array("double", "EV_RESTITUTION", st.restitution),
         c_data.define("N_EV_CONSTANTS", len(st.constants)),
         c_data.c_array("double", "EV_CONSTANTS", st.constants),
+        c_data.define("N_EV_INPUTS", len(st.input_slots)),
+        c_data.c_array("int", "EV_INPUT_COL", st.input_columns),
+        c_data.c_array("int", "EV_INPUT_SLOT", st.input_slots),
         c_data.define("N_MIRROR", len(st.mirror_slots)),
         c_data.c_array("int", "MIRROR_SLOT", st.mirror_slots),
         c_data.c_array("int", "MIRROR_ANGLE", st.mirror_angles),

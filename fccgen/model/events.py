@@ -22,7 +22,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .inputs import NOT_IN_EVENTS, refuse_inputs
 from .fields import Reader, child
 from .types import Joint, Where
 from .yamlnodes import YNode, YScalar
@@ -108,8 +107,6 @@ class EventReader(Reader):
         symbols = {**self.symbols, **{n: sympy.Symbol(n, real=True) for n in inputs}}
         s, direction = parse_event_function(text, symbols, source=self.source,
                                             line=when.line, item=child(item, "when"))
-        refuse_inputs(self, s, inputs, when.line, child(item, "when"), text,
-                      NOT_IN_EVENTS)
         if "direction" in e:
             direction = self.choice(e["direction"], child(item, "direction"), DIRECTIONS,
                                     "direction")

@@ -1,7 +1,7 @@
 """The model file's ``inputs:`` section (docs/model-file.md, "Inputs").
 
 ``inputs: {base_torque: 0.0}`` declares named scalars with a start value. A load's
-expressions read them as they read ``t``; the runtime holds each at a value set from
+expressions and event functions read them as they read ``t``; the runtime holds each at a value set from
 outside between steps (``simulate(inputs=...)``, the exported C API's
 ``<name>_set_input``, an FMU's input variables), so changing one needs no rebuild.
 
@@ -30,9 +30,6 @@ NOT_IN_DRIVERS = ("reads the input {name}; a driver prescribes a motion, and an 
                   "the driven position (or, for rate:, its integral) jump: drive the "
                   "joint through a load of the input instead (a torque or force), or "
                   "write the motion in t")
-NOT_IN_EVENTS = ("reads the input {name}; event functions are compiled into the event "
-                 "kernels, which do not read inputs: an input may enter loads only (a "
-                 "condition on t or on joint quantities works)")
 NOT_IN_POINT_FORCES = ("reads the input {name}; a force on a cable node is a function "
                        "of t only: inputs enter the loads on bodies (force, torque)")
 

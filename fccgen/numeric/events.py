@@ -111,6 +111,8 @@ class NumericEvents:
         n = self.solver.n_q
         zero = np.zeros(2 * n)
         env = {"t": (float(t), zero)}
+        for name, value in getattr(self.solver, "input_values", {}).items():
+            env[name] = (value, zero)          # the inputs: held, constant in q and v
         keys = list(self.quantities)
         for name in self.used_names:
             owner, what = name.split(".", 1)

@@ -69,6 +69,7 @@ class NumericSolver:
                             if "t" in el.cls.param_names]
         self.t = 0.0
         self._held = None                 # the inputs of a run (fccgen.runs.inputs)
+        self.input_values = dict(getattr(plan.model, "inputs", {}))   # held now (events)
         # turn counting of springs and loads of joint angles (numeric/references.py)
         self.references = AngleReferences(plan, self._params, self._index)
 
@@ -87,7 +88,8 @@ class NumericSolver:
 
     def _put_inputs(self, held, row) -> None:
         """Write the inputs' values ``row`` (in held.names order) into the parameters
-        of the elements that read them."""
+        of the elements that read them (and for the event functions)."""
+        self.input_values.update(zip(held.names, (float(x) for x in row)))
         for k, el in enumerate(self.plan.elements):
             for name in el.cls.inputs:
                 self._params[k][el.cls.param_names.index(input_parameter(name))] = \

@@ -16,7 +16,7 @@ fixed-step methods rk4 and baumgarte (adaptive methods step across output times)
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -45,6 +45,10 @@ class InputRun:
     slots: np.ndarray
     columns: np.ndarray
     table: np.ndarray
+    # the same for the event kernels' parameters (set by the compiled solver when the
+    # model's event functions read inputs; fccgen.runtime.event_settings)
+    event_slots: np.ndarray = field(default_factory=lambda: np.zeros(0, np.intc))
+    event_columns: np.ndarray = field(default_factory=lambda: np.zeros(0, np.intc))
 
     @property
     def constant(self) -> bool:

@@ -103,6 +103,16 @@ cdef class EventSet:
             raise MemoryError("cannot allocate the reference copies")
         self.mirrored = asm
 
+    def put_inputs(self, slots, values):
+        """Write the inputs the event functions read (their held values) into the
+        event kernels' parameters ``slots`` (fccgen.runtime.event_settings)."""
+        if len(slots) != len(values):
+            raise ValueError("need one value per slot")
+        for slot, value in zip(slots, values):
+            if not 3 * self.spec.nang <= slot < self.spec.np:
+                raise ValueError(f"input slot {slot} is not among the event constants")
+            self.c.p[slot] = float(value)
+
     def restore(self):
         """Put back the element parameters' values from before the run (outside
         runs a torsion spring's reference is its free angle)."""

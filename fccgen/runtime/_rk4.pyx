@@ -37,6 +37,10 @@ cdef struct held_inputs:
     const int *col
     const double *table
     long applied             # the record whose row the parameters hold
+    double *evp              # the event kernels' parameters (NULL: no event reads one)
+    int n_ev
+    const int *ev_slot
+    const int *ev_col
 
 
 cdef int pause_holding_inputs(void *ctx) noexcept nogil:
@@ -48,6 +52,8 @@ cdef int pause_holding_inputs(void *ctx) noexcept nogil:
     if j != h.applied:
         for i in range(h.n_slots):
             h.params[h.slot[i]] = h.table[j * h.n_cols + h.col[i]]
+        for i in range(h.n_ev):
+            h.evp[h.ev_slot[i]] = h.table[j * h.n_cols + h.ev_col[i]]
         h.applied = j
     return past_deadline(h.deadline)
 
@@ -137,27 +143,43 @@ def _simulate(Engine engine, q0, v0, double t_end, double dt, long n_steps,
     r.pause, r.pause_ctx = past_deadline, &deadline
     cdef held_inputs held
     cdef int i
-    cdef int[::1] in_slot, in_col
+    cdef int[::1] in_slot, in_col, ev_slot, ev_col
     cdef double[::1] in_table
+    r.ev = ev_state(events)
     if inputs is not None:
+        # (element slots, columns, table[, event-parameter slots, columns])
         in_slot = np.ascontiguousarray(inputs[0], dtype=np.intc)
         in_col = np.ascontiguousarray(inputs[1], dtype=np.intc)
         table = np.ascontiguousarray(inputs[2], dtype=float)
+        ev_slot = np.ascontiguousarray(inputs[3] if len(inputs) > 3 else (), dtype=np.intc)
+        ev_col = np.ascontiguousarray(inputs[4] if len(inputs) > 4 else (), dtype=np.intc)
         if (table.ndim != 2 or table.shape[0] != n_out or in_slot.shape[0] != in_col.shape[0]
-                or in_slot.shape[0] == 0 or np.any(np.asarray(in_col) < 0)
+                or in_slot.shape[0] + ev_slot.shape[0] == 0
+                or ev_slot.shape[0] != ev_col.shape[0]
+                or (ev_slot.shape[0] and (r.ev == NULL or np.any(np.asarray(ev_slot) < 0)
+                                          or np.any(np.asarray(ev_slot) >= r.ev.spec.np)))
+                or np.any(np.asarray(in_col) < 0) or np.any(np.asarray(ev_col) < 0)
                 or np.any(np.asarray(in_col) >= table.shape[1])
+                or np.any(np.asarray(ev_col) >= table.shape[1])
                 or np.any(np.asarray(in_slot) < 0)
                 or np.any(np.asarray(in_slot) >= engine.asm.model.n_p)):
             raise ValueError("inputs: slots, columns and a table of one row per record")
         in_table = table.reshape(-1)
         held.r, held.params, held.deadline = &r, engine.c.asmb.params, &deadline
         held.n_slots, held.n_cols = in_slot.shape[0], table.shape[1]
-        held.slot, held.col, held.table = &in_slot[0], &in_col[0], &in_table[0]
+        held.slot = &in_slot[0] if in_slot.shape[0] else NULL
+        held.col = &in_col[0] if in_col.shape[0] else NULL
+        held.table = &in_table[0]
+        held.n_ev = ev_slot.shape[0]
+        held.evp = r.ev.p if held.n_ev else NULL
+        held.ev_slot = &ev_slot[0] if held.n_ev else NULL
+        held.ev_col = &ev_col[0] if held.n_ev else NULL
         held.applied = 0
         for i in range(held.n_slots):              # row 0 from the start
             held.params[held.slot[i]] = held.table[held.col[i]]
+        for i in range(held.n_ev):
+            held.evp[held.ev_slot[i]] = held.table[held.ev_col[i]]
         r.pause, r.pause_ctx = pause_holding_inputs, &held
-    r.ev = ev_state(events)
     r.pw = power_state(work)
     r.w_out = array_data(work_out)
     r.sens = sens_state(sens, n_out)

@@ -23,11 +23,13 @@ class EventSettings:
     constants: list           # the event kernels' numbers after the angle references
     mirror_slots: list        # element parameter index of each copied reference (th)
     mirror_angles: list       # ... its angle (index among the angle quantities)
+    input_columns: tuple = () # per input the events read: its index in the model's
+    input_slots: tuple = ()   # inputs, and its place in the kernels' parameters
 
 
 def event_settings(plan, module) -> EventSettings:
     """The settings of ``module`` (the model's event module) for ``plan``."""
-    from ..events.constants import values
+    from ..events.constants import input_positions, values
     from ..events.references import reference_slots
     events = plan.model.events
     qty = list(module.QUANTITY_NAMES)
@@ -43,7 +45,11 @@ def event_settings(plan, module) -> EventSettings:
     angle_rows = [k for k, name in enumerate(qty) if name.endswith(".angle")]
     names = [qty[k].split(".")[0] for k in angle_rows]
     slots = reference_slots(plan)
+    inputs = list(getattr(plan.model, "inputs", {}))
+    where = input_positions(plan, names)
     return EventSettings([e.direction for e in events], [e.action for e in events],
                          rows, rows2, [e.restitution for e in events], angle_rows,
                          [float(x) for x in values(plan, names)],
-                         [slot for slot, _ in slots], [names.index(n) for _, n in slots])
+                         [slot for slot, _ in slots], [names.index(n) for _, n in slots],
+                         tuple(inputs.index(n) for n in where),
+                         tuple(3 * len(angle_rows) + k for k in where.values()))

@@ -373,6 +373,7 @@ class CompiledSolver:
             sens = sensitivity_run.setup(self, keys, module_directory(self.module).parents[1])
         report = run_reporter(progress, sched.t_end)
         events = self._event_set(event_tol, rest_speed)
+        self._event_inputs(events, held)
         tracker, untracked = work_tracker(self.plan, self.module, m.name,
                                           self.sparse and keys is None)
         kept = {}
@@ -456,6 +457,19 @@ class CompiledSolver:
         if st.mirror_slots:
             events.mirror(self._asm, st.mirror_slots, st.mirror_angles)
         return events
+
+    def _event_inputs(self, events, held) -> None:
+        """Give the run's event set the inputs its event functions read (held: the
+        run's inputs, fccgen.runs.inputs): their first values now, and where the run
+        writes the later ones (held.event_slots, held.event_columns)."""
+        if events is None or held is None:
+            return
+        from .event_settings import event_settings
+        st = event_settings(self.plan, self.events_module)
+        if st.input_slots:
+            held.event_slots = np.array(st.input_slots, np.intc)
+            held.event_columns = np.array(st.input_columns, np.intc)
+            events.put_inputs(held.event_slots, held.table[0, held.event_columns])
 
     def decide_rank(self, q) -> rank_rule.RankDecision:
         """Decide the rank of B at q by the SVD gap test (fccgen.rank) and keep it in
@@ -559,8 +573,9 @@ class CompiledSolver:
         """(arrays, stats) of one run of method m (held: inputs that change over the
         run, fccgen.runs.inputs; rk4 and baumgarte only; sens: rk4's sensitivities)."""
         s, e = sched, (self._engine if sens is None else self.dense_engine())
-        held = None if held is None or held.constant or not len(held.slots) else (
-            held.slots, held.columns, held.table)
+        held = None if held is None or held.constant or not (
+            len(held.slots) or len(held.event_slots)) else (
+            held.slots, held.columns, held.table, held.event_slots, held.event_columns)
         if model_events(self.plan) and m.name not in ("rk4", "dopri5"):
             raise ValueError(f"events are located by the rk4 and dopri5 methods, not "
                              f"by {m.name}")
