@@ -98,7 +98,9 @@ def scales_from_norms(norms: np.ndarray, groups=None) -> np.ndarray:
         _, element = np.unique(np.asarray(groups), return_inverse=True)
         element = element.ravel()
         largest = np.zeros(element.max() + 1)
-        np.maximum.at(largest, element, norms)        # each element's largest row
+        # each element's largest row; a NaN row stays NaN (the run's checks name it)
+        with np.errstate(invalid="ignore"):
+            np.maximum.at(largest, element, norms)
         norms = np.maximum(norms, ROW_FLOOR * largest[element])
     return np.where(norms > 0.0, norms, 1.0)
 
