@@ -69,6 +69,8 @@ def attach(solver, result, keys, sens) -> None:
     """Add the columns ``d(<column>)/d(<key>)`` of every column of the state and key
     (fccgen.runtime.sensitivity.columns) to ``result``; ``info["sensitivities"]``: the keys."""
     records = sens.records
+    if "stopped_at" in result.info or records.shape[0] > len(result.t):
+        records = records[:len(result.t)]      # a stop event: the records so far
     if records.shape[0] != len(result.t) or records.shape[2] != 2 * solver.plan.n_q:
         raise AssertionError("sensitivity records do not match the run's records")
     worst = 0.0
