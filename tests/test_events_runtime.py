@@ -118,6 +118,23 @@ def test_pendulum_bounces_on_its_limit_and_rests(pendulum):
     assert abs(result["A.angle"][-1] - 1.0) <= 1e-11
 
 
+
+def test_events_past_the_logs_rows_are_counted_and_said(pendulum, monkeypatch):
+    """A log of 4 rows on the run above (10 and more bounces, then rest): the run goes
+    through every event, result.events holds the first 4 of the full run's table, and
+    the rest are counted in info and said in a warning, never dropped silently."""
+    from fccgen.errors import RunWarning
+    from fccgen.runtime import event_settings
+    full = pendulum.simulate(t_end=2.0, dt=1e-3, method="rk4")
+    monkeypatch.setattr(event_settings, "LOG_ROWS", 4)
+    with pytest.warns(RunWarning, match=f"{len(full.events) - 4} events after the "
+                                        "first 4 are not in result.events"):
+        cut = pendulum.simulate(t_end=2.0, dt=1e-3, method="rk4")
+    assert cut.events == full.events[:4]
+    assert cut.info["events_dropped"] == len(full.events) - 4
+    assert cut.info["energy_check"]["until"] == full.events[3]["t"]
+    assert np.array_equal(cut.table(), full.table())       # the motion is the same
+
 @pytest.mark.parametrize("suffix", [".csv", ".npz"])
 def test_event_table_is_in_every_result_file(pendulum, tmp_path, suffix):
     result = pendulum.simulate(t_end=0.5, dt=1e-3, method="rk4")

@@ -85,6 +85,19 @@ def report_switches(result, log: np.ndarray, notes: dict) -> None:
         warnings.warn(text, RunWarning, stacklevel=3)
 
 
+def report_dropped_events(result, kept: int, dropped: int) -> None:
+    """Say that the event log kept only its first ``kept`` rows (the run itself went on
+    through every event): ``result.info["events_dropped"]`` and a RunWarning."""
+    result.info["events_dropped"] = int(dropped)
+    last = result.events[-1]["t"] if result.events else 0.0
+    text = (f"{dropped} events after the first {kept} are not in result.events (the "
+            f"log keeps {kept} rows); the run went through all {kept + dropped}: its "
+            f"columns are complete, but events after t = {last:.9g} s are not listed, "
+            f"and the energy check covers the run up to then")
+    result.info.setdefault("warnings", []).append(text)
+    warnings.warn(text, RunWarning, stacklevel=3)
+
+
 def final_dof(info: dict, rows: list[dict]) -> int:
     """The degrees of freedom at the end of a run with events. The rank findings
     (info["final_dof"], info["dof_changes"]) count the constraint Jacobian's rank only;

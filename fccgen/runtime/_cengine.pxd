@@ -438,6 +438,7 @@ cdef extern from "fcc_sens.h":
                       int np, const double *dP) nogil
     void fcc_sens_free(fcc_sens *s) nogil
     void fcc_sens_start(fcc_sens *s, const double *S0) nogil
+    int fcc_sens_events_init(fcc_sens *s, fcc_events *ev, double *tout, long cap) nogil
 
 
 cdef extern from "fcc_rk4.h":

@@ -161,8 +161,14 @@ cdef class EventSet:
     def tol(self):
         return self.spec.tol
 
+    @property
+    def dropped(self):
+        """The events of the last run past the log's rows: counted, not in log()."""
+        return max(0, self.c.n_log - self.spec.cap_log)
+
     def log(self):
-        """The events of the last run: a (n, 11) array of LOG_COLUMNS."""
+        """The events of the last run: a (n, 11) array of LOG_COLUMNS (the first
+        cap_log of them; ``dropped`` counts the rest)."""
         n = min(self.c.n_log, self.spec.cap_log)
         out = np.empty((n, FCC_LOG_COLS))
         for i in range(n):

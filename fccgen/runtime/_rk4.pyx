@@ -19,7 +19,7 @@ from ._cengine cimport (FCC_RUN_DONE, FCC_RUN_ERROR, fcc_rk4, fcc_rk4_advance,
 from ._engine cimport Engine
 from ._events cimport ev_state
 from ._power cimport power_state
-from ._sens cimport sens_state
+from ._sens cimport sens_events, sens_state
 from ._runloop cimport array_data, now, past_deadline
 
 from ._messages import error_message
@@ -113,10 +113,8 @@ def _simulate(Engine engine, q0, v0, double t_end, double dt, long n_steps,
         raise ValueError("events need the projected RK4 (method rk4, projection on)")
     if work is not None:
         work.fits(engine)
-    if sens is not None and (baumgarte or not project or engine.c.sparse
-                             or (events is not None and events.n_events)):
-        raise ValueError("sensitivities need the projected RK4 on the dense path, "
-                         "without events")
+    if sens is not None and (baumgarte or not project or engine.c.sparse):
+        raise ValueError("sensitivities need the projected RK4 on the dense path")
     cdef double[::1] qv = engine.vector(q0, "q0"), vv = engine.vector(v0, "v0")
     engine.reset_warm_start()           # a run does not depend on earlier solves
     if not (np.all(np.isfinite(qv)) and np.all(np.isfinite(vv))):
@@ -183,6 +181,8 @@ def _simulate(Engine engine, q0, v0, double t_end, double dt, long n_steps,
     r.pw = power_state(work)
     r.w_out = array_data(work_out)
     r.sens = sens_state(sens, n_out)
+    if r.sens != NULL and r.ev != NULL:
+        sens_events(sens, r.ev, r.ev.spec.cap_log)
     if events is not None:
         events.reset(qv, engine)
     cdef int status

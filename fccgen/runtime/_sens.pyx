@@ -8,8 +8,8 @@ from cpython.pycapsule cimport PyCapsule_GetPointer
 import numpy as np
 
 from ._assemble cimport Assembler
-from ._cengine cimport (FCC_ERR_MEMORY, FCC_OK, fcc_dp_table, fcc_sens_free, fcc_sens_init,
-                        fcc_sens_start)
+from ._cengine cimport (FCC_ERR_MEMORY, FCC_OK, fcc_dp_table, fcc_events,
+                        fcc_sens_events_init, fcc_sens_free, fcc_sens_init, fcc_sens_start)
 
 
 cdef class Sensitivities:
@@ -37,6 +37,7 @@ cdef class Sensitivities:
                              "element classes (build it from the same plan)")
         self.live = True
         self.records = None
+        self.event_records = None
 
     def __dealloc__(self):
         if self.live:
@@ -59,3 +60,15 @@ cdef fcc_sens *sens_state(object sens, long n_records) except? NULL:
     s.c.out = &rec[0, 0, 0]
     fcc_sens_start(&s.c, &s0[0, 0])
     return &s.c
+
+
+cdef int sens_events(object sens, fcc_events *ev, long cap) except -1:
+    """Carry the sensitivities of ``sens`` through the events ev of a run (cap: the rows
+    of its log); ``event_records`` (cap x np) receives d(time)/dp of each logged
+    event."""
+    cdef Sensitivities s = <Sensitivities>sens
+    s.event_records = np.full((max(cap, 1), s.c.np), np.nan)
+    cdef double[:, ::1] rec = s.event_records
+    if fcc_sens_events_init(&s.c, ev, &rec[0, 0], cap) != FCC_OK:
+        raise MemoryError("cannot allocate the sensitivities' event work")
+    return 0

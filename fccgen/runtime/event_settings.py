@@ -10,6 +10,8 @@ from dataclasses import dataclass
 
 # more events than this in one step: a Zeno sequence, the contact rests
 MAX_PER_STEP = 50
+# rows of a run's event log; the events past them are counted (EventSet.dropped)
+LOG_ROWS = 100_000
 
 
 @dataclass(frozen=True)

@@ -390,7 +390,7 @@ class CompiledSolver:
             raise explained(exc, self, q0, v0, step_setting(m, sched, opts, dt)) from None
         finally:
             if events is not None:
-                log, turn = events.log(), events.largest_turn
+                log, turn, dropped = events.log(), events.largest_turn, events.dropped
                 events.restore()          # direct kernel calls: references as planned
         result.info["setup"] = self.setup_store.report()
         if report is not None:
@@ -399,11 +399,14 @@ class CompiledSolver:
             turn_check(result, self.plan, self.events_module, events,
                        turn if m.name in REBASING else None)
         if events is not None and events.n_events:
-            from ..events.table import energy_balance, event_rows, report_switches
+            from ..events.table import (energy_balance, event_rows, report_dropped_events,
+                                        report_switches)
             from ._events import ACTIONS, NOTES
             result.events = event_rows(events.names, ACTIONS, log)
             result.info["events"] = result.events
             report_switches(result, log, NOTES)
+            if dropped:
+                report_dropped_events(result, len(log), dropped)
             (result.info["energy_drift"],
              result.info["event_energy_loss"]) = energy_balance(result.t, result["energy"],
                                                                 result.events)
@@ -448,12 +451,12 @@ class CompiledSolver:
                                  "event module (fccgen.events.build.load_events)")
             return None
         from ._events import EventSet
-        from .event_settings import MAX_PER_STEP, event_settings
-        st = event_settings(self.plan, self.events_module)
+        from . import event_settings as settings
+        st = settings.event_settings(self.plan, self.events_module)
         events = EventSet(self.events_module, self.n_q, st.directions, st.actions,
                           st.rows, st.rows2, st.restitution, st.angle_rows, tol=tol,
-                          v_rest=rest_speed, max_per_step=MAX_PER_STEP,
-                          constants=st.constants)
+                          v_rest=rest_speed, max_per_step=settings.MAX_PER_STEP,
+                          max_log=settings.LOG_ROWS, constants=st.constants)
         if st.mirror_slots:
             events.mirror(self._asm, st.mirror_slots, st.mirror_angles)
         return events

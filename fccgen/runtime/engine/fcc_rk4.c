@@ -130,6 +130,8 @@ static int state_at(fcc_engine *e, fcc_rk4 *r, double t0, double tau)
     memcpy(r->q, r->saved, (size_t)e->n * sizeof(double));
     memcpy(r->v, r->saved + e->n, (size_t)e->n * sizeof(double));
     r->w = r->wsave;
+    if (r->sens != NULL)                  /* the sensitivities at the step start */
+        fcc_sens_restore(r->sens);
     e->factor_valid = 0;
     r->t0 = t0;
     return step(e, r, t0, tau);
@@ -144,11 +146,16 @@ static int locate(fcc_engine *e, fcc_rk4 *r, int k, double t0, double h, double 
     fcc_events *ev = r->ev;
     int ne = ev->spec->ne;
     fcc_bracket br;
+    fcc_sens *sens = r->sens;             /* trials carry no sensitivities */
     double c;
+    int rc;
     fcc_ev_bracket(ev, k, &br, h);
     while (fcc_ev_bracket_open(ev, &br, 1.0)) {
         c = fcc_ev_bracket_trial(&br);
-        if (state_at(e, r, t0, c) < 0)
+        r->sens = NULL;
+        rc = state_at(e, r, t0, c);
+        r->sens = sens;
+        if (rc < 0)
             return -1;
         if (fcc_ev_watch(e, ev, r->q, r->v, t0 + c, ev->s1 + 2 * ne) < 0)  /* work */
             return -1;
@@ -192,9 +199,15 @@ static int events(fcc_engine *e, fcc_rk4 *r, double t0, double h)
             return -1;
         count++;
         e->err_t = t0 + best;
+        if (r->sens != NULL
+                && fcc_sens_event_before(e, r->sens, first, r->q, r->v, t0 + best) < 0)
+            return -1;
         rc = fcc_ev_apply(e, ev, count <= max_per_step ? first : -1 - first, r->q, r->v,
                           t0 + best);
         if (rc < 0)
+            return -1;
+        if (r->sens != NULL
+                && fcc_sens_event_after(e, r->sens, first, rc, r->q, r->v, t0 + best) < 0)
             return -1;
         count -= rc;                         /* an impact that was none does not count */
         if (ev->stop) {
@@ -211,6 +224,8 @@ static int events(fcc_engine *e, fcc_rk4 *r, double t0, double h)
         memcpy(r->saved, r->q, (size_t)e->n * sizeof(double));
         memcpy(r->saved + e->n, r->v, (size_t)e->n * sizeof(double));
         r->wsave = r->w;
+        if (r->sens != NULL)
+            fcc_sens_save(r->sens);
         if (h <= 0.0)
             return 0;
         r->t0 = t0;
@@ -232,6 +247,8 @@ int fcc_rk4_advance(fcc_engine *e, fcc_rk4 *r)
             memcpy(r->saved, r->q, (size_t)e->n * sizeof(double));
             memcpy(r->saved + e->n, r->v, (size_t)e->n * sizeof(double));
             r->wsave = r->w;
+            if (r->sens != NULL)
+                fcc_sens_save(r->sens);
         }
         r->t0 = t;
         if (step(e, r, t, h) < 0)

@@ -58,7 +58,19 @@ int fcc_sens_init(fcc_sens *s, const fcc_model *model, const fcc_dp_table *dp, i
 void fcc_sens_free(fcc_sens *s)
 {
     free(s->S);
+    free(s->E);
     s->S = NULL;
+    s->E = NULL;
+}
+
+double *fcc_sens_sq(const fcc_sens *s, int j)
+{
+    return row(s, j, SQ);
+}
+
+double *fcc_sens_sv(const fcc_sens *s, int j)
+{
+    return row(s, j, SV);
 }
 
 void fcc_sens_start(fcc_sens *s, const double *S0)
@@ -78,9 +90,9 @@ void fcc_sens_begin_step(fcc_sens *s, double h)
 /* The tangent kernels of every element along (sq, sv, dP_j) at (q, v) with the
  * accelerations a and multipliers lam: dR1 into rhs, dR2 into b, (dg/dp) dP_j into
  * gp, dPhi into phi. */
-static void sweep(fcc_engine *e, fcc_sens *s, const double *q, const double *v,
-                  const double *a, const double *lam, const double *sq,
-                  const double *sv, const double *dPj)
+void fcc_sens_sweep(fcc_engine *e, fcc_sens *s, const double *q, const double *v,
+                    const double *a, const double *lam, const double *sq,
+                    const double *sv, const double *dPj)
 {
     const fcc_model *md = s->model;
     const double *params = e->asmb->params;
@@ -129,6 +141,8 @@ static void multipliers(fcc_engine *e, fcc_sens *s, const double *a)
             acc -= Mi[j] * a[j];
         s->r[i] = acc;
     }
+    if (fcc_sens_rows(s) > 0)                  /* + G^T mu of the locked rows */
+        fcc_sens_rows_force(s, s->r);
     fcc_dense_multipliers(&e->sol, s->r, s->lam, s->y);
 }
 
@@ -145,13 +159,21 @@ int fcc_sens_rk4_stage(fcc_engine *e, fcc_sens *s, int k, const double *q,
     static const int stage_q[4] = {SQ, SQS, SQS, SQS}, stage_v[4] = {SV, SV2, SV3, SV4};
     int i, j, n = s->n, np_all = s->model->n_p;
     double h = s->h, h2 = 0.5 * h, h6 = h / 6.0;
+    int rows = fcc_sens_rows(s);
     double *sq, *sv, *sqs, *sa;
+    if (rows > 0)                              /* the stage's rows' multipliers */
+        fcc_sens_keep_mu(s);
     multipliers(e, s, a);
     for (j = 0; j < s->np; j++) {
         sa = row(s, j, SA1 + k - 1);
-        sweep(e, s, q, v, a, s->lam, row(s, j, stage_q[k - 1]), row(s, j, stage_v[k - 1]),
-              s->dP + (size_t)j * np_all);
+        sq = row(s, j, stage_q[k - 1]);
+        sv = row(s, j, stage_v[k - 1]);
+        fcc_sens_sweep(e, s, q, v, a, s->lam, sq, sv, s->dP + (size_t)j * np_all);
+        if (rows > 0)
+            fcc_sens_rows_rhs(s, q, sq);
         fcc_solve_constrained(e, s->rhs, NULL, s->b, sa);
+        if (rows > 0 && fcc_sens_rows_acc(e, s, q, v, a, sq, sv, sa) < 0)
+            return -1;
         if (bad(e, sa, n))
             return -1;
         sq = row(s, j, SQ);
@@ -191,13 +213,19 @@ int fcc_sens_project(fcc_engine *e, fcc_sens *s, const double *q, const double *
         sq = row(s, j, SQ);
         sv = row(s, j, SV);
         /* positions: gp = -(dg/dp) dP_j does not depend on the direction's q part */
-        sweep(e, s, q, v, s->zero, s->zero, s->zero, s->zero, s->dP + (size_t)j * np_all);
+        fcc_sens_sweep(e, s, q, v, s->zero, s->zero, s->zero, s->zero,
+                       s->dP + (size_t)j * np_all);
         fcc_solve_constrained(e, NULL, sq, s->gp, s->y);
         memcpy(sq, s->y, (size_t)n * sizeof(double));
+        if (fcc_sens_rows(s) > 0 && fcc_sens_rows_positions(e, s, j, q, sq) < 0)
+            return -1;
         /* speeds: phi = -dPhi[s_q, dP_j] with the projected s_q */
-        sweep(e, s, q, v, s->zero, s->zero, sq, s->zero, s->dP + (size_t)j * np_all);
+        fcc_sens_sweep(e, s, q, v, s->zero, s->zero, sq, s->zero,
+                       s->dP + (size_t)j * np_all);
         fcc_solve_constrained(e, NULL, sv, s->phi, s->y);
         memcpy(sv, s->y, (size_t)n * sizeof(double));
+        if (fcc_sens_rows(s) > 0 && fcc_sens_rows_speeds(e, s, q, v, sq, sv) < 0)
+            return -1;
         if (bad(e, sq, n) || bad(e, sv, n))
             return -1;
     }

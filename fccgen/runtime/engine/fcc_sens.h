@@ -24,6 +24,8 @@
 #include "fcc_dp.h"
 #include "fcc_engine.h"
 
+struct fcc_events;
+
 typedef struct fcc_sens {
     const fcc_dp_table *dp;        /* the model's tangent kernels (not owned) */
     const fcc_model *model;
@@ -34,6 +36,19 @@ typedef struct fcc_sens {
     double *lam, *r, *rhs, *b, *gp, *phi, *y, *zero;   /* work */
     double *lq, *lv, *la, *lsq, *lsv, *llam, *lout;    /* an element's */
     double h;                      /* the step being taken */
+    /* events (fcc_sens_events.c; all NULL/0 without fcc_sens_events_init) */
+    struct fcc_events *ev;         /* the run's events (not owned) */
+    int nr, ne;                    /* their quantity rows, event functions */
+    double *tout;                  /* cap x np: d(time)/dp_j per logged event (caller's) */
+    long cap;
+    double *E;                     /* the work below, one allocation */
+    double *saved;                 /* np x 2n: s at the step start events restart from */
+    double *dheld;                 /* np x nr: d(held value)/dp_j of each lock row */
+    double *tau;                   /* np: d(event time)/dp_j of the event being acted on */
+    double *emu, *target;          /* nr: rows' multipliers of a stage or impact; targets */
+    double *dG, *G1, *G2;          /* nr x n: d(Jacobian of the rows) along s_q; work */
+    double *rb1, *rb2;             /* 2 (nr + ne + 1), nr + ne + 1 numbers */
+    double *vm, *am, *ap, *dv, *w, *x, *r0, *alpha;   /* n each (alpha: m + 1) */
 } fcc_sens;
 
 /* Allocate for np parameters of the model (dP: np x model->n_p numbers, kept by
@@ -56,5 +71,65 @@ int fcc_sens_rk4_stage(fcc_engine *e, fcc_sens *s, int k, const double *q,
 int fcc_sens_project(fcc_engine *e, fcc_sens *s, const double *q, const double *v);
 /* Copy the state's sensitivities into record rec of out. */
 void fcc_sens_record(const fcc_sens *s, long rec);
+
+/* Shared with fcc_sens_events.c: the state's s_q of parameter j (s_v follows at +
+ * FCC_SENS_SV_OFFSET n), and the tangent sweep of every element along (sq, sv, dP_j)
+ * at (q, v, a, lam): dR1 into s->rhs, dR2 into s->b, -(dg/dp) dP_j into s->gp,
+ * -dPhi into s->phi. */
+double *fcc_sens_sq(const fcc_sens *s, int j);
+double *fcc_sens_sv(const fcc_sens *s, int j);
+void fcc_sens_sweep(fcc_engine *e, fcc_sens *s, const double *q, const double *v,
+                    const double *a, const double *lam, const double *sq,
+                    const double *sv, const double *dPj);
+
+/* Sensitivities through events (fcc_sens_events.c).
+ *
+ * An event located at te (s_k(q(te), te) = 0) inside a step: the engine integrates
+ * a partial step of size tau from the step's start and projects; s is carried
+ * through that partial step as through any step (at fixed tau), and
+ *     dte/dp = -(ds_k/dq . s_q) / (ds_k/dq . v + ds_k/dt)
+ * (the event functions do not depend on the design parameters). The state's total
+ * derivative at te is s + f- dte/dp (f = (v, a)); the event's map x+ = J(x-) is
+ * linearised at it, and the rest of the step starts from
+ *     s+ = J_x (s- + f- dte/dp) + J_p - f+ dte/dp.
+ * log: J = I, f+ = f- (s+ = s-); unlock: J = I, a+ without the rows; lock: the
+ * plastic impact (M-orthogonal projection of v onto B v + g_t = 0 and G v = 0) and
+ * the rows' held values r(q(te)) whose derivative G (s_q + v dte/dp) the linearised
+ * projections and stages hold afterwards; stop: the run ends, and its last record
+ * carries the total derivative s + f- dte/dp. While rows are locked, each stage and
+ * projection of s adds them: G s_a = -d(G a + Gdot v)[s_q, s_v], G s_q = d(held),
+ * G s_v = -dG[s_q] v (the rows' second derivatives by central differences of their
+ * generated Jacobian and bias along s_q: O(eps^2), about 1e-10 relative).
+ * Bounces, rests and releases are not carried (refused before a run). */
+/* Carry the sensitivities through ev's events; tout: cap x np (logged events).
+ * Returns FCC_OK or FCC_ERR_MEMORY. */
+int fcc_sens_events_init(fcc_sens *s, struct fcc_events *ev, double *tout, long cap);
+/* Keep / put back s at a step start (the events' restarts). */
+void fcc_sens_save(fcc_sens *s);
+void fcc_sens_restore(fcc_sens *s);
+/* Event k located at (q, v, t), projected, before fcc_ev_apply: dte/dp and the total
+ * derivative (s becomes s + f- dte/dp). */
+int fcc_sens_event_before(fcc_engine *e, fcc_sens *s, int k, const double *q,
+                          const double *v, double t);
+/* After fcc_ev_apply(k) returned rc at (q, v, t) (v: v+): the jump and s+. */
+int fcc_sens_event_after(fcc_engine *e, fcc_sens *s, int k, int rc, const double *q,
+                         const double *v, double t);
+/* With locked rows (used), at a stage whose fcc_ev_constrain has just run: add the
+ * rows' forces' derivative dG[sq]^T mu to s->rhs (s->emu: the stage's mu). */
+void fcc_sens_rows_rhs(fcc_sens *s, const double *q, const double *sq);
+/* ... then hold the rows on s_a after the solve: G s_a = -(dG a + d(Gdot v)). */
+int fcc_sens_rows_acc(fcc_engine *e, fcc_sens *s, const double *q, const double *v,
+                      const double *a, const double *sq, const double *sv, double *sa);
+/* The rows' part of the linearised projections (after fcc_sens_project's B parts). */
+int fcc_sens_rows_positions(fcc_engine *e, fcc_sens *s, int j, const double *q,
+                            double *sq);
+int fcc_sens_rows_speeds(fcc_engine *e, fcc_sens *s, const double *q, const double *v,
+                         const double *sq, double *sv);
+/* The number of used rows while sensitivities follow events (0: none). */
+int fcc_sens_rows(const fcc_sens *s);
+/* Keep the stage's rows' multipliers (ev->mu after fcc_ev_constrain) in s->emu; add
+ * G^T emu to r (n numbers). */
+void fcc_sens_keep_mu(fcc_sens *s);
+void fcc_sens_rows_force(const fcc_sens *s, double *r);
 
 #endif

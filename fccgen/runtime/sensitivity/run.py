@@ -14,6 +14,12 @@ from .columns import column_name, column_sensitivities
 from .parameters import directions
 
 
+# The event actions whose jumps the engine carries the sensitivities through
+# (engine/fcc_sens_events.c).
+CARRIED = ("stop", "log", "lock", "unlock")
+TIME_KEY = "d(time)/d({})"
+
+
 def split_keys(keys) -> list[str]:
     """Parameter keys from a list or one comma-separated string (commas inside [k]
     never occur: a key's component is one index)."""
@@ -37,11 +43,13 @@ def check_request(solver, keys, method: str, project: bool) -> list[str]:
                          f"or method='rk4'), not by {method}")
     if not project:
         raise ValueError("sensitivities need the projected rk4 (project=True)")
-    if model.events:
-        raise ModelError(model.source, None, "events", "sensitivities of a run with "
-                         "events (the event times' derivatives and the jumps at latches "
-                         "and bounces) are not supported yet; remove the events or run "
-                         "without sensitivities", show_value=False)
+    for k, event in enumerate(model.events):
+        if event.action not in CARRIED:
+            raise ModelError(model.source, event.where.line, f"events[{k}] ({event.name})",
+                             f"sensitivities are carried through {', '.join(CARRIED)} "
+                             f"events, not through a {event.action} (the impact's and the "
+                             "rest's jumps are not derived yet; joint limits are bounces)",
+                             show_value=False)
     if solver.linear_solver == "sparse":
         raise ValueError("sensitivities run on the dense path: load the solver with "
                          "linear_solver='dense' or 'auto'")
@@ -61,6 +69,8 @@ def attach(solver, result, keys, sens) -> None:
     """Add the columns ``d(<column>)/d(<key>)`` of every column of the state and key
     (fccgen.runtime.sensitivity.columns) to ``result``; ``info["sensitivities"]``: the keys."""
     records = sens.records
+    if "stopped_at" in result.info or records.shape[0] > len(result.t):
+        records = records[:len(result.t)]      # a stop event: the records so far
     if records.shape[0] != len(result.t) or records.shape[2] != 2 * solver.plan.n_q:
         raise AssertionError("sensitivity records do not match the run's records")
     worst = 0.0
@@ -73,5 +83,13 @@ def attach(solver, result, keys, sens) -> None:
                 result.columns[column_name(col, key)] = cols[col]
                 if col in result.hidden:
                     result.hidden.add(column_name(col, key))
+    events = getattr(result, "events", None) or []
+    if events:                     # each event row: d(time)/d(key), dt_e/dp (engine)
+        rows = sens.event_records
+        if rows is None or rows.shape[0] < len(events):
+            raise AssertionError("sensitivity event records do not match the run's events")
+        for i, row in enumerate(events):
+            for j, key in enumerate(keys):
+                row[TIME_KEY.format(key)] = float(rows[i, j])
     result.info["sensitivities"] = list(keys)
     result.info["sensitivity_column_error"] = worst

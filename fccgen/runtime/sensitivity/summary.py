@@ -19,10 +19,17 @@ def summary(result, out=None) -> str:
         s = result.sensitivity(best, key)
         lines.append(f"  d/d({key}): largest in d({best})/d({key}) = "
                      f"{s[np.argmax(np.abs(s))]:.6g}, at t_end {s[-1]:.6g}")
+    for event in getattr(result, "events", None) or []:
+        lines.append(f"  event {event['name']} ({event['action']}) at t = {event['t']:.9g}: "
+                     + ", ".join(f"d(time)/d({key}) = {event[f'd(time)/d({key})']:.6g}"
+                                 for key in keys if f"d(time)/d({key})" in event))
     if out:
         n = sum(1 for c in result.columns if c.startswith("d(") and c not in result.hidden)
         lines.append(f"results: {out} ({len(result.t)} rows, {n} columns "
                      "d(<column>)/d(<param>))")
+        if getattr(result, "events", None):
+            lines.append("the events with their d(time)/d(<param>): info[\"events\"] of "
+                         "the file's metadata (a CSV's <stem>.meta.json)")
     else:
         lines.append("no --out given: results not written")
     return "\n".join(lines)
