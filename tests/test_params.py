@@ -32,6 +32,20 @@ def test_keys_split_into_items_and_components():
         split_key("bodies..mass")
 
 
+def runs_of_edit_and_keys(solver, path, edits, values, build_dir, tmp_path):
+    """(the run of the model file with ``edits`` made, the solver with ``values`` set,
+    its run): each edit (old, new) replaces text that occurs once."""
+    text = path.read_text()
+    for old, new in edits:
+        assert text.count(old) == 1
+        text = text.replace(old, new)
+    edited = tmp_path / path.name
+    edited.write_text(text)
+    expected = fccgen.load(edited, build_dir).simulate(t_end=T_END).table()
+    changed = solver.with_parameters(values)
+    return expected, changed, changed.simulate(t_end=T_END).table()
+
+
 @pytest.mark.parametrize("values, edits", [
     ({"bodies.rod2.mass": 0.9}, [("mass: 0.6", "mass: 0.9")]),
     ({"points.P2.at": [1.7, -0.6, 0.0], "bodies.rod2.center[0]": 0.45,
@@ -42,15 +56,8 @@ def test_keys_split_into_items_and_components():
 ])
 def test_with_parameters_is_editing_the_model_file(solver, build_dir, tmp_path, values,
                                                    edits):
-    text = DOUBLE.read_text()
-    for old, new in edits:
-        assert text.count(old) == 1
-        text = text.replace(old, new)
-    edited = tmp_path / "double_pendulum.yaml"
-    edited.write_text(text)
-    expected = fccgen.load(edited, build_dir).simulate(t_end=T_END).table()
-    changed = solver.with_parameters(values)
-    got = changed.simulate(t_end=T_END).table()
+    expected, changed, got = runs_of_edit_and_keys(solver, DOUBLE, edits, values,
+                                                   build_dir, tmp_path)
     # The same numbers reach the same compiled kernels: equal to rounding. 1e-12
     # allows for a last-digit difference in numbers computed from the positions.
     assert np.abs(got - expected).max() <= 1e-12
@@ -95,16 +102,9 @@ def test_pose_form_keys_are_the_model_files_terms(build_dir, tmp_path, values, e
     """A pose-form body keeps its inertia and centre in the frame the lowering chose
     (i, j, u); its keys must still address the numbers as the file writes them, in
     its ``frame`` and globally."""
-    text = RSUP.read_text()
-    for old, new in edits:
-        assert text.count(old) == 1
-        text = text.replace(old, new)
-    edited = tmp_path / "rsup.yaml"
-    edited.write_text(text)
     solver = fccgen.load(RSUP, build_dir)
-    expected = fccgen.load(edited, build_dir).simulate(t_end=T_END).table()
-    changed = solver.with_parameters(values)
-    got = changed.simulate(t_end=T_END).table()
+    expected, changed, got = runs_of_edit_and_keys(solver, RSUP, edits, values,
+                                                   build_dir, tmp_path)
     # the same numbers through the same kernels; 1e-12 of each column's size (at
     # least 1) for the rotation to the internal frame and back, a few roundings that
     # the reactions (forces of tens of newtons) carry in their own units
