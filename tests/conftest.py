@@ -41,6 +41,21 @@ def compiled(build_dir):
 
 
 @pytest.fixture(scope="session")
+def compiled_sparse(build_dir):
+    """compiled_sparse(name) -> CompiledSolver of examples/<name>.yaml on the sparse
+    path (the path the C export takes), built once."""
+    import fccgen
+    cache = {}
+
+    def get(name: str):
+        if name not in cache:
+            cache[name] = fccgen.load(EXAMPLES / f"{name}.yaml", build_dir,
+                                      linear_solver="sparse")
+        return cache[name]
+    return get
+
+
+@pytest.fixture(scope="session")
 def numeric():
     """numeric(name) -> NumericSolver of examples/<name>.yaml."""
     import fccgen

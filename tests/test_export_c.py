@@ -30,7 +30,6 @@ import pytest
 
 from conftest import EXAMPLES
 
-import fccgen
 from fccgen.export import ExportError, export_c
 
 CC = shutil.which("cc") or shutil.which("gcc")
@@ -70,18 +69,6 @@ def exported(build_dir, tmp_path_factory):
     return get
 
 
-@pytest.fixture(scope="session")
-def sparse_solver(build_dir):
-    cache = {}
-
-    def get(name):
-        if name not in cache:
-            cache[name] = fccgen.load(EXAMPLES / f"{name}.yaml", build_dir,
-                                      linear_solver="sparse")
-        return cache[name]
-    return get
-
-
 def assert_columns_equal(names, rows, result, rtol):
     for k, name in enumerate(names):
         want = result.t if name == "t" else result[name]
@@ -90,14 +77,14 @@ def assert_columns_equal(names, rows, result, rtol):
 
 
 @pytest.mark.parametrize("name", MODELS)
-def test_the_example_writes_simulates_csv(name, exported, sparse_solver):
+def test_the_example_writes_simulates_csv(name, exported, compiled_sparse):
     """Same columns (but reactions and driver forces), same rows, equal to 1e-12 of
     each column's largest magnitude; and the selftest passes."""
     folder, names, rows = exported(name)
-    result = sparse_solver(name).simulate(reactions=False)
+    result = compiled_sparse(name).simulate(reactions=False)
     expected = [n for n in result.names
                 if not (n.endswith((".fx", ".fy", ".fz", ".tx", ".ty", ".tz"))
-                        or n in _driver_columns(sparse_solver(name)))]
+                        or n in _driver_columns(compiled_sparse(name)))]
     assert names == expected
     assert rows.shape == (len(result.t), len(names))
     assert_columns_equal(names, rows, result, 1e-12)
@@ -118,12 +105,12 @@ def test_the_auto_path_agrees_with_the_sparse_export(exported, compiled):
     assert_columns_equal(names[:-1], rows[:, :-1], result, 1e-9)   # not constraint_error
 
 
-def test_a_parameter_set_by_key_equals_with_parameters(exported, sparse_solver):
+def test_a_parameter_set_by_key_equals_with_parameters(exported, compiled_sparse):
     folder = exported("four_bar_driven")[0]
     run(["./four_bar_driven_example", "heavy.csv", "bodies.coupler.mass=1.3",
          "bodies.rocker.inertia[0]=4e-5"], folder)
     names, rows = read_csv(folder / "heavy.csv")
-    solver = sparse_solver("four_bar_driven").with_parameters(
+    solver = compiled_sparse("four_bar_driven").with_parameters(
         {"bodies.coupler.mass": 1.3, "bodies.rocker.inertia[0]": 4e-5})
     assert_columns_equal(names, rows, solver.simulate(reactions=False), 1e-12)
 

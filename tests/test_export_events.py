@@ -58,18 +58,6 @@ def run(cmd, cwd):
 
 
 @pytest.fixture(scope="session")
-def sparse(build_dir):
-    cache = {}
-
-    def get(name):
-        if name not in cache:
-            cache[name] = fccgen.load(EXAMPLES / f"{name}.yaml", build_dir,
-                                      linear_solver="sparse")
-        return cache[name]
-    return get
-
-
-@pytest.fixture(scope="session")
 def project(build_dir, tmp_path_factory):
     root = tmp_path_factory.mktemp("export_events")
     cache = {}
@@ -84,12 +72,12 @@ def project(build_dir, tmp_path_factory):
 
 
 @pytest.mark.parametrize("name", ["solar_array", "pendulum_limit", "tape_spring_hinge"])
-def test_the_example_runs_the_events_as_simulate(name, project, sparse):
+def test_the_example_runs_the_events_as_simulate(name, project, compiled_sparse):
     folder = project(name)
     run([f"./{name}_example", "out.csv"], folder)
     names = (folder / "out.csv").read_text().splitlines()[0].split(",")
     rows = np.loadtxt(folder / "out.csv", delimiter=",", skiprows=1, ndmin=2)
-    result = sparse(name).simulate(reactions=False)
+    result = compiled_sparse(name).simulate(reactions=False)
     assert rows.shape == (len(result.t), len(names))
     for k, column in enumerate(names):
         want = result.t if column == "t" else result[column]
@@ -190,26 +178,27 @@ def fmu_run(fmu, **kw):
     return fmpy.simulate_fmu(str(fmu), stop_time=LATCHED, output_interval=0.01, **kw)
 
 
-def test_the_fmu_latches_as_simulate(fmu, sparse):
-    result = sparse("solar_array").simulate(t_end=LATCHED, output_dt=0.01, reactions=False)
+def test_the_fmu_latches_as_simulate(fmu, compiled_sparse):
+    result = compiled_sparse("solar_array").simulate(t_end=LATCHED, output_dt=0.01,
+                                                     reactions=False)
     assert [e["name"] for e in result.events] == ["panel_latch", "root_latch"]
     assert_equal_runs(fmu_run(fmu), result)
 
 
-def test_a_panel_mass_from_start_values_equals_with_parameters(fmu, sparse):
+def test_a_panel_mass_from_start_values_equals_with_parameters(fmu, compiled_sparse):
     values = {"bodies.panel2.mass": 12.0}
-    solver = sparse("solar_array").with_parameters(values)
+    solver = compiled_sparse("solar_array").with_parameters(values)
     result = solver.simulate(t_end=LATCHED, output_dt=0.01, reactions=False)
     assert len(result.events) == 2 and result.events[0]["t"] > 1.3   # later latches
     assert_equal_runs(fmu_run(fmu, start_values=values), result)
 
 
-def test_a_bus_torque_driven_from_fmpy_equals_simulate_inputs(fmu, sparse):
+def test_a_bus_torque_driven_from_fmpy_equals_simulate_inputs(fmu, compiled_sparse):
     times = np.array([0.0, 0.5, 1.0, 1.6, LATCHED])
     torque = np.array([0.0, 0.8, -0.5, 0.3, 0.0])
     signal = np.array(list(zip(times, torque)),
                       dtype=[("time", np.float64), ("bus_torque", np.float64)])
-    solver = sparse("solar_array_input")
+    solver = compiled_sparse("solar_array_input")
     result = solver.simulate(t_end=LATCHED, output_dt=0.01, reactions=False,
                              inputs={"bus_torque": (times, torque)})
     assert len(result.events) == 2
