@@ -27,7 +27,7 @@ def with_sens(pendulum):
 @pytest.mark.parametrize("key, words", [
     ("bodies.rod1.mas", "is not a number fccgen can set"),
     ("simulate.dt", "is a setting of the run"),
-    ("points.P1.at[0]", "geometry"),
+    ("vectors.z.along[0]", "unit vector"),
     ("bodies.rod1.center", "add its component [k]"),
     ("bodies.rod1.inertia", "per component"),
     ("bodies.rod1.center[1]", "structural zero"),
