@@ -30,6 +30,8 @@ import pytest
 from conftest import EXAMPLES, ROOT
 from test_sensitivity_events import closed_latch_time
 
+from fccgen.cli import main
+from fccgen.results import Result
 from fccgen.runtime.sensitivity.parameters import current_value
 
 mp = pytest.importorskip("mpmath")
@@ -171,3 +173,19 @@ def test_what_is_refused_says_why(load):
                         sensitivities=["gravity[1]"])
     with pytest.raises(ValueError, match="rk4 or dopri5 method"):
         solver.simulate(**run, dt=1e-3, method="baumgarte", sensitivities=["gravity[1]"])
+
+
+def test_cli_runs_dopri5_with_the_option(build_dir, tmp_path, capsys, load):
+    out = tmp_path / "S.csv"
+    args = ["sensitivity", str(EXAMPLES / "double_pendulum.yaml"), "--params",
+            "gravity[1]", "--t-end", "0.2", "--output-dt", "0.1", "--method", "dopri5",
+            "--rtol", "1e-8", "--atol", "1e-10", "--build-dir", str(build_dir),
+            "--out", str(out), "-q"]
+    assert main(args + ["--sensitivity-error"]) == 0
+    assert "dopri5: " in capsys.readouterr().out
+    api = load("double_pendulum").simulate(t_end=0.2, output_dt=0.1, method="dopri5",
+                                           rtol=1e-8, atol=1e-10, reactions=False,
+                                           sensitivities=["gravity[1]"],
+                                           sensitivity_error=True)
+    np.testing.assert_array_equal(Result.load(out).sensitivity("P2.x", "gravity[1]"),
+                                  api.sensitivity("P2.x", "gravity[1]"))
