@@ -3,13 +3,17 @@ unlatched scissor boom of 12 units (examples/make_scissor_boom.py, latch=False: 
 latch is an event, and runs with events do not carry sensitivities yet).
 
     python benchmarks/sensitivity_cost.py [--units 12] [--t-end 0.5] [--repeats 5]
+    python benchmarks/sensitivity_cost.py --method dopri5 [--sensitivity-error]
 
 The parameters are the torsion springs' stiffnesses, then the bars' masses, n_p = 1, 5
 and 20. For each n_p: the median over the repeats of the run's own time (the
 integration, result.info["wall_time"]; warm: the parameter-derivative module is built
 before timing), its ratio to the plain run's, the target 1 + 0.5 n_p (issue 25), and
 the whole call's time (the set-up of the parameters' directions and the columns'
-chain rule included). Sensitivities run on the dense path, so the ratio is taken
+chain rule included). With --method dopri5 (rtol 1e-6, atol 1e-9) the runs take the
+same steps with and without sensitivities, unless --sensitivity-error puts them into
+the error control (then the steps taken are printed too). Sensitivities run on the
+dense path, so the ratio is taken
 against the plain run on the dense path; the plain run on the model's own path
 (sparse at this size) is printed too. Single-threaded BLAS.
 """
@@ -38,6 +42,9 @@ def main() -> None:
     ap.add_argument("--units", type=int, default=12)
     ap.add_argument("--t-end", type=float, default=0.5)
     ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--method", choices=("rk4", "dopri5"), default="rk4")
+    ap.add_argument("--sensitivity-error", action="store_true",
+                    help="dopri5: the sensitivities in the error control")
     args = ap.parse_args()
     work = Path(tempfile.mkdtemp(prefix="sens_cost_"))
     model = work / "boom.yaml"
@@ -48,29 +55,33 @@ def main() -> None:
                if getattr(ld, "stiffness", None) is not None]
     masses = [f"bodies.{name}.mass" for name, _ in solver.plan.bodies]
     keys = (springs + masses)[:20]
-    run = dict(t_end=args.t_end, dt=1e-3, method="rk4", output_dt=0.01, reactions=False)
+    run = dict(t_end=args.t_end, method=args.method, output_dt=0.01, reactions=False,
+               **(dict(dt=1e-3) if args.method == "rk4" else dict(rtol=1e-6, atol=1e-9)))
+    setting = "dt 1e-3" if args.method == "rk4" else "rtol 1e-6"
+    control = dict(sensitivity_error=True) if args.sensitivity_error else {}
     solver.simulate(**run, sensitivities=keys[:1])            # builds the d/dp module
 
     def timed(sens, which=solver):
         runs, whole = [], []
         for _ in range(args.repeats):
             start = time.perf_counter()
-            result = which.simulate(**run, sensitivities=sens)
+            result = which.simulate(**run, sensitivities=sens, **(control if sens else {}))
             whole.append(time.perf_counter() - start)
             runs.append(result.info["wall_time"])
-        return statistics.median(runs), statistics.median(whole)
+        return statistics.median(runs), statistics.median(whole), result.info["steps"]
 
-    plain, _ = timed(None)
-    sparse, _ = timed(None, own)
-    print(f"scissor boom, {args.units} units ({solver.plan.n_q} coordinates), rk4 dt 1e-3 "
-          f"to t = {args.t_end}: plain run {plain * 1e3:.1f} ms on the dense path "
-          f"({sparse * 1e3:.1f} ms on the model's own path, {own.linear_solver})")
-    print("| n_p | run (ms) | ratio | target 1 + 0.5 n_p | whole call (ms) |")
-    print("| --- | --- | --- | --- | --- |")
+    plain, _, steps = timed(None)
+    sparse, _, _ = timed(None, own)
+    print(f"scissor boom, {args.units} units ({solver.plan.n_q} coordinates), "
+          f"{args.method} {setting} to t = {args.t_end}: plain run {plain * 1e3:.1f} ms "
+          f"({steps} steps) on the dense path ({sparse * 1e3:.1f} ms on the model's own "
+          f"path, {own.linear_solver})")
+    print("| n_p | run (ms) | ratio | target 1 + 0.5 n_p | whole call (ms) | steps |")
+    print("| --- | --- | --- | --- | --- | --- |")
     for n_p in (1, 5, 20):
-        t_run, t_whole = timed(keys[:n_p])
+        t_run, t_whole, steps = timed(keys[:n_p])
         print(f"| {n_p} | {t_run * 1e3:.1f} | {t_run / plain:.2f} | {1 + 0.5 * n_p:.1f} | "
-              f"{t_whole * 1e3:.1f} |")
+              f"{t_whole * 1e3:.1f} | {steps} |")
 
 
 if __name__ == "__main__":

@@ -39,7 +39,7 @@ def test_refused_keys(pendulum, key, words):
 
 
 @pytest.mark.parametrize("options, words", [
-    (dict(method="dopri5"), "rk4 method"),
+    (dict(method="baumgarte"), "rk4 or dopri5 method"),
     (dict(project=False), "projected rk4"),
     (dict(sensitivities=[]), "at least one parameter"),
     (dict(sensitivities=["gravity[1]", "gravity[1]"]), "named twice"),

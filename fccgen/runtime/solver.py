@@ -304,14 +304,15 @@ class CompiledSolver:
         sensitivities: parameter keys (``with_parameters`` keys, e.g.
         ``["bodies.arm.mass", "loads[0].stiffness"]``); their derivatives are
         integrated with the motion and read with ``result.sensitivity(column, key)``
-        (fccgen.runtime.sensitivity, docs/sensitivities.md).
+        (fccgen.runtime.sensitivity, docs/sensitivities.md); methods rk4 and dopri5.
+        With dopri5, ``sensitivity_error=True`` puts them into the error control.
         """
         if error is not None and inputs:
             raise ValueError("an error target (error=) chooses its own runs; give "
                              "inputs to a run with a method and step instead")
         if sensitivities is not None and error is not None:
-            raise ValueError("sensitivities are integrated with a fixed-step run: give "
-                             "dt, not an error target")
+            raise ValueError("sensitivities are integrated by one rk4 or dopri5 run: give "
+                             "its dt or rtol, not an error target")
         if error is not None:
             from ..target_error import simulate_to_error
             return simulate_to_error(self, error, error_on, t_end=t_end, output_dt=output_dt,
@@ -338,10 +339,13 @@ class CompiledSolver:
         d = self.plan.model.simulate
         m = registry.get(d.method if method is None else method, METHODS)
         keys = None
+        sens_error = method_options.pop("sensitivity_error", None)
+        if sens_error is not None and sensitivities is None:
+            raise ValueError("sensitivity_error needs sensitivities=[...]")
         if sensitivities is not None:
             from .sensitivity import run as sensitivity_run
             keys = sensitivity_run.check_request(self, sensitivities, m.name,
-                                                 bool(project) and m.projects)
+                                                 bool(project) and m.projects, sens_error)
         opts = registry.options_for(m, rtol, atol, method_options)
         sched = registry.schedule(m, d, t_end, dt, output_dt, opts)
         held = input_run(self.plan, inputs, m.name, sched)
@@ -349,17 +353,20 @@ class CompiledSolver:
             self._asm.put_params(held.slots, held.table[0, held.columns])
         try:
             return self._simulate_held(m, opts, sched, held, dt, project, q0, v0,
-                                       progress, reactions, event_tol, rest_speed, keys)
+                                       progress, reactions, event_tol, rest_speed, keys,
+                                       bool(sens_error))
         finally:
             if held is not None:                 # direct calls see the start values
                 self._asm.put_params(held.slots, [self.plan.model.inputs[held.names[c]]
                                                   for c in held.columns])
 
     def _simulate_held(self, m, opts, sched, held, dt, project, q0, v0, progress,
-                       reactions, event_tol, rest_speed, keys=None) -> Result:
+                       reactions, event_tol, rest_speed, keys=None,
+                       sens_error=False) -> Result:
         """One run (:meth:`simulate`) with the inputs set (``held``); keys: the
-        parameters of its sensitivities (checked), or None."""
-        sens = None
+        parameters of its sensitivities (checked), or None; sens_error: dopri5's error
+        control includes them."""
+        sens = sens_scale = None
         if keys is not None:
             from .sensitivity import run as sensitivity_run
         self.set_time(0.0)
@@ -371,6 +378,8 @@ class CompiledSolver:
         if keys is not None:
             from .params import module_directory
             sens = sensitivity_run.setup(self, keys, module_directory(self.module).parents[1])
+            if sens_error:
+                sens_scale = sensitivity_run.error_scale(self, keys)
         report = run_reporter(progress, sched.t_end)
         events = self._event_set(event_tol, rest_speed)
         self._event_inputs(events, held)
@@ -380,7 +389,7 @@ class CompiledSolver:
 
         def run():
             arrays, stats = self._run(m, sched, opts, project, q0, v0, report, events,
-                                      tracker, held, sens)
+                                      tracker, held, sens, sens_scale)
             kept["work"] = arrays.get("work") if tracker is not None else None
             return arrays, stats
         try:
@@ -425,6 +434,8 @@ class CompiledSolver:
                      kept.get("work"), untracked)
         if sens is not None:
             sensitivity_run.attach(self, result, keys, sens)
+            if m.name == "dopri5":
+                result.info["sensitivity_error_control"] = bool(sens_error)
         return add_reactions(self, result) if reactions else result
 
     def dense_engine(self):
@@ -572,9 +583,11 @@ class CompiledSolver:
         return q0, v0
 
     def _run(self, m, sched, opts, project, q0, v0, report, events=None, work=None,
-             held=None, sens=None):
+             held=None, sens=None, sens_scale=None):
         """(arrays, stats) of one run of method m (held: inputs that change over the
-        run, fccgen.runs.inputs; rk4 and baumgarte only; sens: rk4's sensitivities)."""
+        run, fccgen.runs.inputs; rk4 and baumgarte only; sens: rk4's or dopri5's
+        sensitivities; sens_scale: the parameters' sizes for dopri5's error control of
+        them, None: not controlled)."""
         s, e = sched, (self._engine if sens is None else self.dense_engine())
         held = None if held is None or held.constant or not (
             len(held.slots) or len(held.event_slots)) else (
@@ -594,7 +607,8 @@ class CompiledSolver:
         if m.name == "dopri5":
             return simulate_dopri5(e, q0, v0, s.t_end, s.output_dt, opts["rtol"],
                                    opts["atol"], s.dt or 0.0, project, report,
-                                   self.progress_interval, events=events, work=work)
+                                   self.progress_interval, events=events, work=work,
+                                   sens=sens, sens_scale=sens_scale)
         if m.name == "ali3p":                # assembles dense M and B itself
             from ._ali3p import simulate_ali3p
             return simulate_ali3p(self.dense_engine(), q0, v0, s.t_end, s.dt, s.n_steps, s.every, opts,

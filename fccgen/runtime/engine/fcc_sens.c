@@ -153,28 +153,39 @@ static int bad(fcc_engine *e, const double *x, int n)
     return fcc_fail(e, FCC_ERR_NONFINITE_RESULT, 0, 0);
 }
 
+void fcc_sens_stage_begin(fcc_engine *e, fcc_sens *s, const double *a)
+{
+    if (fcc_sens_rows(s) > 0)                  /* the stage's rows' multipliers */
+        fcc_sens_keep_mu(s);
+    multipliers(e, s, a);
+}
+
+int fcc_sens_stage_acc(fcc_engine *e, fcc_sens *s, int j, const double *q,
+                       const double *v, const double *a, const double *sq,
+                       const double *sv, double *sa)
+{
+    int rows = fcc_sens_rows(s);
+    fcc_sens_sweep(e, s, q, v, a, s->lam, sq, sv, s->dP + (size_t)j * s->model->n_p);
+    if (rows > 0)
+        fcc_sens_rows_rhs(s, q, sq);
+    fcc_solve_constrained(e, s->rhs, NULL, s->b, sa);
+    if (rows > 0 && fcc_sens_rows_acc(e, s, q, v, a, sq, sv, sa) < 0)
+        return -1;
+    return bad(e, sa, s->n) ? -1 : 0;
+}
+
 int fcc_sens_rk4_stage(fcc_engine *e, fcc_sens *s, int k, const double *q,
                        const double *v, const double *a)
 {
     static const int stage_q[4] = {SQ, SQS, SQS, SQS}, stage_v[4] = {SV, SV2, SV3, SV4};
-    int i, j, n = s->n, np_all = s->model->n_p;
+    int i, j, n = s->n;
     double h = s->h, h2 = 0.5 * h, h6 = h / 6.0;
-    int rows = fcc_sens_rows(s);
     double *sq, *sv, *sqs, *sa;
-    if (rows > 0)                              /* the stage's rows' multipliers */
-        fcc_sens_keep_mu(s);
-    multipliers(e, s, a);
+    fcc_sens_stage_begin(e, s, a);
     for (j = 0; j < s->np; j++) {
         sa = row(s, j, SA1 + k - 1);
-        sq = row(s, j, stage_q[k - 1]);
-        sv = row(s, j, stage_v[k - 1]);
-        fcc_sens_sweep(e, s, q, v, a, s->lam, sq, sv, s->dP + (size_t)j * np_all);
-        if (rows > 0)
-            fcc_sens_rows_rhs(s, q, sq);
-        fcc_solve_constrained(e, s->rhs, NULL, s->b, sa);
-        if (rows > 0 && fcc_sens_rows_acc(e, s, q, v, a, sq, sv, sa) < 0)
-            return -1;
-        if (bad(e, sa, n))
+        if (fcc_sens_stage_acc(e, s, j, q, v, a, row(s, j, stage_q[k - 1]),
+                               row(s, j, stage_v[k - 1]), sa) < 0)
             return -1;
         sq = row(s, j, SQ);
         sv = row(s, j, SV);

@@ -66,6 +66,13 @@ void fcc_sens_begin_step(fcc_sens *s, double h);
  * parameter, then the next stage's sensitivities (after k = 4: the step's end). */
 int fcc_sens_rk4_stage(fcc_engine *e, fcc_sens *s, int k, const double *q,
                        const double *v, const double *a);
+/* Any method's stage at (q, v) with accelerations a (f, h, M, B and the factorisation
+ * assembled there, locked rows constrained): begin once (the stage's multipliers),
+ * then s_a of parameter j along the stage's (sq, sv) into sa. */
+void fcc_sens_stage_begin(fcc_engine *e, fcc_sens *s, const double *a);
+int fcc_sens_stage_acc(fcc_engine *e, fcc_sens *s, int j, const double *q,
+                       const double *v, const double *a, const double *sq,
+                       const double *sv, double *sa);
 /* The linearised projections at the projected (q, v), after fcc_project_velocities
  * (its factorisation held). */
 int fcc_sens_project(fcc_engine *e, fcc_sens *s, const double *q, const double *v);

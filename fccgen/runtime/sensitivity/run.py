@@ -1,8 +1,8 @@
 """A run with forward sensitivities: the checks, the set-up (fccgen.runtime.sensitivity.
 parameters, the parameter-derivative module) and the sensitivities' columns.
 
-The engine carries d(q, v)/dp through RK4's own stages and the linearised
-projections (engine/fcc_sens.h); this module turns the records into
+The engine carries d(q, v)/dp through the stages of RK4 or DOPRI5 (engine/fcc_sens.h,
+fcc_sens_dopri5.h) and the linearised projections; this module turns the records into
 ``d(<column>)/d(<key>)`` for the coordinate and speed columns and, by the chain rule
 through the same output functions, for every other column of the state.
 """
@@ -18,6 +18,8 @@ from .parameters import directions
 # (engine/fcc_sens_events.c).
 CARRIED = ("stop", "log", "lock", "unlock")
 TIME_KEY = "d(time)/d({})"
+# The methods that carry them (engine/fcc_rk4.c, fcc_dopri5.c).
+METHODS = ("rk4", "dopri5")
 
 
 def split_keys(keys) -> list[str]:
@@ -28,9 +30,11 @@ def split_keys(keys) -> list[str]:
     return [str(k).strip() for k in keys if str(k).strip()]
 
 
-def check_request(solver, keys, method: str, project: bool) -> list[str]:
+def check_request(solver, keys, method: str, project: bool,
+                  error_control=None) -> list[str]:
     """The keys as a list of strings, or ModelError / ValueError saying what cannot be
-    done (and why) before anything runs."""
+    done (and why) before anything runs. error_control: the ``sensitivity_error``
+    option (None: not given; dopri5 only)."""
     model = solver.plan.model
     keys = split_keys(keys)
     if not keys:
@@ -38,11 +42,16 @@ def check_request(solver, keys, method: str, project: bool) -> list[str]:
                          "(e.g. bodies.arm.mass)")
     if len(set(keys)) != len(keys):
         raise ValueError(f"sensitivities: a key is named twice: {', '.join(keys)}")
-    if method != "rk4":
-        raise ValueError(f"sensitivities are integrated by the rk4 method (the model's "
-                         f"or method='rk4'), not by {method}")
+    if method not in METHODS:
+        raise ValueError(f"sensitivities are integrated by the rk4 or dopri5 method (the "
+                         f"model's, or method='rk4' or 'dopri5'), not by {method}")
+    if error_control is not None and method != "dopri5":
+        raise ValueError("sensitivity_error puts the sensitivities into dopri5's error "
+                         f"control; {method} has none (its steps are dt)")
+    if error_control is not None and not isinstance(error_control, bool):
+        raise ValueError(f"sensitivity_error must be True or False, not {error_control!r}")
     if not project:
-        raise ValueError("sensitivities need the projected rk4 (project=True)")
+        raise ValueError(f"sensitivities need the projected {method} (project=True)")
     for k, event in enumerate(model.events):
         if event.action not in CARRIED:
             raise ModelError(model.source, event.where.line, f"events[{k}] ({event.name})",
@@ -63,6 +72,15 @@ def setup(solver, keys, build_dir):
     dP, S0 = directions(solver, keys)
     module = load_dp(solver.plan, build_dir)
     return Sensitivities(solver.dense_engine().asm, module, dP, S0)
+
+
+def error_scale(solver, keys) -> list[float]:
+    """Each parameter's size for dopri5's error control of the sensitivities (the
+    tolerance of d(state)/dp_j is atol / size: p_j dq/dp_j is measured like q):
+    |value|, or 1 for a parameter that is 0."""
+    from .parameters import current_value
+    model = solver.plan.model
+    return [abs(current_value(model, key)) or 1.0 for key in keys]
 
 
 def attach(solver, result, keys, sens) -> None:
