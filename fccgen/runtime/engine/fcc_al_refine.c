@@ -272,7 +272,7 @@ static int refine(fcc_engine *e, const double *b, double *x, int warm, int *solv
 {
     fcc_sparse *s = &e->sp;
     int i, it, n = e->n, m = e->m, cg = 0;
-    double nd = 0.0, nx = 0.0, prev = 0.0, rate, rz_stop = -1.0;
+    double nd = 0.0, nx = 0.0, prev = 0.0, rate, rz_stop = -1.0, size;
     int pending = 0;
     memset(x, 0, (size_t)n * sizeof(double));
     for (it = 0; it < s->al_max + s->refine_max; it++) {
@@ -307,15 +307,16 @@ static int refine(fcc_engine *e, const double *b, double *x, int warm, int *solv
         }
         if (!(nd > 0.0))                        /* zero, or NaN (the caller checks x) */
             return 1;
+        size = nx > s->x_floor ? nx : s->x_floor;   /* |x|, or the floor under it */
         if (cg) {
-            if (nd <= REFINE_STOP * nx || (cg > 1 && s->cg_steps == 0))
+            if (nd <= REFINE_STOP * size || (cg > 1 && s->cg_steps == 0))
                 return 1;
             cg++;
             if (cg > s->refine_max)
                 return 0;
         } else if (it > 0) {
             rate = nd / prev;
-            if (rate < 0.5 && nd * rate / (1.0 - rate) <= stop * nx)
+            if (rate < 0.5 && nd * rate / (1.0 - rate) <= stop * size)
                 return 1;
             if (rate > SLOW)
                 cg = 1;

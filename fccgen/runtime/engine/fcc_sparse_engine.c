@@ -248,6 +248,18 @@ static void watch_kinetic_energy(fcc_engine *e, const double *v, const double *w
     fcc_note_energy_cut(e, before, cut);
 }
 
+/* The velocity projection's floor under |w| in the refinement's stop tests
+ * (fcc_al_refine.c): the largest max |v_i| the run's velocity projections met, this
+ * one's input included (file docstring, "The velocity projection's floor"). */
+static double velocity_floor(fcc_engine *e, const double *v)
+{
+    int i;
+    for (i = 0; i < e->n; i++)
+        if (fabs(v[i]) > e->sp.v_peak)
+            e->sp.v_peak = fabs(v[i]);
+    return e->sp.v_peak;
+}
+
 int fcc_sp_project_velocities(fcc_engine *e, const double *q, double *v, int have_B)
 {
     fcc_sparse *s = &e->sp;
@@ -259,7 +271,9 @@ int fcc_sp_project_velocities(fcc_engine *e, const double *q, double *v, int hav
         fcc_sp_mult_m(e, v, s->mv, 0);
     else                                       /* M v whole: v moves pinned coordinates */
         fcc_sp_mult_m_full(e, v, s->mv, 0);
+    s->x_floor = velocity_floor(e, v);
     fcc_sp_solve_kkt(e, s->mv, NULL, e->nb, e->vtmp, 0, 0);
+    s->x_floor = 0.0;
     if (fcc_check_result(e, q, v, e->vtmp, FCC_ASM_M | FCC_ASM_B) < 0)
         return -1;
     watch_kinetic_energy(e, v, e->vtmp);
