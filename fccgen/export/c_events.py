@@ -57,7 +57,8 @@ def event_header(solver) -> str:
         c_data.c_array("int", "MIRROR_SLOT", st.mirror_slots),
         c_data.c_array("int", "MIRROR_ANGLE", st.mirror_angles),
         c_data.define("EVENT_TOL", tol), c_data.define("REST_SPEED", rest),
-        c_data.define("EV_MAX_PER_STEP", max_per_step(ne)), c_data.define("EV_LOG_CAP", LOG_CAP),
+        c_data.define("EV_MAX_PER_STEP", max_per_step(ne)),
+        c_data.define("EV_LOG_CAP", LOG_CAP),
     ])
 
 
