@@ -464,7 +464,8 @@ cdef class SparseEngine(Engine):
         the rank-growth watch; sparse_solves, sparse_unconverged (refinements that
         did not converge), sparse_dense_fallbacks (of those, redone densely) and
         sparse_beyond_rank (of those, stopped at a direction beyond the decided rank);
-        chord_steps and chord_steps_undone, the position projection's chord steps kept
+        sparse_iterations and sparse_most_iterations, the solves with A the
+        refinements took, in all and in the longest (engine/fcc_al_refine.c); chord_steps and chord_steps_undone, the position projection's chord steps kept
         and undone (engine/fcc_sparse_engine.c)."""
         stats = Engine.rank_statistics(self)
         stats.update(factorisations=self.c.sp.n_factor, drops=self.c.sol.n_drop,
@@ -474,6 +475,8 @@ cdef class SparseEngine(Engine):
                      sparse_unconverged=self.c.sp.n_unconverged,
                      sparse_dense_fallbacks=self.c.sp.n_fallback,
                      sparse_beyond_rank=self.c.sp.n_beyond_rank,
+                     sparse_iterations=self.c.sp.n_iterations,
+                     sparse_most_iterations=self.c.sp.most_iterations,
                      chord_steps=self.c.sp.n_chord,
                      chord_steps_undone=self.c.sp.n_chord_undone)
         return stats

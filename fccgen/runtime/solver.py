@@ -6,6 +6,7 @@ simulation is one call into the engine, which keeps the per-step loop in C.
 """
 from __future__ import annotations
 
+import functools
 import importlib
 import statistics
 import time
@@ -463,14 +464,22 @@ class CompiledSolver:
             return None
         from ._events import EventSet
         from . import event_settings as settings
-        st = settings.event_settings(self.plan, self.events_module)
+        st = self._event_settings
         events = EventSet(self.events_module, self.n_q, st.directions, st.actions,
                           st.rows, st.rows2, st.restitution, st.angle_rows, tol=tol,
-                          v_rest=rest_speed, max_per_step=settings.MAX_PER_STEP,
+                          v_rest=rest_speed,
+                          max_per_step=settings.max_per_step(len(st.actions)),
                           max_log=settings.LOG_ROWS, constants=st.constants)
         if st.mirror_slots:
             events.mirror(self._asm, st.mirror_slots, st.mirror_angles)
         return events
+
+    @functools.cached_property
+    def _event_settings(self):
+        """The settings of the model's compiled events (fccgen.runtime.event_settings),
+        made once per solver: its plan and event module do not change."""
+        from .event_settings import event_settings
+        return event_settings(self.plan, self.events_module)
 
     def _event_inputs(self, events, held) -> None:
         """Give the run's event set the inputs its event functions read (held: the
@@ -478,8 +487,7 @@ class CompiledSolver:
         writes the later ones (held.event_slots, held.event_columns)."""
         if events is None or held is None:
             return
-        from .event_settings import event_settings
-        st = event_settings(self.plan, self.events_module)
+        st = self._event_settings
         if st.input_slots:
             held.event_slots = np.array(st.input_slots, np.intc)
             held.event_columns = np.array(st.input_columns, np.intc)
