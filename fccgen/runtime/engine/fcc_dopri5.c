@@ -249,6 +249,7 @@ static int first_event(fcc_engine *e, fcc_dopri5 *r, double h, double t1, double
         return -1;
     *theta = 1.0;
     first = k;
+    fcc_ev_mark_crossed(ev);
     for (j = k; j < 2 * ev->spec->ne; j++) {
         if (j > k && !fcc_ev_watched(ev, j, ev->s0, ev->s1))     /* a held lock */
             continue;
@@ -262,22 +263,27 @@ static int first_event(fcc_engine *e, fcc_dopri5 *r, double h, double t1, double
     return first;
 }
 
-/* Act on event k at the (projected) state r->y, r->t; the next step's values. */
+/* Act on event k at the (projected) state r->y, r->t, then on the events tied with
+ * it (fcc_ev_next_tie); the next step's values. */
 static int after_event(fcc_engine *e, fcc_dopri5 *r, int k)
 {
     fcc_events *ev = r->ev;
-    int n = r->n2 / 2, rc = 0;
-    if (k >= 0) {
+    int n = r->n2 / 2, rc = 0, j, rc_j;
+    if (k >= 0)
+        fcc_ev_keep_start(ev);
+    for (j = k; j >= 0; j = fcc_ev_next_tie(ev, j == k ? k : -1)) {
         e->err_t = r->t;
         if (r->sens.s != NULL
-                && fcc_sens_event_before(e, r->sens.s, k, r->y, r->y + n, r->t) < 0)
+                && fcc_sens_event_before(e, r->sens.s, j, r->y, r->y + n, r->t) < 0)
             return -1;
-        rc = fcc_ev_apply(e, ev, k, r->y, r->y + n, r->t);
-        if (rc < 0)
+        rc_j = fcc_ev_apply(e, ev, j, r->y, r->y + n, r->t);
+        if (rc_j < 0)
             return -1;
         if (r->sens.s != NULL
-                && fcc_sens_event_after(e, r->sens.s, k, rc, r->y, r->y + n, r->t) < 0)
+                && fcc_sens_event_after(e, r->sens.s, j, rc_j, r->y, r->y + n, r->t) < 0)
             return -1;
+        if (j == k)
+            rc = rc_j;
         if (ev->stop) {
             r->stopped = 1;
             r->t_stop = r->t;
@@ -292,13 +298,18 @@ static int after_event(fcc_engine *e, fcc_dopri5 *r, int k)
             }
             return 0;
         }
+        if (j == k) {
+            fcc_ev_refresh(ev, r->y);
+            if (fcc_ev_watch(e, ev, r->y, r->y + n, r->t, ev->s0) < 0)
+                return -1;
+            if (rc == 0)
+                ev->s0[k] = fcc_ev_leaving(ev, k, r->y, r->y + n, r->t);
+        }
     }
+    if (k >= 0)
+        return fcc_ev_settle(e, ev, r->y, r->y + n, r->t, k, rc == 0);
     fcc_ev_refresh(ev, r->y);
-    if (fcc_ev_watch(e, ev, r->y, r->y + n, r->t, ev->s0) < 0)
-        return -1;
-    if (k >= 0 && rc == 0)
-        ev->s0[k] = fcc_ev_leaving(ev, k, r->y, r->y + n, r->t);
-    return 0;
+    return fcc_ev_watch(e, ev, r->y, r->y + n, r->t, ev->s0) < 0 ? -1 : 0;
 }
 
 /* Write the requested output r->n_out from the dense output of the last step. */
