@@ -17,7 +17,8 @@ int fcc_sens_events_init(fcc_sens *s, fcc_events *ev, double *tout, long cap)
     int n = s->n, np = s->np, nr = ev->spec->nr, ne = ev->spec->ne, m = s->m;
     size_t room = (size_t)nr + ne + 1;
     size_t total = (size_t)np * (2 * (size_t)n + (size_t)nr + 1) + 2 * ((size_t)nr + 1)
-                   + 3 * ((size_t)nr * n + 1) + 3 * room + 7 * (size_t)n + (size_t)m + 1;
+                   + 3 * ((size_t)nr * n + 1) + 3 * room + 7 * (size_t)n + (size_t)m + 1
+                   + 2 * ((size_t)ne * n + 1) + 4 * (size_t)n;
     free(s->E);
     s->E = calloc(total, sizeof(double));
     if (s->E == NULL)
@@ -45,6 +46,12 @@ int fcc_sens_events_init(fcc_sens *s, fcc_events *ev, double *tout, long cap)
     s->x = s->w + n;
     s->r0 = s->x + n;
     s->alpha = s->r0 + n;
+    s->sg1 = s->alpha + m + 1;
+    s->sg2 = s->sg1 + (size_t)ne * n + 1;
+    s->gk = s->sg2 + (size_t)ne * n + 1;
+    s->dgk = s->gk + n;
+    s->wz = s->dgk + n;
+    s->vp = s->wz + n;
     return FCC_OK;
 }
 
@@ -317,6 +324,115 @@ static int lock_jump(fcc_engine *e, fcc_sens *s, int k, int j, const double *q,
     return 0;
 }
 
+/* s->dgk = d(ds_k/dq)[dq] at (q, t): central differences of the generated event
+ * gradients along dq (as the rows', jacobian_dir; zero for a zero direction). */
+static void event_gradient_dir(fcc_sens *s, int k, const double *q, const double *v,
+                               double t, const double *dq)
+{
+    const fcc_event_table *tab = s->ev->spec->tab;
+    int i, n = s->n;
+    double eps = dir_step(q, NULL, dq, NULL, n);
+    if (eps == 0.0) {
+        memset(s->dgk, 0, (size_t)n * sizeof(double));
+        return;
+    }
+    for (i = 0; i < n; i++)
+        s->w[i] = q[i] + eps * dq[i];
+    tab->event_gradients(s->w, v, t, s->ev->p, s->sg1);
+    for (i = 0; i < n; i++)
+        s->w[i] = q[i] - eps * dq[i];
+    tab->event_gradients(s->w, v, t, s->ev->p, s->sg2);
+    for (i = 0; i < n; i++)
+        s->dgk[i] = (s->sg1[(size_t)k * n + i] - s->sg2[(size_t)k * n + i]) / (2.0 * eps);
+}
+
+/* The bounce's plastic part at q (factorisation and the used rows' responses at q,
+ * v-: s->vm): g = ds_k/dq (s->gk), its response w held by the used rows (s->wz, and
+ * their coefficients mu_w), mu_p = -g v- / g w, the plastic jump s->dv = mu_p w,
+ * v_p = v- + s->dv (s->vp), the rows' impact multipliers mu_p mu_w (s->emu: the
+ * balance's G^T beta with beta = -mu_p mu_w) and B's, s->alpha, of
+ * M dv + B^T alpha + G^T beta - mu_p g = 0. Returns mu_p, or NAN (the engine's error
+ * record filled) when g w is not positive. */
+static double bounce_plastic(fcc_engine *e, fcc_sens *s, int k, const double *q,
+                             const double *v, double t)
+{
+    fcc_events *ev = s->ev;
+    int i, l, n = s->n, m;
+    double gw = 0.0, gv = 0.0, mup, acc;
+    ev->spec->tab->event_gradients(q, v, t, ev->p, ev->sg);
+    memcpy(s->gk, ev->sg + (size_t)k * n, (size_t)n * sizeof(double));
+    fcc_ev_response(e, s->gk, s->wz);
+    m = fcc_ev_responses(e, ev, q);
+    if (m > 0 && fcc_ev_hold(e, ev, m, s->wz, NULL, s->wz) < 0)
+        return NAN;
+    for (i = 0; i < n; i++) {
+        gw += s->gk[i] * s->wz[i];
+        gv += s->gk[i] * s->vm[i];
+    }
+    if (!(gw > 0.0)) {
+        fcc_fail(e, FCC_ERR_SINGULAR, -2, 0);
+        return NAN;
+    }
+    mup = -gv / gw;
+    for (i = 0; i < m; i++)
+        s->emu[i] = mup * ev->mu[i];
+    for (i = 0; i < n; i++) {
+        s->dv[i] = mup * s->wz[i];
+        s->vp[i] = s->vm[i] + s->dv[i];
+    }
+    for (i = 0; i < n; i++) {                  /* B^T alpha = mu_p g - M dv + G^T emu */
+        const double *Mi = e->asmb->M + (size_t)i * n;
+        acc = mup * s->gk[i];
+        for (l = 0; l < n; l++)
+            acc -= Mi[l] * s->dv[l];
+        s->r0[i] = acc;
+    }
+    if (m > 0)
+        add_rows_t(s, ev->rg, s->emu, s->r0);
+    fcc_dense_multipliers(&e->sol, s->r0, s->alpha, s->w);
+    return mup;
+}
+
+/* The bounce's linearisation for parameter j (fcc_sens.h), after bounce_plastic:
+ * dv_p solves M dv_p + B^T . + G^T . + g . = M dv- - dM dv - dB^T alpha - dG^T beta
+ * + mu_p dg with B dv_p = -dPhi[sq, dP] at v_p, G dv_p = -dG[sq] v_p and
+ * g dv_p = -dg[sq] v_p (the row g last, along its held response w); then
+ * dv+ = (1 + e) dv_p - e dv- into sv. */
+static int bounce_jump(fcc_engine *e, fcc_sens *s, int k, int j, const double *q,
+                       const double *v, double t, double mup)
+{
+    fcc_events *ev = s->ev;
+    int i, n = s->n, np_all = s->model->n_p;
+    double *sq = fcc_sens_sq(s, j), *sv = fcc_sens_sv(s, j);
+    const double *dPj = s->dP + (size_t)j * np_all;
+    double rest = ev->spec->restitution[k], gw = 0.0, gx = 0.0, dgv = 0.0, delta;
+    fcc_sens_sweep(e, s, q, s->vp, s->zero, s->zero, sq, s->zero, dPj);
+    memcpy(s->r0, s->rhs, (size_t)n * sizeof(double));
+    fcc_sens_sweep(e, s, q, s->vp, s->dv, s->alpha, sq, s->zero, dPj);
+    event_gradient_dir(s, k, q, v, t, sq);
+    for (i = 0; i < n; i++)
+        s->rhs[i] += mup * s->dgk[i] - s->r0[i];
+    if (ev->n_used > 0) {
+        jacobian_dir(s, q, sq);
+        add_rows_t(s, s->dG, s->emu, s->rhs);
+    }
+    fcc_solve_constrained(e, s->rhs, sv, s->phi, s->x);
+    if (ev->n_used > 0) {
+        rows_target(s, s->dG, s->vp, NULL);
+        if (fcc_ev_hold(e, ev, ev->n_used, s->x, s->target, s->x) < 0)
+            return -1;
+    }
+    for (i = 0; i < n; i++) {
+        gw += s->gk[i] * s->wz[i];
+        gx += s->gk[i] * s->x[i];
+        dgv += s->dgk[i] * s->vp[i];
+    }
+    delta = (-dgv - gx) / gw;
+    for (i = 0; i < n; i++)
+        sv[i] = (1.0 + rest) * (s->x[i] + delta * s->wz[i]) - rest * sv[i];
+    return 0;
+}
+
 int fcc_sens_event_after(fcc_engine *e, fcc_sens *s, int k, int rc, const double *q,
                          const double *v, double t)
 {
@@ -330,7 +446,22 @@ int fcc_sens_event_after(fcc_engine *e, fcc_sens *s, int k, int rc, const double
             s->tout[(size_t)row * s->np + j] = s->tau[j];
     if (rc == 0 && act == FCC_ACT_STOP)
         return 0;                              /* the last record: the total derivative */
-    if (rc == 0 && act == FCC_ACT_LOCK) {
+    if (rc == 0 && act == FCC_ACT_BOUNCE && memcmp(v, s->vm, (size_t)n * sizeof(double)) == 0)
+        act = FCC_ACT_LOG;                     /* the Zeno guard without a row: no jump */
+    else if (rc == 0 && act == FCC_ACT_BOUNCE && ev->rested[k])
+        act = FCC_ACT_LOCK;                    /* it rests: its row is locked */
+    if (rc == 0 && act == FCC_ACT_BOUNCE) {
+        double mup;
+        if (accelerations(e, s, q, v, t, s->ap) < 0)
+            return -1;
+        mup = bounce_plastic(e, s, k, q, v, t);
+        if (isnan(mup))
+            return -1;
+        for (j = 0; j < s->np; j++)
+            if (bounce_jump(e, s, k, j, q, v, t, mup) < 0)
+                return -1;
+        plus = s->ap;
+    } else if (rc == 0 && act == FCC_ACT_LOCK) {
         /* the impact's multipliers (lock_rows: v+ = v- + Z mu, beta = -mu) before the
          * accelerations overwrite them; M dv_jump + B^T alpha = G^T mu */
         memcpy(s->emu, ev->mu, (size_t)ev->n_used * sizeof(double));
@@ -357,7 +488,7 @@ int fcc_sens_event_after(fcc_engine *e, fcc_sens *s, int k, int rc, const double
             return -1;
         plus = s->ap;
     } else if (rc == 0 && act != FCC_ACT_LOG) {
-        return fcc_fail(e, FCC_ERR_ARGUMENT, 0, 0);   /* bounces: refused before */
+        return fcc_fail(e, FCC_ERR_ARGUMENT, 0, 0);   /* a release: refused before */
     }
     e->factor_valid = 0;
     for (j = 0; j < s->np; j++) {              /* s+ = J s_total - f+ tau */

@@ -16,7 +16,9 @@ from .parameters import directions
 
 # The event actions whose jumps the engine carries the sensitivities through
 # (engine/fcc_sens_events.c).
-CARRIED = ("stop", "log", "lock", "unlock")
+# A bounce's rest is its row's lock; a release after it is not carried (the run stops
+# there with a message).
+CARRIED = ("stop", "log", "lock", "unlock", "bounce")
 TIME_KEY = "d(time)/d({})"
 
 
@@ -47,8 +49,7 @@ def check_request(solver, keys, method: str, project: bool) -> list[str]:
         if event.action not in CARRIED:
             raise ModelError(model.source, event.where.line, f"events[{k}] ({event.name})",
                              f"sensitivities are carried through {', '.join(CARRIED)} "
-                             f"events, not through a {event.action} (the impact's and the "
-                             "rest's jumps are not derived yet; joint limits are bounces)",
+                             f"events, not through a {event.action}",
                              show_value=False)
     if solver.linear_solver == "sparse":
         raise ValueError("sensitivities run on the dense path: load the solver with "
