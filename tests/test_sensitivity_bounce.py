@@ -113,3 +113,49 @@ def test_pendulum_bounces_and_rest_against_central_differences(compiled):
         np.testing.assert_allclose(est[1][:10], est[0][:10], rtol=1e-7)
         np.testing.assert_allclose(sensitivities(r, key, ["arm.cx", "arm.cz"]), est[0],
                                    rtol=0, atol=1e-7 * scale)
+
+
+@pytest.fixture(scope="module")
+def pulled(build_dir, tmp_path_factory):
+    """The example pendulum with restitution 0.2 (it rests on its upper limit within
+    0.8 s) and a torque -t N m about +y lifting the arm (tests/test_events_switches.py),
+    which releases it."""
+    import fccgen
+    text = (ROOT / "examples" / "pendulum_limit.yaml").read_text()
+    text = text.replace("restitution: 0.5", "restitution: 0.2")
+    text += 'loads:\n  - {type: torque, body: arm, value: [0, "-t", 0]}\n'
+    path = tmp_path_factory.mktemp("bounce") / "pendulum_pulled.yaml"
+    path.write_text(text)
+    return fccgen.load(path, build_dir)
+
+
+def test_release_time_against_the_static_balance(pulled):
+    """At rest on the limit theta = 1 the row holds gravity's torque m g c cos(theta)
+    against the load's t: the release comes at T = m g c cos(1), so dT/dm = g c cos(1),
+    dT/dc = m g cos(1), dT/d(gravity[2]) = -m c cos(1). The engine's release time's
+    derivative is the row multiplier's linearised change over its rate (the rate by
+    central differences along the motion, 1e-5 s: truncation and rounding below
+    1e-10 relative); the time itself is located to about 3e-11 s
+    (tests/test_events_switches.py). 1e-8 relative (measured 8e-12). Then the motion
+    after the release (the mass centre at the end) against central differences at
+    d = 1e-4 |p| (d = 1e-5 |p| agrees to 1e-7 of the largest on the release and the
+    end; on the last impacts before the rest it is noisier, as in the test above),
+    1e-7 of the key's largest derivative (measured 1e-8)."""
+    run = dict(t_end=2.9, dt=1e-3, output_dt=0.1)
+    keys = ["bodies.arm.mass", "bodies.arm.center[0]", "gravity[2]"]
+    r = pulled.simulate(**run, sensitivities=keys, reactions=False)
+    actions = [row["action"] for row in r.events]
+    assert actions[-2:] == ["rest", "release"]
+    release = r.events[-1]
+    m, c, g, th = 1.0, 0.5, G, 1.0
+    exact = {"bodies.arm.mass": g * c * np.cos(th), "bodies.arm.center[0]": m * g * np.cos(th),
+             "gravity[2]": -m * c * np.cos(th)}
+    for key, value in exact.items():
+        assert release[f"d(time)/d({key})"] == pytest.approx(value, rel=1e-8), key
+    for key in keys[:2]:
+        est = central(pulled, key, run, ["arm.cx", "arm.cz"])
+        scale = np.max(np.abs(est[0]))
+        # the release and the end: the late impacts' own noise is above (first test)
+        np.testing.assert_allclose(est[1][-3:], est[0][-3:], rtol=0, atol=1e-7 * scale)
+        np.testing.assert_allclose(sensitivities(r, key, ["arm.cx", "arm.cz"]), est[0],
+                                   rtol=0, atol=1e-7 * scale)

@@ -109,7 +109,10 @@ void fcc_sens_sweep(fcc_engine *e, fcc_sens *s, const double *q, const double *v
  * impact's linearisation with g as one more row (its change dg[s_q] by central
  * differences of the generated event gradients, as the rows'); q+ = q-. A bounce that
  * rests (too slow, or the Zeno guard) is a lock of its row: the lock's jump.
- * Releases are not carried: a run with sensitivities fails at one with a message. */
+ * release (of a resting bounce): its function is the row's multiplier mu, so
+ * dte/dp = -dmu / (dmu/dt), dmu the stage's linearised multiplier along the total
+ * derivative (and dP), dmu/dt by central differences along the motion; then as an
+ * unlock. */
 /* Carry the sensitivities through ev's events; tout: cap x np (logged events).
  * Returns FCC_OK or FCC_ERR_MEMORY. */
 int fcc_sens_events_init(fcc_sens *s, struct fcc_events *ev, double *tout, long cap);

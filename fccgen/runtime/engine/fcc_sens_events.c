@@ -248,6 +248,71 @@ static int accelerations(fcc_engine *e, fcc_sens *s, const double *q, const doub
     return fcc_ev_constrain(e, s->ev, q, v, t, a);
 }
 
+/* The release of resting bounce kk (event ne + kk) located at (q, v, t): its function
+ * is rel_sign mu, mu the multiplier of kk's row in the accelerations (fcc_ev_watch),
+ * so dte/dp_j = -(dmu_j) / (d(mu)/dt) with rel_sign cancelled. dmu_j is the row's
+ * multiplier's derivative along (s_q, s_v, dP_j): the stage's linearised solve
+ * (fcc_sens_rk4_stage) at (q, v) leaves it in ev->mu (fcc_sens_rows_acc's hold: its
+ * coefficients on the rows' responses are dmu, fcc_sens.h); d(mu)/dt by central
+ * differences of the watched function along the motion, (q, v, t) +- eps (v, a, 1)
+ * (it holds the loads' explicit time; eps = 1e-5 s: O(eps^2) truncation, rounding of
+ * the multiplier over eps about 1e-11 relative). Leaves s->tau, s->am (a-). */
+static int release_time(fcc_engine *e, fcc_sens *s, int kk, const double *q,
+                        const double *v, double t)
+{
+    fcc_events *ev = s->ev;
+    const fcc_event_spec *c = ev->spec;
+    int i, j, pos = 0, n = s->n, ne = s->ne, np_all = s->model->n_p;
+    double eps = 1e-5 * (fabs(t) > 1.0 ? fabs(t) : 1.0), plus, rate, acc;
+    double *qq = s->vp, *vv = s->wz;
+    for (i = 0; i < c->row[kk]; i++)
+        pos += ev->used[i];
+    if (c->row[kk] < 0 || !ev->used[c->row[kk]])
+        return fcc_fail(e, FCC_ERR_ARGUMENT, 0, 0);
+    if (accelerations(e, s, q, v, t, s->am) < 0)
+        return -1;
+    for (i = 0; i < n; i++) {
+        qq[i] = q[i] + eps * v[i];
+        vv[i] = v[i] + eps * s->am[i];
+    }
+    if (fcc_ev_watch(e, ev, qq, vv, t + eps, s->rb1) < 0)
+        return -1;
+    plus = s->rb1[ne + kk];
+    for (i = 0; i < n; i++) {
+        qq[i] = q[i] - eps * v[i];
+        vv[i] = v[i] - eps * s->am[i];
+    }
+    if (fcc_ev_watch(e, ev, qq, vv, t - eps, s->rb1) < 0)
+        return -1;
+    rate = (plus - s->rb1[ne + kk]) / (2.0 * eps) * ev->rel_sign[kk];   /* d(mu)/dt */
+    e->factor_valid = 0;
+    if (!(fabs(rate) > 0.0) || !isfinite(rate))
+        return fcc_fail(e, FCC_ERR_NONFINITE_RESULT, 0, 0);
+    if (accelerations(e, s, q, v, t, s->am) < 0)      /* again at (q, v, t) */
+        return -1;
+    fcc_sens_keep_mu(s);
+    for (i = 0; i < n; i++) {                  /* B^T lam = f - h - M a + G^T mu */
+        const double *Mi = e->asmb->M + (size_t)i * n;
+        acc = e->asmb->f[i] - e->asmb->h[i];
+        for (j = 0; j < n; j++)
+            acc -= Mi[j] * s->am[j];
+        s->r0[i] = acc;
+    }
+    fcc_sens_rows_force(s, s->r0);
+    fcc_dense_multipliers(&e->sol, s->r0, s->alpha, s->w);
+    for (j = 0; j < s->np; j++) {
+        const double *sq = fcc_sens_sq(s, j), *sv = fcc_sens_sv(s, j);
+        fcc_sens_sweep(e, s, q, v, s->am, s->alpha, sq, sv, s->dP + (size_t)j * np_all);
+        fcc_sens_rows_rhs(s, q, sq);
+        fcc_solve_constrained(e, s->rhs, NULL, s->b, s->dv);   /* (s->x: bias_dir's) */
+        if (fcc_sens_rows_acc(e, s, q, v, s->am, sq, sv, s->dv) < 0)
+            return -1;
+        s->tau[j] = -ev->mu[pos] / rate;
+    }
+    e->factor_valid = 0;
+    return 0;
+}
+
 int fcc_sens_event_before(fcc_engine *e, fcc_sens *s, int k, const double *q,
                           const double *v, double t)
 {
@@ -255,8 +320,20 @@ int fcc_sens_event_before(fcc_engine *e, fcc_sens *s, int k, const double *q,
     int i, j, n = s->n, ne = s->ne;
     double rate = 0.0, dt = 1e-6 * (fabs(t) > 1.0 ? fabs(t) : 1.0), st, acc;
     double *g, *sq, *sv;
-    if (k >= ne)                               /* a release: not carried (refused) */
-        return fcc_fail(e, FCC_ERR_ARGUMENT, 0, 0);
+    if (k >= ne) {                             /* a release */
+        if (release_time(e, s, k - ne, q, v, t) < 0)
+            return -1;
+        memcpy(s->vm, v, (size_t)n * sizeof(double));
+        for (j = 0; j < s->np; j++) {
+            sq = fcc_sens_sq(s, j);
+            sv = fcc_sens_sv(s, j);
+            for (i = 0; i < n; i++) {
+                sq[i] += v[i] * s->tau[j];
+                sv[i] += s->am[i] * s->tau[j];
+            }
+        }
+        return 0;
+    }
     tab->event_gradients(q, v, t, s->ev->p, s->ev->sg);
     g = s->ev->sg + (size_t)k * n;
     tab->event_values(q, v, t + dt, s->ev->p, s->rb1);    /* ds_k/dt: time events */
@@ -438,7 +515,7 @@ int fcc_sens_event_after(fcc_engine *e, fcc_sens *s, int k, int rc, const double
 {
     fcc_events *ev = s->ev;
     const fcc_event_spec *c = ev->spec;
-    int i, j, n = s->n, act = c->action[k];
+    int i, j, n = s->n, act = k < c->ne ? c->action[k] : FCC_ACT_UNLOCK;  /* release */
     double *sq, *sv, *plus = s->am;
     long row = ev->n_log - 1;
     if (rc == 0 && row >= 0 && row < s->cap && s->tout != NULL)
@@ -488,7 +565,7 @@ int fcc_sens_event_after(fcc_engine *e, fcc_sens *s, int k, int rc, const double
             return -1;
         plus = s->ap;
     } else if (rc == 0 && act != FCC_ACT_LOG) {
-        return fcc_fail(e, FCC_ERR_ARGUMENT, 0, 0);   /* a release: refused before */
+        return fcc_fail(e, FCC_ERR_ARGUMENT, 0, 0);   /* no other action */
     }
     e->factor_valid = 0;
     for (j = 0; j < s->np; j++) {              /* s+ = J s_total - f+ tau */
