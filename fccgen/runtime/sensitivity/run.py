@@ -16,8 +16,7 @@ from .parameters import directions
 
 # The event actions whose jumps the engine carries the sensitivities through
 # (engine/fcc_sens_events.c).
-# A bounce's rest is its row's lock; a release after it is not carried (the run stops
-# there with a message).
+# A bounce carries its rests (its row's lock) and releases (engine/fcc_sens.h).
 CARRIED = ("stop", "log", "lock", "unlock", "bounce")
 TIME_KEY = "d(time)/d({})"
 
