@@ -19,7 +19,7 @@ linearised, d(time)/dp of every impact, a rest carried as its row's lock).
   both are incomplete elliptic integrals of the first kind. 1e-8 relative, the
   figure the issue asks of event times: RK4 at 1 ms is the continuous motion to about
   1e-12 s here (tests/test_events_runtime.py).
-- The same pendulum through all 24 of its bounces and its rest against central
+- The same pendulum through all 23 of its bounces and its rest against central
   differences of the same fixed-step runs at d = 1e-4 |p|: the event times and the
   mass centre at the end (resting on the stop: its derivatives vanish, so everything
   is judged on the key's largest derivative), 1e-7 of it. The reference's own error:
