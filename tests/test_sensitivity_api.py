@@ -50,11 +50,6 @@ def test_refused_runs(pendulum, options, words):
         pendulum.simulate(**run)
 
 
-def test_events_refused_with_a_sentence(compiled):
-    with pytest.raises(ModelError, match="events"):
-        compiled("pendulum_limit").simulate(**RUN, sensitivities=["bodies.arm.mass"])
-
-
 def test_result_sensitivity_and_its_errors(pendulum, with_sens):
     s = with_sens.sensitivity("P2.x", "bodies.rod1.mass")
     assert s.shape == with_sens.t.shape and s[0] == 0.0 and np.any(s)

@@ -113,9 +113,3 @@ def test_solar_array_latch_times_and_position_against_central_differences(compil
         np.testing.assert_allclose(est[1], est[0], rtol=1e-8)     # the steps agree
         np.testing.assert_allclose(sensitivities(r, key, ["P.x"]), est[1], rtol=1e-7)
 
-
-def test_bounces_are_refused_with_a_sentence(compiled):
-    from fccgen.errors import ModelError
-    solver = compiled("pendulum_limit")
-    with pytest.raises(ModelError, match="not through a bounce"):
-        solver.simulate(t_end=0.1, dt=1e-3, sensitivities=["bodies.arm.mass"])

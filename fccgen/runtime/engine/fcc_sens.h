@@ -49,6 +49,9 @@ typedef struct fcc_sens {
     double *dG, *G1, *G2;          /* nr x n: d(Jacobian of the rows) along s_q; work */
     double *rb1, *rb2;             /* 2 (nr + ne + 1), nr + ne + 1 numbers */
     double *vm, *am, *ap, *dv, *w, *x, *r0, *alpha;   /* n each (alpha: m + 1) */
+    double *sg1, *sg2;             /* ne x n: event gradients along s_q (a bounce) */
+    double *gk, *dgk, *wz, *vp;    /* n each: a bounce's gradient, its change, response,
+                                      plastic speeds */
 } fcc_sens;
 
 /* Allocate for np parameters of the model (dP: np x model->n_p numbers, kept by
@@ -107,7 +110,16 @@ void fcc_sens_sweep(fcc_engine *e, fcc_sens *s, const double *q, const double *v
  * projection of s adds them: G s_a = -d(G a + Gdot v)[s_q, s_v], G s_q = d(held),
  * G s_v = -dG[s_q] v (the rows' second derivatives by central differences of their
  * generated Jacobian and bias along s_q: O(eps^2), about 1e-10 relative).
- * Bounces, rests and releases are not carried (refused before a run). */
+ * bounce (restitution e_k, Newton's law along the response w to g = ds_k/dq): with
+ * v_p = v- + mu_p w the plastic impact onto B, the used rows and g (mu_p = -g v- /
+ * g w), v+ = (1 + e) v_p - e v-, so dv+ = (1 + e) dv_p - e dv-, dv_p the plastic
+ * impact's linearisation with g as one more row (its change dg[s_q] by central
+ * differences of the generated event gradients, as the rows'); q+ = q-. A bounce that
+ * rests (too slow, or the Zeno guard) is a lock of its row: the lock's jump.
+ * release (of a resting bounce): its function is the row's multiplier mu, so
+ * dte/dp = -dmu / (dmu/dt), dmu the stage's linearised multiplier along the total
+ * derivative (and dP), dmu/dt by central differences along the motion; then as an
+ * unlock. */
 /* Carry the sensitivities through ev's events; tout: cap x np (logged events).
  * Returns FCC_OK or FCC_ERR_MEMORY. */
 int fcc_sens_events_init(fcc_sens *s, struct fcc_events *ev, double *tout, long cap);

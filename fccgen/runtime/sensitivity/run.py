@@ -16,7 +16,8 @@ from .parameters import directions
 
 # The event actions whose jumps the engine carries the sensitivities through
 # (engine/fcc_sens_events.c).
-CARRIED = ("stop", "log", "lock", "unlock")
+# A bounce carries its rests (its row's lock) and releases (engine/fcc_sens.h).
+CARRIED = ("stop", "log", "lock", "unlock", "bounce")
 TIME_KEY = "d(time)/d({})"
 # The methods that carry them (engine/fcc_rk4.c, fcc_dopri5.c).
 METHODS = ("rk4", "dopri5")
@@ -56,8 +57,7 @@ def check_request(solver, keys, method: str, project: bool,
         if event.action not in CARRIED:
             raise ModelError(model.source, event.where.line, f"events[{k}] ({event.name})",
                              f"sensitivities are carried through {', '.join(CARRIED)} "
-                             f"events, not through a {event.action} (the impact's and the "
-                             "rest's jumps are not derived yet; joint limits are bounces)",
+                             f"events, not through a {event.action}",
                              show_value=False)
     if solver.linear_solver == "sparse":
         raise ValueError("sensitivities run on the dense path: load the solver with "
