@@ -50,10 +50,14 @@ def check_request(solver, keys, method: str, project: bool) -> list[str]:
                              f"events, not through a {event.action} (the impact's and the "
                              "rest's jumps are not derived yet; joint limits are bounces)",
                              show_value=False)
-    if solver.linear_solver == "sparse":
-        raise ValueError("sensitivities run on the dense path: load the solver with "
-                         "linear_solver='dense' or 'auto'")
     return keys
+
+
+def engine(solver):
+    """The engine a run with sensitivities takes: the sparse path's when the solver was
+    loaded with linear_solver="sparse" (the exported engine's), else the dense path's
+    (also under "auto")."""
+    return solver._engine if solver.linear_solver == "sparse" else solver.dense_engine()
 
 
 def setup(solver, keys, build_dir):
@@ -62,7 +66,7 @@ def setup(solver, keys, build_dir):
     from .build import load_dp
     dP, S0 = directions(solver, keys)
     module = load_dp(solver.plan, build_dir)
-    return Sensitivities(solver.dense_engine().asm, module, dP, S0)
+    return Sensitivities(engine(solver).asm, module, dP, S0)
 
 
 def attach(solver, result, keys, sens) -> None:
