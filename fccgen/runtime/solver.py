@@ -422,7 +422,8 @@ class CompiledSolver:
                                                                 result.events)
         add_driver_columns(self, result)
         check_driver_branches(self.plan, result)
-        used = self.dense_engine() if m.name == "ali3p" or sens else self._engine
+        used = self.dense_engine() if m.name == "ali3p" else (
+            self._engine if sens is None else sensitivity_run.engine(self))
         stats = used.rank_statistics()
         rank_rule.report_run(result, decision, stats,
                              driven=bool(driver_rows(self.plan)))
@@ -596,7 +597,10 @@ class CompiledSolver:
         run, fccgen.runs.inputs; rk4 and baumgarte only; sens: rk4's or dopri5's
         sensitivities; sens_scale: the parameters' sizes for dopri5's error control of
         them, None: not controlled)."""
-        s, e = sched, (self._engine if sens is None else self.dense_engine())
+        s, e = sched, self._engine
+        if sens is not None:
+            from .sensitivity.run import engine
+            e = engine(self)
         held = None if held is None or held.constant or not (
             len(held.slots) or len(held.event_slots)) else (
             held.slots, held.columns, held.table, held.event_slots, held.event_columns)

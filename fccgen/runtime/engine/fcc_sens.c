@@ -127,23 +127,51 @@ void fcc_sens_sweep(fcc_engine *e, fcc_sens *s, const double *q, const double *v
     }
 }
 
-/* lam of the stage's solve: B^T lam = f - h - M a (f, h, M assembled at the stage). */
+void fcc_sens_sparse_multipliers(fcc_engine *e, const double *Q, const double *b,
+                                 double *x, double *lam, int warm)
+{
+    /* warm: from the last accelerations' multipliers (the stage's, when they
+     * converged), else from zero; lam: the refinement's last multipliers (an
+     * unconverged solve is counted as any) */
+    memcpy(lam, e->sp.lam_warm, (size_t)e->m * sizeof(double));
+    fcc_sp_kkt_solve_from(e, Q, NULL, b, x, lam, warm && e->sp.warm_valid, 0);
+    memcpy(lam, e->sp.lam, (size_t)e->m * sizeof(double));
+}
+
+/* (M a)_i on the dense path (M assembled), 0 on the sparse path (whose multipliers
+ * solve the stage's system again). */
+static double Mv(const fcc_engine *e, const double *a, int i)
+{
+    const double *Mi;
+    double acc = 0.0;
+    int j, n = e->n;
+    if (e->sparse)
+        return 0.0;
+    Mi = e->asmb->M + (size_t)i * n;
+    for (j = 0; j < n; j++)
+        acc += Mi[j] * a[j];
+    return acc;
+}
+
+/* lam of the stage's solve: B^T lam = f - h - M a (f, h assembled at the stage; M
+ * too on the dense path, its blocks on the sparse path). */
 static void multipliers(fcc_engine *e, fcc_sens *s, const double *a)
 {
     const fcc_assembly *as = e->asmb;
-    int i, j, n = s->n;
-    double acc;
-    const double *Mi;
-    for (i = 0; i < n; i++) {
-        Mi = as->M + (size_t)i * n;
-        acc = as->f[i] - as->h[i];
-        for (j = 0; j < n; j++)
-            acc -= Mi[j] * a[j];
-        s->r[i] = acc;
-    }
+    int i, n = s->n;
+    for (i = 0; i < n; i++)
+        s->r[i] = as->f[i] - as->h[i] - Mv(e, a, i);
     if (fcc_sens_rows(s) > 0)                  /* + G^T mu of the locked rows */
         fcc_sens_rows_force(s, s->r);
-    fcc_dense_multipliers(&e->sol, s->r, s->lam, s->y);
+    if (!e->sparse) {
+        fcc_dense_multipliers(&e->sol, s->r, s->lam, s->y);
+        return;
+    }
+    /* the sparse path: r = f - h (+ G^T mu); the stage's system again,
+     * M x + B^T lam = r, B x = -c, for its multipliers (x: the same a) */
+    for (i = 0; i < s->m; i++)
+        s->gp[i] = -as->c[i];
+    fcc_sens_sparse_multipliers(e, s->r, s->gp, s->y, s->lam, 1);
 }
 
 static int bad(fcc_engine *e, const double *x, int n)

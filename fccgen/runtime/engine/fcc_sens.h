@@ -15,7 +15,8 @@
  *     s_q <- argmin |s_q' - s_q|_M  with  B s_q' = -(dg/dp) dP_j
  *     s_v <- argmin |s_v' - s_v|_M  with  B s_v' = -dPhi[s_q', dP_j],  Phi = B v + dg/dt
  *
- * The dense path only. All work arrays come from fcc_sens_init; every other call
+ * Both paths (the sparse one takes the multipliers by a solve:
+ * fcc_sens_sparse_multipliers). All work arrays come from fcc_sens_init; every other call
  * returns 0 or -1 with the engine's error record filled.
  */
 #ifndef FCC_SENS_H
@@ -91,6 +92,13 @@ double *fcc_sens_sv(const fcc_sens *s, int j);
 void fcc_sens_sweep(fcc_engine *e, fcc_sens *s, const double *q, const double *v,
                     const double *a, const double *lam, const double *sq,
                     const double *sv, const double *dPj);
+
+/* The sparse path's multipliers of a system the step's factorisation holds: lam (m)
+ * of M x + B^T lam = Q, B x = b (b NULL: 0), by the refinement (x: n numbers of
+ * work); warm: from the last accelerations' multipliers. (The dense path takes them
+ * from its QR of B: fcc_dense_multipliers.) */
+void fcc_sens_sparse_multipliers(fcc_engine *e, const double *Q, const double *b,
+                                 double *x, double *lam, int warm);
 
 /* Sensitivities through events (fcc_sens_events.c).
  *

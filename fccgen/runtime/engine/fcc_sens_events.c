@@ -1,6 +1,6 @@
 /* Sensitivities through events (fcc_sens.h): the event times' derivatives, the jumps
  * of s at a located event (saltation), and the locked rows in the stages and
- * projections of s. The dense path only. */
+ * projections of s. Both paths (fcc_sens.h). */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -547,15 +547,17 @@ int fcc_sens_event_after(fcc_engine *e, fcc_sens *s, int k, int rc, const double
         for (i = 0; i < n; i++)
             s->dv[i] = v[i] - s->vm[i];
         for (i = 0; i < n; i++) {
-            const double *Mi = e->asmb->M + (size_t)i * n;
             double m = 0.0;
             int l;
-            for (l = 0; l < n; l++)
-                m += Mi[l] * s->dv[l];
+            for (l = 0; !e->sparse && l < n; l++)   /* sparse: x = dv_jump below */
+                m += e->asmb->M[(size_t)i * n + l] * s->dv[l];
             s->r0[i] = -m;
         }
         add_rows_t(s, ev->rg, s->emu, s->r0);
-        fcc_dense_multipliers(&e->sol, s->r0, s->alpha, s->w);
+        if (e->sparse)                         /* M x + B^T alpha = G^T mu, B x = 0 */
+            fcc_sens_sparse_multipliers(e, s->r0, NULL, s->w, s->alpha, 0);
+        else
+            fcc_dense_multipliers(&e->sol, s->r0, s->alpha, s->w);
         for (j = 0; j < s->np; j++)
             if (lock_jump(e, s, k, j, q, v) < 0)
                 return -1;

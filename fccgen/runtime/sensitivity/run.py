@@ -59,10 +59,14 @@ def check_request(solver, keys, method: str, project: bool,
                              f"sensitivities are carried through {', '.join(CARRIED)} "
                              f"events, not through a {event.action}",
                              show_value=False)
-    if solver.linear_solver == "sparse":
-        raise ValueError("sensitivities run on the dense path: load the solver with "
-                         "linear_solver='dense' or 'auto'")
     return keys
+
+
+def engine(solver):
+    """The engine a run with sensitivities takes: the sparse path's when the solver was
+    loaded with linear_solver="sparse" (the exported engine's), else the dense path's
+    (also under "auto")."""
+    return solver._engine if solver.linear_solver == "sparse" else solver.dense_engine()
 
 
 def setup(solver, keys, build_dir):
@@ -71,7 +75,7 @@ def setup(solver, keys, build_dir):
     from .build import load_dp
     dP, S0 = directions(solver, keys)
     module = load_dp(solver.plan, build_dir)
-    return Sensitivities(solver.dense_engine().asm, module, dP, S0)
+    return Sensitivities(engine(solver).asm, module, dP, S0)
 
 
 def error_scale(solver, keys) -> list[float]:
