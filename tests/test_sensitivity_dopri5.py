@@ -209,3 +209,13 @@ def test_cli_runs_dopri5_with_the_option(build_dir, tmp_path, capsys, load):
                                            sensitivity_error=True)
     np.testing.assert_array_equal(Result.load(out).sensitivity("P2.x", "gravity[1]"),
                                   api.sensitivity("P2.x", "gravity[1]"))
+
+
+def test_dopri5_on_the_sparse_path_is_refused_before_the_run():
+    """dopri5's sensitivities use the dense path's multipliers: a solver loaded on the
+    sparse path is told so, and what works, before anything runs."""
+    import fccgen
+    solver = fccgen.load(EXAMPLES / "double_pendulum.yaml", linear_solver="sparse")
+    with pytest.raises(ValueError, match="dense path only"):
+        solver.simulate(t_end=0.01, dt=1e-3, method="dopri5",
+                        sensitivities=["bodies.rod1.mass"])

@@ -53,6 +53,10 @@ def check_request(solver, keys, method: str, project: bool,
         raise ValueError(f"sensitivity_error must be True or False, not {error_control!r}")
     if not project:
         raise ValueError(f"sensitivities need the projected {method} (project=True)")
+    if method == "dopri5" and solver.linear_solver == "sparse":
+        raise ValueError("dopri5 carries sensitivities on the dense path only; load the "
+                         "model with linear_solver='auto' or 'dense', or use rk4 on the "
+                         "sparse path")
     for k, event in enumerate(model.events):
         if event.action not in CARRIED:
             raise ModelError(model.source, event.where.line, f"events[{k}] ({event.name})",
