@@ -159,3 +159,14 @@ def test_release_time_against_the_static_balance(pulled):
         np.testing.assert_allclose(est[1][-3:], est[0][-3:], rtol=0, atol=1e-7 * scale)
         np.testing.assert_allclose(sensitivities(r, key, ["arm.cx", "arm.cz"]), est[0],
                                    rtol=0, atol=1e-7 * scale)
+
+
+def test_a_bounce_on_the_sparse_path_is_refused_before_the_run():
+    """The impact's jump takes the dense path's mass matrix and multipliers: a solver
+    loaded on the sparse path is told so, and what works, before anything runs."""
+    import fccgen
+    from fccgen.errors import ModelError
+    solver = fccgen.load(ROOT / "examples" / "pendulum_limit.yaml", linear_solver="sparse")
+    with pytest.raises(ModelError, match="dense path only"):
+        solver.simulate(t_end=0.01, dt=1e-3, method="rk4",
+                        sensitivities=["gravity[1]"])

@@ -63,6 +63,13 @@ def check_request(solver, keys, method: str, project: bool,
                              f"sensitivities are carried through {', '.join(CARRIED)} "
                              f"events, not through a {event.action}",
                              show_value=False)
+        if event.action == "bounce" and solver.linear_solver == "sparse":
+            # the impact's, rest's and release's jumps (engine/fcc_sens_events.c)
+            # take the dense path's mass matrix and multipliers
+            raise ModelError(model.source, event.where.line, f"events[{k}] ({event.name})",
+                             "sensitivities are carried through a bounce (a joint "
+                             "limit) on the dense path only; load the model with "
+                             "linear_solver='auto' or 'dense'", show_value=False)
     return keys
 
 
