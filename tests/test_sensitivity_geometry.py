@@ -151,3 +151,14 @@ def test_richardson_refuses_a_kink():
     _, worst = geometry.richardson({s: [np.array([max(s, 0.0) ** 2])] for s in steps},
                                    h, (1.0,))
     assert worst > 0.5
+
+
+def test_geometry_keys_on_the_sparse_path_are_refused_before_the_run():
+    """The sparse path holds a planar model's out-of-plane coordinates fixed, and a
+    geometry key can move them: its solves would leave that change out. A solver
+    loaded on the sparse path is told so, and what works, before anything runs."""
+    import fccgen
+    solver = fccgen.load(ROOT / "examples" / "double_pendulum.yaml", linear_solver="sparse")
+    with pytest.raises(ValueError, match="dense path only"):
+        solver.simulate(t_end=0.01, dt=1e-3, method="rk4",
+                        sensitivities=["points.P2.at[0]"])

@@ -43,8 +43,11 @@ def table_symbol(model_name: str) -> str:
 def check(solver, keys, error_type) -> list:
     """The keys with sensitivities, or error_type saying why the model's run cannot
     carry them (the refusals of simulate(sensitivities=...))."""
+    from ..runtime.sensitivity.geometry import kind
     from ..runtime.sensitivity.run import check_request
-    names = [k for k, _, _ in keys]
+    # the exported engine runs the sparse path, which takes no geometry key (they can
+    # move the coordinates it holds fixed): those keys are left out like the refused
+    names = [k for k, _, _ in keys if kind(k) is None]
     if not names:
         raise error_type(f"{solver.plan.model.source}: --sensitivities: the export sets "
                          "no parameter of this model, so it has none to differentiate by")

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from ...errors import ModelError
 from .columns import column_name, column_sensitivities
+from .geometry import kind as geometry_kind
 from .parameters import directions
 
 
@@ -57,6 +58,14 @@ def check_request(solver, keys, method: str, project: bool,
         raise ValueError("dopri5 carries sensitivities on the dense path only; load the "
                          "model with linear_solver='auto' or 'dense', or use rk4 on the "
                          "sparse path")
+    if solver.linear_solver == "sparse":
+        moved = [key for key in keys if geometry_kind(key) is not None]
+        if moved:
+            # a geometry key can move coordinates the sparse path holds fixed (a planar
+            # model's pinned out-of-plane coordinates), whose change its solves leave out
+            raise ValueError(f"sensitivities to geometry ({', '.join(moved)}) run on the "
+                             "dense path only; load the model with linear_solver='auto' "
+                             "or 'dense'")
     for k, event in enumerate(model.events):
         if event.action not in CARRIED:
             raise ModelError(model.source, event.where.line, f"events[{k}] ({event.name})",
