@@ -66,15 +66,8 @@ def test_sparse_path_sensitivities_match_central_differences(compiled_sparse):
 
 
 def test_sparse_path_carries_the_solar_array_latches(compiled_sparse):
-    from test_sensitivity_events import SOLAR, central, sensitivities
-    solver = compiled_sparse("solar_array")
-    keys = KEYS["solar_array"]
-    r = solver.simulate(**SOLAR, sensitivities=keys, reactions=False)
-    assert [e["name"] for e in r.events] == ["panel_latch", "root_latch"]
-    for key in keys:
-        est = central(solver, key, SOLAR, ["P.x"])
-        np.testing.assert_allclose(est[1], est[0], rtol=1e-8)     # the steps agree
-        np.testing.assert_allclose(sensitivities(r, key, ["P.x"]), est[1], rtol=1e-7)
+    from test_sensitivity_events import check_solar_array
+    check_solar_array(compiled_sparse("solar_array"))
 
 
 @pytest.fixture(scope="session")
