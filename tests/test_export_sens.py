@@ -153,7 +153,8 @@ def test_requests_the_export_cannot_answer_are_refused(sens_project, build_dir, 
 def test_models_and_targets_without_sensitivities_are_refused(build_dir, tmp_path):
     from fccgen.cli import main
     from fccgen.export.c_project import ExportError
-    with pytest.raises(ExportError, match="through a bounce .a joint limit. on the dense path only"):
+    with pytest.raises(ExportError,
+                       match="through a bounce .a joint limit. on the dense path only"):
         export_c(EXAMPLES / "pendulum_limit.yaml", tmp_path / "pl", build_dir,
                  sensitivities=True)
     assert not (tmp_path / "pl").exists()
