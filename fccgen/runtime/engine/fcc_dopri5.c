@@ -270,8 +270,8 @@ static int after_event(fcc_engine *e, fcc_dopri5 *r, int k)
     fcc_events *ev = r->ev;
     int n = r->n2 / 2, rc = 0, j, rc_j;
     if (k >= 0)
-        fcc_ev_keep_start(ev);
-    for (j = k; j >= 0; j = fcc_ev_next_tie(ev, j == k ? k : -1)) {
+        fcc_ev_keep_start(ev, k);
+    for (j = k; j >= 0; j = fcc_ev_next_tie(ev)) {
         e->err_t = r->t;
         if (r->sens.s != NULL
                 && fcc_sens_event_before(e, r->sens.s, j, r->y, r->y + n, r->t) < 0)

@@ -170,16 +170,15 @@ void fcc_ev_mark_crossed(fcc_events *ev)
         ev->tie[k] = fcc_ev_watched(ev, k, ev->s0, ev->s1) ? TIE_CROSSED : TIE_NONE;
 }
 
-void fcc_ev_keep_start(fcc_events *ev)
+void fcc_ev_keep_start(fcc_events *ev, int first)
 {
     memcpy(ev->s_prev, ev->s0, (size_t)(2 * ev->spec->ne) * sizeof(double));
+    ev->tie[first] = TIE_NONE;                  /* the integrator's own */
 }
 
-int fcc_ev_next_tie(fcc_events *ev, int first)
+int fcc_ev_next_tie(fcc_events *ev)
 {
     int k;
-    if (first >= 0 && first < 2 * ev->spec->ne)
-        ev->tie[first] = TIE_NONE;              /* the integrator's own */
     for (k = 0; k < 2 * ev->spec->ne; k++)
         if (ev->tie[k] == TIE_CROSSED && fcc_ev_watched(ev, k, ev->s_prev, ev->s0)) {
             ev->tie[k] = TIE_ACTED;

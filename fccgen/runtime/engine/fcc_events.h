@@ -151,14 +151,14 @@ int fcc_ev_watched(fcc_events *ev, int k, const double *a, const double *b);
 /* Ties: events that cross at (or within the location tolerance of) the same instant.
  * fcc_ev_mark_crossed marks every watched value that crosses from s0 to s1 (after
  * fcc_ev_crossed found one); fcc_ev_keep_start keeps s0 before the located instant's
- * values replace it; after the first event acted and s0 was read at its instant,
- * fcc_ev_next_tie returns another marked value that had crossed by then (from the
- * kept values to s0), marked as acted, or -1; fcc_ev_settle reads s0 again after the
+ * values replace it and unmarks first, the event the integrator acts on itself; after
+ * it acted and s0 was read at its instant, fcc_ev_next_tie returns another marked
+ * value that had crossed by then (from the kept values to s0), marked as acted, or -1; fcc_ev_settle reads s0 again after the
  * ties acted and puts each acted one (and first, when first_leaves) where
  * fcc_ev_leaving says. */
 void fcc_ev_mark_crossed(fcc_events *ev);
-void fcc_ev_keep_start(fcc_events *ev);
-int fcc_ev_next_tie(fcc_events *ev, int first);
+void fcc_ev_keep_start(fcc_events *ev, int first);
+int fcc_ev_next_tie(fcc_events *ev);
 int fcc_ev_settle(fcc_engine *e, fcc_events *ev, const double *q, const double *v,
                   double t, int first, int first_leaves);
 int fcc_ev_crosses(fcc_events *ev, int k, double a, double b);

@@ -214,8 +214,8 @@ static int events(fcc_engine *e, fcc_rk4 *r, double t0, double h)
         if (state_at(e, r, t0, best) < 0 || after_step(e, r) < 0)
             return -1;
         e->err_t = t0 + best;
-        fcc_ev_keep_start(ev);
-        for (j = first; j >= 0; j = fcc_ev_next_tie(ev, j == first ? first : -1)) {
+        fcc_ev_keep_start(ev, first);
+        for (j = first; j >= 0; j = fcc_ev_next_tie(ev)) {
             count++;                         /* first, then the ties of its instant */
             rc = act(e, r, count <= max_per_step ? j : -1 - j, t0 + best);
             if (rc < 0)
