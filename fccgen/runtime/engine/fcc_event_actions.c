@@ -404,20 +404,20 @@ int fcc_ev_apply(fcc_engine *e, fcc_events *ev, int k, double *q, double *v, dou
         if (re > cerr)
             cerr = re;
     }
-    if (ev->n_log < c->cap_log) {
-        rec = ev->log + ev->n_log * FCC_LOG_COLS;
-        rec[0] = t;
-        rec[1] = k;
-        rec[2] = act;
-        rec[3] = impulse;
-        rec[4] = ke0;
-        rec[5] = fcc_ev_kinetic(e, q, v);
-        rec[6] = cerr;
-        rec[7] = (e->sparse ? e->n - e->sol.rank_fixed : e->sol.nr) - ev->n_used;
-        rec[8] = speed;
-        rec[9] = ev->note;
-        rec[10] = ev->note_sigma;
-    }
+    rec = ev->last;
+    rec[0] = t;
+    rec[1] = k;
+    rec[2] = act;
+    rec[3] = impulse;
+    rec[4] = ke0;
+    rec[5] = fcc_ev_kinetic(e, q, v);
+    rec[6] = cerr;
+    rec[7] = (e->sparse ? e->n - e->sol.rank_fixed : e->sol.nr) - ev->n_used;
+    rec[8] = speed;
+    rec[9] = ev->note;
+    rec[10] = ev->note_sigma;
+    if (ev->n_log < c->cap_log)
+        memcpy(ev->log + ev->n_log * FCC_LOG_COLS, rec, sizeof ev->last);
     ev->n_log++;
     return 0;
 }

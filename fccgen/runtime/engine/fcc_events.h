@@ -84,6 +84,7 @@ typedef struct fcc_events {
     int stop;                 /* a stop event happened */
     long n_log;
     double *log;              /* cap_log x FCC_LOG_COLS */
+    double last[FCC_LOG_COLS]; /* the latest row, kept past cap_log too (n_log > 0) */
     /* the element kernels' copies of the angle references (torsion springs and loads
      * of joint angles count turns through them; fcc_events_mirror) */
     int nm;                   /* how many copies, */
