@@ -220,6 +220,7 @@ class Project:
     t_end: float
     output_dt: float
     sensitivities: list = None     # the keys with sensitivities (None: exported without)
+    event_names: list = None       # the model's events, NAME_event_name's order
 
 
 def c_project_files(model_path, build_dir="generated", *, progress=None,
@@ -259,7 +260,9 @@ def c_project_files(model_path, build_dir="generated", *, progress=None,
     d = solver.plan.model.simulate
     return Project(name, files, [c for c, _, _ in table.columns], keys, inputs,
                    float(d.t_end), float(d.output_dt if d.output_dt is not None else d.dt),
-                   None if found is None else [k for k, _, _ in found])
+                   None if found is None else [k for k, _, _ in found],
+                   [] if solver.events_module is None
+                   else list(solver.events_module.EVENT_NAMES))
 
 
 def export_c(model_path, out_dir, build_dir="generated", *, progress=None,

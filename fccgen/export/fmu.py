@@ -24,7 +24,9 @@ from xml.sax.saxutils import escape
 
 from ..version import __version__
 from ..errors import BuildError
+from ..runtime._events import ACTIONS
 from .c_project import ExportError, c_project_files, environment
+from .fmu_events import DECLARED, EVENT_OUTPUTS, clash, enumeration_items
 
 # what a variable name of the FMU may be: the result columns and parameter keys are
 # item names (identifiers) joined by dots, with [k] components
@@ -39,8 +41,10 @@ def xml_name(name: str) -> str:
     return escape(name, {'"': "&quot;"})
 
 
-def model_description(ctx: dict, columns, keys, inputs, t_end, output_dt) -> str:
-    """modelDescription.xml: outputs, parameters, inputs in value-reference order."""
+def model_description(ctx: dict, columns, keys, inputs, t_end, output_dt,
+                      event_names=()) -> str:
+    """modelDescription.xml: outputs, parameters, inputs, then the event outputs (a
+    model with events: fmu_events), in value-reference order."""
     variables = []
     for k, name in enumerate(columns):
         variables.append(dict(name=xml_name(name), vr=k, causality="output",
@@ -52,8 +56,22 @@ def model_description(ctx: dict, columns, keys, inputs, t_end, output_dt) -> str
         variables.append(dict(name=xml_name(name), vr=len(columns) + len(keys) + k,
                               causality="input", variability="continuous", initial=None,
                               start=repr(float(x0))))
+    types = {}
+    if event_names:
+        types = {t: [(escape(item, {'"': "&quot;"}), value) for item, value in items]
+                 for t, items in enumeration_items(event_names, ACTIONS).items()}
+        for v in EVENT_OUTPUTS:
+            variables.append(dict(name=xml_name(v.name), vr=len(variables),
+                                  causality="output", variability="discrete", initial=None,
+                                  start=None, type=v.type, declared=DECLARED.get(v.field),
+                                  description=escape(v.description, {'"': "&quot;"})))
+    for v in variables:
+        v.setdefault("type", "Real")
+        v.setdefault("declared", None)
+        v.setdefault("description", None)
+    outputs = [k + 1 for k, v in enumerate(variables) if v["causality"] == "output"]
     return environment().get_template("modelDescription.xml.jinja").render(
-        **ctx, variables=variables, outputs=list(range(1, len(columns) + 1)),
+        **ctx, variables=variables, outputs=outputs, types=types,
         t_end=repr(float(t_end)), output_dt=repr(float(output_dt)),
         date=time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()))
 
@@ -103,8 +121,15 @@ def export_fmu(model_path, fmu_path, build_dir="generated", *, progress=None) ->
         raise ExportError(f"{fmu_path}: an FMU file name ends in .fmu")
     project = c_project_files(model_path, build_dir, progress=progress)
     name, files = project.name, dict(project.files)
+    events = project.event_names or []
+    taken = clash(events, [*project.columns, *(k for k, _, _ in project.keys),
+                           *(i for i, _, _ in project.inputs)])
+    if taken:
+        raise ExportError(f"{model_path}: the FMU's event output {taken} is already a "
+                          "variable of the model (rename the item that makes it)")
     env = environment()
-    ctx = dict(n=name, version=__version__)
+    ctx = dict(n=name, version=__version__, has_events=bool(events),
+               event_outputs=[v.field for v in EVENT_OUTPUTS], actions=list(ACTIONS))
     files["fccgen_fmi2.h"] = env.get_template("fmi2.h.jinja").render(ctx)
     guid = guid_of({**files, f"{name}_fmu.c": env.get_template("fmu.c.jinja").render(
         {**ctx, "guid": ""})})
@@ -112,7 +137,7 @@ def export_fmu(model_path, fmu_path, build_dir="generated", *, progress=None) ->
     files[f"{name}_fmu.c"] = env.get_template("fmu.c.jinja").render(ctx)
     library = build_library(name, files, Path(build_dir) / "fmu")
     description = model_description(ctx, project.columns, project.keys, project.inputs,
-                                     project.t_end, project.output_dt)
+                                     project.t_end, project.output_dt, events)
     fmu_path.parent.mkdir(parents=True, exist_ok=True)
     tmp = fmu_path.with_name(fmu_path.name + ".partial")
     with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as z:
