@@ -15,6 +15,7 @@ from fccgen.errors import ModelError
 from fccgen.export import export_c
 from fccgen.export.c_data import c_strings
 from fccgen.export.fmu import export_fmu, xml_name
+from fccgen.export.fmu_events import clash, enumeration_items
 
 ATTACKS = ["a*/b", 'a"b', "a\nb", "$(touch pwned)", "../up", "a'b", "a<b>&c", "a\\b"]
 CC = shutil.which("cc") or shutil.which("gcc")
@@ -40,6 +41,21 @@ def test_an_fmu_variable_name_is_checked_never_mended(name):
     with pytest.raises(ValueError):
         xml_name(name)
     assert xml_name("bodies.arm.inertia[2]") == "bodies.arm.inertia[2]"
+
+
+@pytest.mark.parametrize("name", ATTACKS + ["(none)"])
+def test_an_event_name_enters_the_fmus_enumeration_only_as_an_identifier(name):
+    with pytest.raises(ValueError, match="EventName"):
+        enumeration_items(["latch", name], ("lock",))
+    items = enumeration_items(["latch"], ("lock",))
+    assert items == {"EventName": [("(none)", 0), ("latch", 1)],
+                     "EventAction": [("(none)", 0), ("lock", 1)]}
+
+
+def test_an_event_output_that_is_already_a_variable_is_found():
+    assert clash(["latch"], ["R.x", "events.count"]) == "events.count"
+    assert clash(["latch"], ["R.x", "events"]) == ""
+    assert clash([], ["events.count"]) == ""           # no events: no event outputs
 
 
 def test_c_strings_escape_every_attack():

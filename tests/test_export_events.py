@@ -19,6 +19,10 @@ them as fccgen simulate does.
   model's size), whose digits differ once a parameter is set as base + slope (x - x0)
   instead of from the model file; it is compared to 1e-11 absolute (below the
   position tolerance, 1e-11 here);
+* the FMU's event outputs (events.count and the latest event's row, events.last.*)
+  at each communication point equal simulate's event log up to that time: through
+  both latches (times to 1e-10 s), with a panel mass set, and for 127 ticks of a log
+  event, past the C log's 64 rows and with 3 or 4 events per communication step;
 * a stop event (pendulum_limit's log event made a stop) ends the C example and the
   FMU (fmi2Discard, fmi2LastSuccessfulTime) where simulate's run ends;
 * the example's event log (FILE_events.csv, read through NAME_event_row) equals
@@ -125,7 +129,7 @@ def test_an_event_log_past_its_capacity_says_how_many_it_dropped(build_dir, tmp_
     """A log event that fires 127 times (sin(200 t) crosses zero every pi/200 s over
     2 s) on the panel of examples/panel_input.yaml: the exported log keeps its first
     64 rows, equal to simulate's first 64, and the example says on stderr how many it
-    did not keep (63)."""
+    did not keep (63); the FMU's event outputs count all 127 and show the last."""
     text = (EXAMPLES / "panel_input.yaml").read_text().replace(
         "simulate:", "events:\n  - {name: tick, when: \"sin(200*t)\", do: log}\nsimulate:")
     model = tmp_path / "panel_input.yaml"
@@ -139,6 +143,15 @@ def test_an_event_log_past_its_capacity_says_how_many_it_dropped(build_dir, tmp_
     assert done.returncode == 0 and len(result.events) == 127
     assert "63 events past the log's 64 rows are not in ticks_events.csv" in done.stderr
     assert_event_rows(folder / "ticks_events.csv", result.events[:64])
+    # the FMU's event outputs go on past the 64 rows: every event counted, the latest
+    # one's row at each communication point; 0.05 s holds 3 or 4 ticks (pi/200 s
+    # apart), so the count steps by 3 or 4 and the outputs show the latest of them
+    fmpy = pytest.importorskip("fmpy")
+    from fccgen.export.fmu import export_fmu
+    fmu = export_fmu(model, tmp_path / "ticks.fmu", build_dir)
+    rows = fmpy.simulate_fmu(str(fmu), stop_time=2.0, output_interval=0.05)
+    assert set(np.diff(rows["events.count"])) == {3, 4}
+    assert_event_outputs(rows, result.events, fmu)
 
 
 def test_no_heap_allocation_while_the_solar_array_latches(project, tmp_path):
@@ -165,6 +178,8 @@ def fmu(build_dir, tmp_path_factory):
 def assert_equal_runs(rows, result):
     assert np.array_equal(rows["time"], result.t)
     for name in rows.dtype.names[1:]:
+        if name.startswith("events."):
+            continue                  # the event outputs: assert_event_outputs
         want = result[name]
         if name == "constraint_error":
             assert np.max(np.abs(rows[name] - want)) <= 1e-11
@@ -190,7 +205,65 @@ def test_a_panel_mass_from_start_values_equals_with_parameters(fmu, compiled_spa
     solver = compiled_sparse("solar_array").with_parameters(values)
     result = solver.simulate(t_end=LATCHED, output_dt=0.01, reactions=False)
     assert len(result.events) == 2 and result.events[0]["t"] > 1.3   # later latches
-    assert_equal_runs(fmu_run(fmu, start_values=values), result)
+    rows = fmu_run(fmu, start_values=values)
+    assert_equal_runs(rows, result)
+    assert_event_outputs(rows, result.events, fmu)
+
+
+def enumerations(fmu):
+    """{EventName, EventAction: {value: item}} from the FMU's modelDescription.xml."""
+    fmpy = pytest.importorskip("fmpy")
+    types = fmpy.read_model_description(str(fmu)).typeDefinitions
+    return {t.name: {int(i.value): i.name for i in t.items} for t in types}
+
+
+def assert_event_outputs(rows, events, fmu):
+    """The FMU's event outputs at each communication point are simulate's event log
+    up to that time: events.count counts the events at or before it, and the
+    events.last.* outputs hold the latest one's row (name and action through the
+    Enumeration items of modelDescription.xml); before the first event the count and
+    every field are 0 and name and action the item "(none)". Times to 1e-10 s and the
+    numbers to 1e-10 of each key's largest magnitude (the issue's FMU tolerance; the
+    same engine and steps give equal values), constraint_error to 1e-11 absolute (as
+    assert_equal_runs: rounding after the projection)."""
+    items = enumerations(fmu)
+    t_events = np.array([e["t"] for e in events])
+    count = rows["events.count"]
+    assert count[-1] == len(events)
+    for r, t in enumerate(rows["time"]):
+        n = int(np.sum(t_events <= t + 1e-12))
+        assert count[r] == n, t
+        if n == 0:
+            assert items["EventName"][rows["events.last.name"][r]] == "(none)"
+            assert items["EventAction"][rows["events.last.action"][r]] == "(none)"
+            assert all(rows[f"events.last.{k}"][r] == 0 for k in
+                       ("time", "impulse", "kinetic_energy_before", "dof"))
+            continue
+        want = events[n - 1]
+        assert items["EventName"][rows["events.last.name"][r]] == want["name"]
+        assert items["EventAction"][rows["events.last.action"][r]] == want["action"]
+        assert rows["events.last.dof"][r] == want["dof"]
+        assert abs(rows["events.last.time"][r] - want["t"]) <= 1e-10
+        assert abs(rows["events.last.constraint_error"][r]
+                   - want["constraint_error"]) <= 1e-11
+        for key in ("impulse", "kinetic_energy_before", "kinetic_energy_after",
+                    "speed_before"):
+            scale = max(max(abs(e[key]) for e in events), 1e-300)
+            assert abs(rows[f"events.last.{key}"][r] - want[key]) <= 1e-10 * scale, key
+
+
+def test_the_fmus_event_outputs_are_simulates_event_log(fmu, compiled_sparse):
+    """Both latches, seen by the importer: the count steps 0, 1, 2 at the first
+    communication points at or past 1.25 s and 2.06 s; FMPy's validation (the standard's
+    schema: the Enumeration types, discrete Integer outputs) reports no problem."""
+    fmpy = pytest.importorskip("fmpy")
+    from fmpy.validation import validate_fmu
+    assert validate_fmu(str(fmu)) == []
+    result = compiled_sparse("solar_array").simulate(t_end=LATCHED, output_dt=0.01,
+                                                     reactions=False)
+    rows = fmu_run(fmu)
+    assert sorted(set(rows["events.count"])) == [0, 1, 2]
+    assert_event_outputs(rows, result.events, fmu)
 
 
 def test_a_bus_torque_driven_from_fmpy_equals_simulate_inputs(fmu, compiled_sparse):
