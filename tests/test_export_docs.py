@@ -100,7 +100,8 @@ def test_the_events_section_works_as_written(folder):
     """The solar array's C example equals simulate's CSV to rounding and writes both
     latches to its event CSV, the event log's C lines name functions of the header,
     the copy built elsewhere runs, and the FMU with a heavier panel and a driven bus torque equals
-    with_parameters and simulate(inputs=...) through both latches."""
+    with_parameters and simulate(inputs=...) through both latches, its event outputs
+    telling the same latches."""
     c = np.genfromtxt(folder / "solar_array_c" / "sa.csv", delimiter=",", names=True)
     py = np.genfromtxt(folder / "sa_py.csv", delimiter=",", names=True)
     assert len(c) == len(py) == 3001
@@ -118,6 +119,7 @@ def test_the_events_section_works_as_written(folder):
     assert done.returncode == 0, done.stderr
     lines = done.stdout.split("\n")
     assert "panel_latch" in lines[0] and "root_latch" in lines[0]
+    assert lines[1] == lines[0]                   # the FMU's event outputs tell the same
     assert float(done.stdout.split()[-1]) < 1e-10
 
 

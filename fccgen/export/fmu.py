@@ -6,7 +6,8 @@ The FMU is the C project of :mod:`fccgen.export.c_project` plus an FMI 2.0 layer
 function declarations written from the FMI 2.0 standard) and ``modelDescription.xml``.
 Its variables: the outputs are the export's result columns (those of fccgen simulate
 but the joint reactions and driver forces), the parameters the with_parameters keys
-the export can set, the inputs the model file's ``inputs:``. The shared library is
+the export can set, the inputs the model file's ``inputs:``, and for a model with
+events the event outputs of :mod:`fccgen.export.fmu_events`. The shared library is
 built with the system C compiler in a subprocess (cwd: a fresh folder; the compiler's
 output is shown when it fails) and cached by the hash of its sources.
 """
