@@ -23,6 +23,7 @@ them as fccgen simulate does.
   at each communication point equal simulate's event log up to that time: through
   both latches (times to 1e-10 s), with a panel mass set, and for 127 ticks of a log
   event, past the C log's 64 rows and with 3 or 4 events per communication step;
+  through FMI calls they read only as their own types and cannot be set;
 * a stop event (pendulum_limit's log event made a stop) ends the C example and the
   FMU (fmi2Discard, fmi2LastSuccessfulTime) where simulate's run ends;
 * the example's event log (FILE_events.csv, read through NAME_event_row) equals
@@ -278,6 +279,39 @@ def test_a_bus_torque_driven_from_fmpy_equals_simulate_inputs(fmu, compiled_spar
     assert_equal_runs(fmu_run(fmu, input=signal), result)
     plain = solver.simulate(t_end=LATCHED, output_dt=0.01, reactions=False)
     assert np.max(np.abs(plain["bus.wz"] - result["bus.wz"])) > 1e-3   # the torque acted
+
+
+def test_the_event_outputs_are_typed_and_read_only(fmu, compiled_sparse):
+    """Through FMI calls: events.count reads as an Integer (0 before the first latch,
+    1 after a doStep past it, with the latch's time as a Real), not as a Real; the
+    Real events.last.time not as an Integer; setting an event output is refused."""
+    fmpy = pytest.importorskip("fmpy")
+    from fmpy.fmi1 import FMICallException
+    from fmpy.fmi2 import FMU2Slave
+    md = fmpy.read_model_description(str(fmu))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    slave = FMU2Slave(guid=md.guid, unzipDirectory=fmpy.extract(str(fmu)),
+                      modelIdentifier=md.coSimulation.modelIdentifier, instanceName="ev")
+    slave.instantiate()
+    try:
+        slave.setupExperiment(startTime=0.0)
+        slave.enterInitializationMode()
+        slave.exitInitializationMode()
+        assert slave.getInteger([vr["events.count"]]) == [0]
+        slave.doStep(currentCommunicationPoint=0.0, communicationStepSize=1.3)
+        latch = compiled_sparse("solar_array").simulate(t_end=1.3, reactions=False).events
+        assert slave.getInteger([vr["events.count"], vr["events.last.dof"]]) == [
+            1, latch[0]["dof"]]
+        assert abs(slave.getReal([vr["events.last.time"]])[0] - latch[0]["t"]) <= 1e-10
+        for call, ref in ((slave.getReal, "events.count"),
+                          (slave.getInteger, "events.last.time")):
+            with pytest.raises(FMICallException):
+                call([vr[ref]])
+        with pytest.raises(FMICallException):
+            slave.setInteger([vr["events.count"]], [3])
+        slave.terminate()
+    finally:
+        slave.freeInstance()
 
 
 def test_a_stop_event_ends_the_exported_run_where_simulate_ends(build_dir, tmp_path):
