@@ -271,7 +271,7 @@ static int correction(fcc_engine *e, double *rz_stop)
  * when a warm start met that slow step (not continued: the conjugate-gradient bounds
  * are set from a cold start's first residual). At most al_max + refine_max passes. */
 static int refine(fcc_engine *e, const double *b, double *x, int warm, int *solves,
-                  double stop)
+                  double stop, int may_boost)
 {
     fcc_sparse *s = &e->sp;
     int i, it, n = e->n, m = e->m, cg = 0;
@@ -328,6 +328,8 @@ static int refine(fcc_engine *e, const double *b, double *x, int warm, int *solv
             cg = 1;
         if (cg && warm)
             return -1;
+        if (cg && may_boost)
+            return -2;
         prev = nd;
     }
     return 0;
@@ -372,11 +374,17 @@ int fcc_sp_kkt_solve_from(fcc_engine *e, const double *Q, const double *w,
     status = -1;
     if (lam_io != NULL && valid) {
         memcpy(s->lam, lam_io, (size_t)m * sizeof(double));
-        status = refine(e, b, x, 1, &solves, AL_STOP);
+        status = refine(e, b, x, 1, &solves, AL_STOP, 0);
     }
     if (status < 0) {
         memset(s->lam, 0, (size_t)m * sizeof(double));
-        status = refine(e, b, x, 0, &solves, newton ? NEWTON_STOP : AL_STOP);
+        status = refine(e, b, x, 0, &solves, newton ? NEWTON_STOP : AL_STOP,
+                        s->boost == 1.0 && s->beyond_quotient == 0.0);
+    }
+    if (status == -2) {                   /* slow with RHO: again with the boost */
+        memset(s->lam, 0, (size_t)m * sizeof(double));
+        fcc_sp_factor_boosted(e);
+        status = refine(e, b, x, 0, &solves, newton ? NEWTON_STOP : AL_STOP, 0);
     }
     if (lam_io != NULL && status == 1)
         memcpy(lam_io, s->lam, (size_t)m * sizeof(double));
