@@ -73,6 +73,23 @@
  * the direction too, by t / (1 + t) of the wrong amount each (Bricard's line encoding
  * kept 1e-2 J of energy error so).
  *
+ * Near a singular position. Those conjugate-gradient steps are as many as the weak
+ * directions with distinct t (the A02 chain of 40 loops near its flat position: up to
+ * 59 in one solve, 176 in one RK4 step, 7 times the median step). So the first solve
+ * of a factorisation that turns slow from zero multipliers (a warm start turning slow
+ * starts again from zero first) factors A again with alpha raised FCC_AL_BOOST (1e4,
+ * fcc_sp_factor_boosted) and starts again from zero; the rest of that factorisation's
+ * solves keep the raised alpha, the next factorisation starts from RHO again. t grows
+ * 1e4 times, the weak directions' t / (1 + t) cluster at 1 and the corrections take a
+ * few steps (that chain: at most 19 in one solve, 69 in one step, the extra
+ * factorisation included in the step's cost). A's condition grows 1e4 times as well
+ * (about 1e-5 relative rounding in one solve), which the refinement's true residuals
+ * remove, as they remove RHO's: the runs agree with the dense path's to 4e-11 there
+ * (2e-12 with RHO: tests/test_sparse_singular_boost.py).
+ * Models with rows beyond the decided rank (below) keep RHO: raising alpha moves x
+ * along such a row by t / (1 + t) of a wrong amount (fcc_sparse_blocks.c, RHO). A
+ * raised factor that fails its pivot test is replaced by RHO's again.
+ *
  * Warm start. Each augmented-Lagrangian step multiplies the multipliers' error by the
  * rate, about 1e-7 (RHO); from zero the first x is off by that rate times lambda, so a
  * solve takes three steps (two to reach rounding, one whose rate shows it has). The

@@ -22,7 +22,9 @@
  * the few steps of a solve leave that negligible at 1e7 (as the dense path's dropped
  * row), no longer at 1e8. Scaling alpha per row group cannot help: the row is one of
  * a group of full-size rows. (Starting a solve from the previous stage's solution
- * accumulates the same drift over the run: measured, it breaks Bricard.)
+ * accumulates the same drift over the run: measured, it breaks Bricard.) Solves that
+ * slow down near a singular position, on models without such rows, are redone with
+ * RHO FCC_AL_BOOST (fcc_sp_factor_boosted; fcc_al_refine.c says why).
  *
  * Guards. A block entry zero where the pattern of A was taken may grow to GUARD_TOL
  * (1e-12) of its block's largest entry before the pattern trips (the set-up,
