@@ -225,6 +225,7 @@ cdef extern from "fcc_engine.h":
         double *alpha
         int held, tripped
         long n_factor
+        long n_boosted
         double *track
         int warm_valid
         long n_solves, n_iterations, n_unconverged, n_beyond_rank

@@ -335,8 +335,11 @@ cdef class SparseEngine(Engine):
 
     def solve_statistics(self):
         """Factorisations and solves since the last rank decision, refinement iterations
-        in all and at most in one solve, and solves that did not converge."""
+        in all and at most in one solve, solves that did not converge, and the
+        factorisations redone with a raised penalty near a singular position
+        (fcc_al_refine.c)."""
         return dict(factorisations=self.c.sp.n_factor, solves=self.c.sp.n_solves,
+                    boosted_factorisations=self.c.sp.n_boosted,
                     iterations=self.c.sp.n_iterations,
                     max_iterations=self.c.sp.most_iterations,
                     unconverged=self.c.sp.n_unconverged,

@@ -73,6 +73,23 @@
  * the direction too, by t / (1 + t) of the wrong amount each (Bricard's line encoding
  * kept 1e-2 J of energy error so).
  *
+ * Near a singular position. Those conjugate-gradient steps are as many as the weak
+ * directions with distinct t (the A02 chain of 40 loops near its flat position: up to
+ * 59 in one solve, 176 in one RK4 step, 7 times the median step). So the first solve
+ * of a factorisation that turns slow from zero multipliers (a warm start turning slow
+ * starts again from zero first) factors A again with alpha raised FCC_AL_BOOST (1e4,
+ * fcc_sp_factor_boosted) and starts again from zero; the rest of that factorisation's
+ * solves keep the raised alpha, the next factorisation starts from RHO again. t grows
+ * 1e4 times, the weak directions' t / (1 + t) cluster at 1 and the corrections take a
+ * few steps (that chain: at most 19 in one solve, 69 in one step, the extra
+ * factorisation included in the step's cost). A's condition grows 1e4 times as well
+ * (about 1e-5 relative rounding in one solve), which the refinement's true residuals
+ * remove, as they remove RHO's: the runs agree with the dense path's to 4e-11 there
+ * (2e-12 with RHO: tests/test_sparse_singular_boost.py).
+ * Models with rows beyond the decided rank (below) keep RHO: raising alpha moves x
+ * along such a row by t / (1 + t) of a wrong amount (fcc_sparse_blocks.c, RHO). A
+ * raised factor that fails its pivot test is replaced by RHO's again.
+ *
  * Warm start. Each augmented-Lagrangian step multiplies the multipliers' error by the
  * rate, about 1e-7 (RHO); from zero the first x is off by that rate times lambda, so a
  * solve takes three steps (two to reach rounding, one whose rate shows it has). The
@@ -271,7 +288,7 @@ static int correction(fcc_engine *e, double *rz_stop)
  * when a warm start met that slow step (not continued: the conjugate-gradient bounds
  * are set from a cold start's first residual). At most al_max + refine_max passes. */
 static int refine(fcc_engine *e, const double *b, double *x, int warm, int *solves,
-                  double stop)
+                  double stop, int may_boost)
 {
     fcc_sparse *s = &e->sp;
     int i, it, n = e->n, m = e->m, cg = 0;
@@ -328,6 +345,8 @@ static int refine(fcc_engine *e, const double *b, double *x, int warm, int *solv
             cg = 1;
         if (cg && warm)
             return -1;
+        if (cg && may_boost)
+            return -2;
         prev = nd;
     }
     return 0;
@@ -372,11 +391,17 @@ int fcc_sp_kkt_solve_from(fcc_engine *e, const double *Q, const double *w,
     status = -1;
     if (lam_io != NULL && valid) {
         memcpy(s->lam, lam_io, (size_t)m * sizeof(double));
-        status = refine(e, b, x, 1, &solves, AL_STOP);
+        status = refine(e, b, x, 1, &solves, AL_STOP, 0);
     }
     if (status < 0) {
         memset(s->lam, 0, (size_t)m * sizeof(double));
-        status = refine(e, b, x, 0, &solves, newton ? NEWTON_STOP : AL_STOP);
+        status = refine(e, b, x, 0, &solves, newton ? NEWTON_STOP : AL_STOP,
+                        s->boost == 1.0 && s->beyond_quotient == 0.0);
+    }
+    if (status == -2) {                   /* slow with RHO: again with the boost */
+        memset(s->lam, 0, (size_t)m * sizeof(double));
+        fcc_sp_factor_boosted(e);
+        status = refine(e, b, x, 0, &solves, newton ? NEWTON_STOP : AL_STOP, 0);
     }
     if (lam_io != NULL && status == 1)
         memcpy(lam_io, s->lam, (size_t)m * sizeof(double));

@@ -27,6 +27,9 @@ struct fcc_engine;
 #define FCC_AL_MAX 8
 /* alpha_k = FCC_RHO m_ref / s_k^2 (fcc_sparse_blocks.c says why). */
 #define FCC_RHO 1e7
+/* alpha's factor for the rest of a factorisation's solves once one of them turns slow
+ * (fcc_al_refine.c, "Near a singular position"). */
+#define FCC_AL_BOOST 1e4
 /* Directions beyond the decided rank (fcc_al_refine.c). */
 #define FCC_BEYOND_FRACTION 1e-2
 
@@ -86,11 +89,14 @@ typedef struct fcc_sparse {
     double *alpha;              /* m: penalty per row */
     double *rnorm;              /* m: ||B_k|| of the Jacobian blocks held */
     double mref;                /* the largest diagonal entry of the mass blocks held */
+    double boost;               /* alpha = boost FCC_RHO ... in the factor held (1 or
+                                   FCC_AL_BOOST: fcc_sp_factor_boosted) */
     int held;                   /* an LDL^T of A is held (the last factor succeeded) */
     int tripped;                /* a guard found the pattern broken */
     double *Ax, *lb, *Lx, *Dinv, *Y;
     double *tperm;              /* n: the permuted right-hand side of a solve */
     long n_factor;
+    long n_boosted;             /* factorisations redone with FCC_AL_BOOST */
     /* the refinement (fcc_al_refine.c) */
     double *w_n, *r1, *dx, *base, *lz;
     double *lam, *lam_warm, *r2, *bdx, *res, *mu, *cg_p, *cg_sp, *u;
@@ -173,6 +179,7 @@ void fcc_sp_mult_bt(struct fcc_engine *e, const double *z, const double *s, doub
 void fcc_sp_gather_dense(struct fcc_engine *e);
 double fcc_sp_scaled_residual(struct fcc_engine *e);
 int fcc_sp_factor(struct fcc_engine *e, const double *q);
+int fcc_sp_factor_boosted(struct fcc_engine *e);
 void fcc_sp_solve_a(struct fcc_engine *e, double *x);
 void fcc_sp_solve_a_add(struct fcc_engine *e, const double *y, double *x, double *step,
                         double *size);

@@ -22,7 +22,9 @@
  * the few steps of a solve leave that negligible at 1e7 (as the dense path's dropped
  * row), no longer at 1e8. Scaling alpha per row group cannot help: the row is one of
  * a group of full-size rows. (Starting a solve from the previous stage's solution
- * accumulates the same drift over the run: measured, it breaks Bricard.)
+ * accumulates the same drift over the run: measured, it breaks Bricard.) Solves that
+ * slow down near a singular position, on models without such rows, are redone with
+ * RHO FCC_AL_BOOST (fcc_sp_factor_boosted; fcc_al_refine.c says why).
  *
  * Guards. A block entry zero where the pattern of A was taken may grow to GUARD_TOL
  * (1e-12) of its block's largest entry before the pattern trips (the set-up,
@@ -287,7 +289,7 @@ static void penalties(fcc_engine *e)
             sk = s->rnorm[row];
             if (sk < row_floor * largest)
                 sk = row_floor * largest;
-            s->alpha[row] = sk > 0.0 ? FCC_RHO * s->mref / (sk * sk) : 0.0;
+            s->alpha[row] = sk > 0.0 ? FCC_RHO * s->boost * s->mref / (sk * sk) : 0.0;
         }
     }
 }
@@ -311,9 +313,37 @@ double fcc_sp_scaled_residual(fcc_engine *e)
     return worst;
 }
 
+static int factor(fcc_engine *e, const double *q);
+
 int fcc_sp_factor(fcc_engine *e, const double *q)
 {
-    /* A = M + B^T diag(alpha) B from the blocks, and its LDL^T. */
+    /* A = M + B^T diag(alpha) B from the blocks (alpha with RHO), and its LDL^T. */
+    e->sp.boost = 1.0;
+    return factor(e, q);
+}
+
+int fcc_sp_factor_boosted(fcc_engine *e)
+{
+    /* A again from the blocks held, alpha with RHO FCC_AL_BOOST (fcc_al_refine.c, "Near
+     * a singular position"). 0 when factored; -1 when that factor fails (its pivots:
+     * the blocks factored with RHO), with A and the engine's error as before. */
+    fcc_sparse *s = &e->sp;
+    int err = e->err, info = e->err_info, detail = e->err_detail;
+    s->boost = FCC_AL_BOOST;
+    if (factor(e, NULL) == 0) {
+        s->n_boosted++;
+        return 0;
+    }
+    e->err = err;
+    e->err_info = info;
+    e->err_detail = detail;
+    s->boost = 1.0;
+    factor(e, NULL);
+    return -1;
+}
+
+static int factor(fcc_engine *e, const double *q)
+{
     fcc_sparse *s = &e->sp;
     const fcc_pattern *P = s->pat;
     int el, a, b, r, nq, ng, info, bad, t;

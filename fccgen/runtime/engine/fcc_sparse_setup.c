@@ -60,6 +60,7 @@ int fcc_sparse_init(fcc_engine *e, const fcc_pattern *P)
     s->cg_max = FCC_CG_MAX;
     s->refine_max = FCC_REFINE_MAX;
     s->al_max = FCC_AL_MAX;
+    s->boost = 1.0;
     s->dense_fallback_max = FCC_DENSE_FALLBACK_MAX;
     if (!s->Mblk || !s->Bblk || !s->lq || !s->alpha || !s->rnorm || !s->tperm
             || !s->lam || !s->lam_warm || !s->r2 || !s->bdx || !s->res || !s->mu
@@ -118,6 +119,7 @@ void fcc_sparse_reset_stats(fcc_engine *e)
     fcc_sparse *s = &e->sp;
     s->n_factor = s->n_solves = s->n_iterations = s->n_unconverged = 0;
     s->n_beyond_rank = 0;
+    s->n_boosted = 0;
     s->v_peak = 0.0;
     s->n_fallback = 0;
     s->n_chord = s->n_chord_undone = 0;
