@@ -113,8 +113,8 @@ def _simulate(Engine engine, q0, v0, double t_end, double dt, long n_steps,
         raise ValueError("events need the projected RK4 (method rk4, projection on)")
     if work is not None:
         work.fits(engine)
-    if sens is not None and (baumgarte or not project or engine.c.sparse):
-        raise ValueError("sensitivities need the projected RK4 on the dense path")
+    if sens is not None and (baumgarte or not project):
+        raise ValueError("sensitivities need the projected RK4")
     cdef double[::1] qv = engine.vector(q0, "q0"), vv = engine.vector(v0, "v0")
     engine.reset_warm_start()           # a run does not depend on earlier solves
     if not (np.all(np.isfinite(qv)) and np.all(np.isfinite(vv))):

@@ -375,7 +375,8 @@ class CompiledSolver:
         events = self._event_set(event_tol, rest_speed)
         self._event_inputs(events, held)
         tracker, untracked = work_tracker(self.plan, self.module, m.name,
-                                          self.sparse and keys is None)
+                                          self.sparse and (keys is None or
+                                                           sensitivity_run.on_sparse(self)))
         kept = {}
 
         def run():
@@ -412,7 +413,8 @@ class CompiledSolver:
                                                                 result.events)
         add_driver_columns(self, result)
         check_driver_branches(self.plan, result)
-        used = self.dense_engine() if m.name == "ali3p" or sens else self._engine
+        used = (self.dense_engine() if m.name == "ali3p" else
+                sensitivity_run.engine_for(self) if sens else self._engine)
         stats = used.rank_statistics()
         rank_rule.report_run(result, decision, stats,
                              driven=bool(driver_rows(self.plan)))
@@ -575,7 +577,9 @@ class CompiledSolver:
              held=None, sens=None):
         """(arrays, stats) of one run of method m (held: inputs that change over the
         run, fccgen.runs.inputs; rk4 and baumgarte only; sens: rk4's sensitivities)."""
-        s, e = sched, (self._engine if sens is None else self.dense_engine())
+        if sens is not None:
+            from .sensitivity.run import engine_for
+        s, e = sched, (self._engine if sens is None else engine_for(self))
         held = None if held is None or held.constant or not (
             len(held.slots) or len(held.event_slots)) else (
             held.slots, held.columns, held.table, held.event_slots, held.event_columns)

@@ -5,6 +5,7 @@
 #include <string.h>
 
 #include "fcc_sens.h"
+#include "fcc_sens_sparse.h"
 
 enum { SQ, SV, SQS, SV2, SV3, SV4, SA1, SA2, SA3, SA4, N_ROWS };
 
@@ -127,13 +128,16 @@ void fcc_sens_sweep(fcc_engine *e, fcc_sens *s, const double *q, const double *v
     }
 }
 
-/* lam of the stage's solve: B^T lam = f - h - M a (f, h, M assembled at the stage). */
-static void multipliers(fcc_engine *e, fcc_sens *s, const double *a)
+/* lam of the stage's solve: B^T lam = f - h - M a (f, h, M assembled at the stage).
+ * Returns 0 or -1 (the engine's error record filled). */
+static int multipliers(fcc_engine *e, fcc_sens *s, const double *a)
 {
     const fcc_assembly *as = e->asmb;
     int i, j, n = s->n;
     double acc;
     const double *Mi;
+    if (e->sparse && (i = fcc_sens_sparse_multipliers(e, s, a)) != 0)
+        return i > 0 ? 0 : -1;                 /* else: M, B gathered and factored */
     for (i = 0; i < n; i++) {
         Mi = as->M + (size_t)i * n;
         acc = as->f[i] - as->h[i];
@@ -144,6 +148,7 @@ static void multipliers(fcc_engine *e, fcc_sens *s, const double *a)
     if (fcc_sens_rows(s) > 0)                  /* + G^T mu of the locked rows */
         fcc_sens_rows_force(s, s->r);
     fcc_dense_multipliers(&e->sol, s->r, s->lam, s->y);
+    return 0;
 }
 
 static int bad(fcc_engine *e, const double *x, int n)
@@ -163,7 +168,8 @@ int fcc_sens_rk4_stage(fcc_engine *e, fcc_sens *s, int k, const double *q,
     double *sq, *sv, *sqs, *sa;
     if (rows > 0)                              /* the stage's rows' multipliers */
         fcc_sens_keep_mu(s);
-    multipliers(e, s, a);
+    if (multipliers(e, s, a) < 0)
+        return -1;
     for (j = 0; j < s->np; j++) {
         sa = row(s, j, SA1 + k - 1);
         sq = row(s, j, stage_q[k - 1]);
@@ -171,7 +177,8 @@ int fcc_sens_rk4_stage(fcc_engine *e, fcc_sens *s, int k, const double *q,
         fcc_sens_sweep(e, s, q, v, a, s->lam, sq, sv, s->dP + (size_t)j * np_all);
         if (rows > 0)
             fcc_sens_rows_rhs(s, q, sq);
-        fcc_solve_constrained(e, s->rhs, NULL, s->b, sa);
+        if (fcc_sens_solve(e, s, s->rhs, NULL, s->b, sa) < 0)
+            return -1;
         if (rows > 0 && fcc_sens_rows_acc(e, s, q, v, a, sq, sv, sa) < 0)
             return -1;
         if (bad(e, sa, n))
@@ -215,14 +222,16 @@ int fcc_sens_project(fcc_engine *e, fcc_sens *s, const double *q, const double *
         /* positions: gp = -(dg/dp) dP_j does not depend on the direction's q part */
         fcc_sens_sweep(e, s, q, v, s->zero, s->zero, s->zero, s->zero,
                        s->dP + (size_t)j * np_all);
-        fcc_solve_constrained(e, NULL, sq, s->gp, s->y);
+        if (fcc_sens_solve(e, s, NULL, sq, s->gp, s->y) < 0)
+            return -1;
         memcpy(sq, s->y, (size_t)n * sizeof(double));
         if (fcc_sens_rows(s) > 0 && fcc_sens_rows_positions(e, s, j, q, sq) < 0)
             return -1;
         /* speeds: phi = -dPhi[s_q, dP_j] with the projected s_q */
         fcc_sens_sweep(e, s, q, v, s->zero, s->zero, sq, s->zero,
                        s->dP + (size_t)j * np_all);
-        fcc_solve_constrained(e, NULL, sv, s->phi, s->y);
+        if (fcc_sens_solve(e, s, NULL, sv, s->phi, s->y) < 0)
+            return -1;
         memcpy(sv, s->y, (size_t)n * sizeof(double));
         if (fcc_sens_rows(s) > 0 && fcc_sens_rows_speeds(e, s, q, v, sq, sv) < 0)
             return -1;

@@ -50,10 +50,37 @@ def check_request(solver, keys, method: str, project: bool) -> list[str]:
                              f"events, not through a {event.action} (the impact's and the "
                              "rest's jumps are not derived yet; joint limits are bounces)",
                              show_value=False)
-    if solver.linear_solver == "sparse":
-        raise ValueError("sensitivities run on the dense path: load the solver with "
-                         "linear_solver='dense' or 'auto'")
+    if solver.linear_solver == "sparse" and dense_reason(solver):
+        raise ValueError(f"sensitivities of this model run on the dense path: "
+                         f"{dense_reason(solver)}; load the solver with "
+                         f"linear_solver='dense' or 'auto'")
     return keys
+
+
+# The event actions whose sensitivities need the dense path (engine/fcc_sens_events.c:
+# the locked rows' stage and projection terms are formed with the dense M and B).
+DENSE_ACTIONS = ("lock", "unlock")
+
+
+def dense_reason(solver) -> str | None:
+    """Why a run with sensitivities of a solver on the sparse path takes the dense
+    path instead, or None (it stays on the sparse path)."""
+    actions = sorted({ev.action for ev in solver.plan.model.events} & set(DENSE_ACTIONS))
+    if actions:
+        return (f"the model's {' and '.join(actions)} events carry their sensitivities "
+                "with the dense matrices M and B")
+    return None
+
+
+def on_sparse(solver) -> bool:
+    """Whether a run of ``solver`` with sensitivities takes the sparse path (the
+    solver's own path is the sparse one and nothing needs the dense matrices)."""
+    return bool(solver.sparse) and dense_reason(solver) is None
+
+
+def engine_for(solver):
+    """The engine a run with sensitivities takes (on_sparse: the solver's own)."""
+    return solver._engine if on_sparse(solver) else solver.dense_engine()
 
 
 def setup(solver, keys, build_dir):
@@ -62,7 +89,7 @@ def setup(solver, keys, build_dir):
     from .build import load_dp
     dP, S0 = directions(solver, keys)
     module = load_dp(solver.plan, build_dir)
-    return Sensitivities(solver.dense_engine().asm, module, dP, S0)
+    return Sensitivities(engine_for(solver).asm, module, dP, S0)
 
 
 def attach(solver, result, keys, sens) -> None:
@@ -92,4 +119,9 @@ def attach(solver, result, keys, sens) -> None:
             for j, key in enumerate(keys):
                 row[TIME_KEY.format(key)] = float(rows[i, j])
     result.info["sensitivities"] = list(keys)
+    result.info["sensitivity_path"] = "sparse" if on_sparse(solver) else "dense"
+    if solver.sparse and not on_sparse(solver):
+        result.info["sensitivity_path_note"] = (
+            f"the run took the dense path although the model's own path is the sparse "
+            f"one: {dense_reason(solver)}")
     result.info["sensitivity_column_error"] = worst
