@@ -15,7 +15,9 @@
  *     s_q <- argmin |s_q' - s_q|_M  with  B s_q' = -(dg/dp) dP_j
  *     s_v <- argmin |s_v' - s_v|_M  with  B s_v' = -dPhi[s_q', dP_j],  Phi = B v + dg/dt
  *
- * The dense path only. All work arrays come from fcc_sens_init; every other call
+ * Either path (the sparse path's solves and multipliers: fcc_sens_sparse.h; the event
+ * rows of fcc_sens_events.c need the dense one). All work arrays come from
+ * fcc_sens_init; every other call
  * returns 0 or -1 with the engine's error record filled.
  */
 #ifndef FCC_SENS_H
