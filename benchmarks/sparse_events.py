@@ -2,7 +2,7 @@
 latched 12-unit scissor boom against the free one, and the solar array with and
 without its two latches (docs/performance.md, "Events on the sparse path").
 
-    python benchmarks/sparse_events.py [--reps R]
+    python benchmarks/sparse_events.py [--reps R] [--mast N]
 
 Two figures per pair, all on the sparse path (RK4, dt 1e-3, projection on, reactions
 off), in one run with single-threaded BLAS:
@@ -15,6 +15,10 @@ off), in one run with single-threaded BLAS:
 * the run: median CPU of the whole natural run (the boom 2 s, latched at 1.48 s; the
   array 3 s, latched at 1.25 and 2.06 s) with its events against the same run without
   them, interleaved, divided by its number of steps.
+
+With ``--mast N`` it adds the scissor mast of N bays with a latch per bay
+(latched_mast; the natural run 2 s) against the free mast
+(examples/make_scissor_mast.py).
 
 With ``--breakdown`` (needs valgrind) it counts instead, for the same step pairs,
 the instructions per step of the whole step and of its parts (callgrind, inclusive,
@@ -81,6 +85,29 @@ def variants(text: str) -> tuple[str, str]:
     return locked, free
 
 
+# the latched mast: a lock per bay on face AB's pivot, at this bar angle (deg): the
+# springs (relaxed at make_scissor_mast.FREE) still drive the mast through it
+MAST_LATCH = 60.0
+
+
+def latched_mast(n: int) -> str:
+    """The model text of the scissor mast of ``n`` bays with a latch per bay: face AB's
+    pivot of each bay a revolute about the face's normal, locked by its own event when
+    the bar angle reaches MAST_LATCH. The mast has one degree of freedom and its bays
+    move alike, so every latch crosses in the same step."""
+    from make_scissor_mast import FOLDED, model_text
+    text = model_text(n)
+    normal = re.search(r"nAB: \{along: (\[[^\]]*\])", text).group(1)
+    text = re.sub(r"(name: XAB\d+), type: spherical, (bodies: [^}]*)\}",
+                  rf"\1, type: revolute, \2, axis: {normal}}}", text)
+    angle = 2.0 * (FOLDED - MAST_LATCH)
+    events = ["events:"] + [f'  - {{name: latch{k}, when: "XAB{k}.angle >= '
+                            f'{angle:g}*pi/180", do: lock, joint: XAB{k}}}'
+                            for k in range(n)]
+    head, tail = text[:text.index("simulate:")], text[text.index("simulate:"):]
+    return head + "\n".join(events) + "\n" + tail
+
+
 BREAKDOWN_STEPS = 300
 # The parts of a step counted by --breakdown (inclusive instruction counts).
 PARTS = ("fcc_rk4_advance", "fcc_sp_accelerations", "fcc_ev_constrain",
@@ -132,6 +159,8 @@ def main(argv=None) -> int:
     parser.add_argument("--reps", type=int, default=15)
     parser.add_argument("--breakdown", action="store_true",
                         help="instructions per step of each part (valgrind)")
+    parser.add_argument("--mast", type=int, metavar="N",
+                        help="also the scissor mast of N bays with a latch per bay")
     parser.add_argument("--child", nargs=2, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     warnings.simplefilter("ignore")
@@ -144,6 +173,10 @@ def main(argv=None) -> int:
         array = (ROOT / "examples" / "solar_array.yaml").read_text()
         cases = [("scissor boom 12", model_text(12), model_text(12, latch=False), 2.0),
                  ("solar array", array, variants(array)[1], 3.0)]
+        if args.mast:
+            from make_scissor_mast import T_END, model_text as mast_text
+            cases.append((f"mast {args.mast}", latched_mast(args.mast),
+                          mast_text(args.mast), T_END))
         if args.breakdown:
             breakdown(cases, folder, build)
             return 0

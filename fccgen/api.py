@@ -263,18 +263,22 @@ def modes(path, *, about="equilibrium", out=None, shapes=None, amplitude=None,
 
 def sensitivity(path, params, *, t_end=None, dt=None, output_dt=None, out=None,
                 build_dir=DEFAULT_BUILD_DIR, force=False, progress: Progress = None,
-                solver_options: dict | None = None):
-    """One rk4 run of the model with the sensitivities to ``params`` (parameter keys,
-    a list or one comma-separated string; docs/sensitivities.md). ``out``: write
-    ``t`` and the columns ``d(<column>)/d(<param>)`` (CSV, NPZ or HDF5, with how they
-    were made). Returns the full result (its columns and the sensitivities')."""
+                solver_options: dict | None = None, method="rk4", rtol=None, atol=None,
+                sensitivity_error=None):
+    """One rk4 (or dopri5: method, rtol, atol, sensitivity_error) run of the model with
+    the sensitivities to ``params`` (parameter keys, a list or one comma-separated
+    string; docs/sensitivities.md). ``out``: write ``t`` and the columns
+    ``d(<column>)/d(<param>)`` (CSV, NPZ or HDF5, with how they were made). Returns the
+    full result (its columns and the sensitivities')."""
     from .results import Result, check_output
     from .runtime.sensitivity.run import split_keys
     out = None if out is None else check_output(out)
     keys = split_keys(params)
     solver = load(path, build_dir, force=force, progress=progress, **(solver_options or {}))
-    result = solver.simulate(t_end=t_end, dt=dt, method="rk4", output_dt=output_dt,
-                             progress=progress, reactions=False, sensitivities=keys)
+    extra = {} if sensitivity_error is None else {"sensitivity_error": sensitivity_error}
+    result = solver.simulate(t_end=t_end, dt=dt, method=method, output_dt=output_dt,
+                             rtol=rtol, atol=atol, progress=progress, reactions=False,
+                             sensitivities=keys, **extra)
     if out is not None:
         names = [n for n in result.columns if n.startswith("d(")]
         table = Result(result.t, {n: result.columns[n] for n in names}, dict(result.info),

@@ -229,9 +229,13 @@ def _viz_sweep_parsers(sub, common) -> None:
     xp.add_argument("--c", metavar="DIR", dest="c_dir",
                     help="write the C project (Makefile, CMakeLists.txt, API) into DIR")
     xp.add_argument("--fmu", metavar="FILE", help="write an FMU (.fmu) for linux64")
+    xp.add_argument("--sensitivities", action="store_true",
+                    help="the C project carries rk4 sensitivities with respect to its "
+                         "parameter keys (derives the d/dp kernels; docs/export.md)")
 
-    se = sub.add_parser("sensitivity", help="one rk4 run with the derivatives of every "
-                        "column with respect to parameter keys (docs/sensitivities.md)")
+    se = sub.add_parser("sensitivity", help="one rk4 (or dopri5) run with the derivatives "
+                        "of every column with respect to parameter keys "
+                        "(docs/sensitivities.md)")
     common(se)
     se.add_argument("--force", action="store_true", help="rebuild even if cached")
     se.add_argument("--params", required=True, metavar="KEY,KEY",
@@ -240,6 +244,12 @@ def _viz_sweep_parsers(sub, common) -> None:
     se.add_argument("--t-end", type=float, help="end time (default: model's)")
     se.add_argument("--dt", type=float, help="time step (default: model's)")
     se.add_argument("--output-dt", type=float, help="output interval, a multiple of dt")
+    se.add_argument("--method", choices=("rk4", "dopri5"), default="rk4",
+                    help="the integrator (default: rk4)")
+    se.add_argument("--rtol", type=float, help="dopri5: relative tolerance")
+    se.add_argument("--atol", type=float, help="dopri5: absolute tolerance")
+    se.add_argument("--sensitivity-error", action="store_true", default=None,
+                    help="dopri5: the sensitivities in the step's error control")
     se.add_argument("--out", help="write t and the columns d(<column>)/d(<param>) to "
                     "FILE.csv, .npz or .h5")
 
@@ -487,7 +497,9 @@ def _run(args, progress) -> int:
         result = api.sensitivity(args.model, args.params, t_end=args.t_end, dt=args.dt,
                                  output_dt=args.output_dt, out=args.out,
                                  build_dir=args.build_dir, force=args.force,
-                                 progress=progress)
+                                 progress=progress, method=args.method, rtol=args.rtol,
+                                 atol=args.atol,
+                                 sensitivity_error=args.sensitivity_error)
         print(summary(result, args.out))
         return 0
     if args.command == "export":

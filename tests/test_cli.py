@@ -203,7 +203,13 @@ def test_sigint_ends_a_run_with_status_130(cli_build_dir, tmp_path):
     """A real Ctrl-C (SIGINT) in the middle of a run, without a race: the run cannot
     end first (DOPRI5 on a pendulum to t = 1e12 s, some 1e13 steps, accepted by the
     run's limits), and the signal is sent only once the run has reported progress at
-    a time t > 0 from inside its loop."""
+    a time t > 0 from inside its loop.
+
+    The child starts with SIGINT at its default disposition. A process started in the
+    background by a non-interactive shell (``cmd &``, nohup) inherits SIGINT ignored,
+    and Python then installs no KeyboardInterrupt handler, as a Unix program should:
+    the run rightly ignores the signal. Without the reset this test would depend on
+    how the test runner itself was started."""
     import os
     import signal
     import subprocess
@@ -213,21 +219,28 @@ def test_sigint_ends_a_run_with_status_130(cli_build_dir, tmp_path):
     assert main([str(PENDULUM), "--build-dir", str(cli_build_dir), "-q"]) == 0
     package_parent = str(Path(fccgen.__file__).resolve().parent.parent)
     env = {**os.environ, "PYTHONPATH": package_parent}
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "fccgen.cli", "simulate", str(PENDULUM), "--build-dir",
-         str(cli_build_dir), "--method", "dopri5", "--t-end", "1e12",
-         "--output-dt", "1e6", "--out", str(tmp_path / "r.npz")],
-        cwd=tmp_path, env=env, stderr=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
-    seen = []
-    for line in proc.stderr:                 # plain progress lines: stderr is a pipe
-        seen.append(line)
-        match = re.match(r"fccgen: t = (\S+) of ", line)
-        if match and float(match.group(1)) > 0:
-            break
-    else:
-        raise AssertionError(f"the run ended without reporting progress: {seen}")
-    proc.send_signal(signal.SIGINT)
-    _, rest = proc.communicate(timeout=300)  # a guard against a hang, not a timing
+    with subprocess.Popen(
+            [sys.executable, "-m", "fccgen.cli", "simulate", str(PENDULUM), "--build-dir",
+             str(cli_build_dir), "--method", "dopri5", "--t-end", "1e12",
+             "--output-dt", "1e6", "--out", str(tmp_path / "r.npz")],
+            cwd=tmp_path, env=env, stderr=subprocess.PIPE, stdout=subprocess.PIPE,
+            text=True,
+            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL)) as proc:
+        seen = []
+        for line in proc.stderr:             # plain progress lines: stderr is a pipe
+            seen.append(line)
+            match = re.match(r"fccgen: t = (\S+) of ", line)
+            if match and float(match.group(1)) > 0:
+                break
+        else:
+            raise AssertionError(f"the run ended without reporting progress: {seen}")
+        proc.send_signal(signal.SIGINT)
+        try:
+            _, rest = proc.communicate(timeout=300)  # a guard against a hang, not a timing
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.communicate()
+            raise AssertionError(f"the run ignored SIGINT: {seen}") from None
     assert proc.returncode == 130, rest
     assert rest.splitlines()[-1] == "fccgen: interrupted; no results written"
     assert "Traceback" not in rest and list(tmp_path.iterdir()) == []

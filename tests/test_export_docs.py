@@ -4,6 +4,7 @@ difference at rounding level, the example's CSV equals simulate's, and every C A
 function the page shows exists in the exported header."""
 from __future__ import annotations
 
+import ast
 import os
 import re
 import shutil
@@ -36,7 +37,7 @@ def folder(tmp_path_factory, compiled, build_dir):
     work = tmp_path_factory.mktemp("export-user")
     for name in ("rsup", "solar_array", "solar_array_input"):   # the session's builds
         fccgen.load(ROOT / "examples" / f"{name}.yaml", build_dir, linear_solver="sparse")
-        for entry in (name, f"{name}_events"):
+        for entry in (name, f"{name}_events", f"{name}_dp"):
             if (build_dir / entry).is_dir():
                 shutil.copytree(build_dir / entry, work / "generated" / entry)
     bin_dir = Path(sys.executable).parent
@@ -118,3 +119,34 @@ def test_the_events_section_works_as_written(folder):
     lines = done.stdout.split("\n")
     assert "panel_latch" in lines[0] and "root_latch" in lines[0]
     assert float(done.stdout.split()[-1]) < 1e-10
+
+
+def test_the_sensitivities_section_works_as_written(folder):
+    """The exported example's sensitivities (sa_sens.csv, the d(time) columns of
+    sa_events.csv) are the numbers the section's Python lines print (1e-12: the same
+    engine), and its C lines compile and run against the project."""
+    done = run_python(blocks("python")[3], folder, check=False)
+    assert done.returncode == 0, done.stderr
+    lines = done.stdout.splitlines()
+    project = folder / "solar_array_sens"
+    sens = np.genfromtxt(project / "sa_sens.csv", delimiter=",", names=True,
+                         deletechars="")
+    want = float(lines[0])
+    assert abs(sens["d(P.x)/d(loads[0].stiffness)"][-1] - want) <= 1e-12 * abs(want)
+    events = [line.split(",") for line in
+              (project / "sa_events.csv").read_text().splitlines()]
+    column = events[0].index("d(time)/d(loads[0].stiffness)")
+    for row, (name, value) in zip(events[1:], ast.literal_eval(lines[1])):
+        assert row[1] == name and abs(float(row[column]) - value) <= 1e-12 * abs(value)
+    body = blocks("c")[3].replace("\n", "\n    ")
+    (project / "snippet.c").write_text('#include <stdio.h>\n#include "solar_array.h"\n'
+                                       f"int main(void)\n{{\n    {body}\n"
+                                       '    printf("%.17g %.17g\\n", dx, dt_latch);\n'
+                                       "    return 0;\n}\n")
+    for cmd in ([CC, "-std=c99", "-Wall", "-Werror", "-I.", "snippet.c",
+                 "libsolar_array.a", "-lm", "-o", "snippet"], ["./snippet"]):
+        done = subprocess.run(cmd, cwd=project, capture_output=True, text=True)
+        assert done.returncode == 0, f"{cmd}: {done.stdout}\n{done.stderr}"
+    dx, dt_latch = (float(x) for x in done.stdout.split())
+    assert np.isfinite(dx)
+    assert dt_latch == pytest.approx(float(events[1][column]), rel=1e-12)

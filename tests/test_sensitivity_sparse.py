@@ -1,5 +1,6 @@
 """rk4 sensitivities on the sparse path (engine/fcc_sens_sparse.c): equal to the dense
-path's, and to central differences; models with lock events keep the dense path.
+path's, and to central differences, through lock events too; what needs the dense path
+(dopri5, geometry keys) takes it under linear_solver="auto", with a note.
 
 Why 1e-9 between the paths: both integrate the same stage equations and linearised
 projections, and differ only in how each linear system is solved (pivoted QR and
@@ -64,6 +65,12 @@ def test_sparse_equals_dense(runs, name, keys):
     sparse, dense = runs(name, keys)
     assert sparse.info["sensitivity_path"] == "sparse"
     assert dense.info["sensitivity_path"] == "dense"
+    assert_paths_agree(sparse, dense, keys, name)
+
+
+def assert_paths_agree(sparse, dense, keys, name):
+    """Each state column's derivative to 1e-9 of its largest value (floor: 1e-3 of
+    the key's largest derivative)."""
     for key in keys:
         cols = state_columns(dense, key)
         big = max(np.max(np.abs(dense.sensitivity(c, key))) for c in cols)
@@ -86,12 +93,36 @@ def test_sparse_matches_central_differences(paths, runs):
                                          label="boom sparse", normwise=True) >= 1, key
 
 
-def test_lock_events_keep_the_dense_path(build_dir):
-    """A lock event's rows are carried with dense M and B: linear_solver='sparse' is
-    refused with the reason, before anything runs."""
+def test_latched_boom_auto_takes_the_sparse_path(build_dir):
+    """The latched boom under linear_solver="auto": its own path is the sparse one, and
+    its run with sensitivities takes it through the latches, equal to the dense path's
+    (1e-9, as above; the latch times' derivatives too)."""
     import fccgen
     path = build_dir / "sens_sparse_boom_latched.yaml"
     path.write_text(boom_text(latch=True))
-    solver = fccgen.load(path, build_dir, linear_solver="sparse")
-    with pytest.raises(ValueError, match="lock events carry their sensitivities"):
-        solver.simulate(**RUN, sensitivities=["bodies.a1.mass"])
+    auto = fccgen.load(path, build_dir)
+    dense = fccgen.load(path, build_dir, linear_solver="dense")
+    assert auto.sparse
+    run = dict(RUN, t_end=0.6, reactions=False, sensitivities=["bodies.a1.mass"])
+    sparse_run, dense_run = auto.simulate(**run), dense.simulate(**run)
+    assert sparse_run.info["sensitivity_path"] == "sparse"
+    assert "lock" in [e["action"] for e in dense_run.events]
+    key = "bodies.a1.mass"
+    assert_paths_agree(sparse_run, dense_run, [key], "latched boom")
+    for a, b in zip(sparse_run.events, dense_run.events):
+        t_key = f"d(time)/d({key})"
+        assert abs(a[t_key] - b[t_key]) <= 1e-9 * max(abs(b[t_key]), 1e-12)
+
+
+def test_auto_takes_the_dense_path_where_it_must(paths, build_dir):
+    """dopri5 under linear_solver="auto" on a model whose own path is the sparse one:
+    the dense path, and info says why."""
+    import fccgen
+    path = build_dir / "sens_sparse_boom_auto.yaml"
+    path.write_text(boom_text())
+    auto = fccgen.load(path, build_dir)
+    assert auto.sparse
+    r = auto.simulate(t_end=0.05, method="dopri5", rtol=1e-6, atol=1e-9,
+                      reactions=False, sensitivities=["bodies.a1.mass"])
+    assert r.info["sensitivity_path"] == "dense"
+    assert "dopri5" in r.info["sensitivity_path_note"]

@@ -81,3 +81,25 @@ def test_a_kept_initial_state_leaves_the_solver_at_t_0(compiled):
     np.testing.assert_allclose(solver.project_positions(moved)[0], at_zero, rtol=0,
                                atol=1e-12)
     assert np.max(np.abs(later - at_zero)) > 1e-3
+
+
+def test_a_solver_of_other_masses_sets_up_without_an_svd(compiled, monkeypatch):
+    """The small-model path choice (paths.reduced_mass_spread: B's null space) and the
+    rank-growth watch's start basis (the sparse engine of a model with events) are
+    functions of B alone, kept per process like the rank decisions: a solver of other
+    masses at the same start, as a sensitivity's shifted models, simulate_many and a
+    sweep make them, takes them without an SVD, and its run equals a fresh one bit for
+    bit."""
+    for name, body in (("four_bar", "coupler"), ("solar_array", "panel1")):
+        solver = _fresh(compiled, name)
+        solver.simulate(t_end=0.02, dt=1e-3, reactions=False)
+        heavier = solver.with_parameters({f"bodies.{body}.mass": 1.7})
+        calls = []
+        svd = np.linalg.svd
+        monkeypatch.setattr(np.linalg, "svd", lambda *a, **k: calls.append(1) or svd(*a, **k))
+        run = heavier.simulate(t_end=0.02, dt=1e-3, reactions=False)   # theirs: an SVD
+        monkeypatch.setattr(np.linalg, "svd", svd)
+        assert not calls, name
+        setup_reuse.forget()
+        _same(run, solver.with_parameters({f"bodies.{body}.mass": 1.7}).simulate(
+            t_end=0.02, dt=1e-3, reactions=False))

@@ -35,7 +35,7 @@ def event_header(solver) -> str:
     if module is None:
         return c_data.define("HAS_EVENTS", 0)
     from ..runtime._events import ACTIONS
-    from ..runtime.event_settings import MAX_PER_STEP, event_settings
+    from ..runtime.event_settings import event_settings, max_per_step
     st = event_settings(solver.plan, module)
     tol, rest = run_defaults(solver)
     ne = len(st.actions)
@@ -57,7 +57,8 @@ def event_header(solver) -> str:
         c_data.c_array("int", "MIRROR_SLOT", st.mirror_slots),
         c_data.c_array("int", "MIRROR_ANGLE", st.mirror_angles),
         c_data.define("EVENT_TOL", tol), c_data.define("REST_SPEED", rest),
-        c_data.define("EV_MAX_PER_STEP", MAX_PER_STEP), c_data.define("EV_LOG_CAP", LOG_CAP),
+        c_data.define("EV_MAX_PER_STEP", max_per_step(ne)),
+        c_data.define("EV_LOG_CAP", LOG_CAP),
     ])
 
 

@@ -154,10 +154,25 @@ def simulate_dopri5(solver, q, v, sched, opts, project, progress=None, ctx=None)
                     break
             ctx.after_step(y[:n])
             if ev is not None:
-                before = ev.s0[first] if first >= 0 else 0.0
+                prev = ev.s0
                 ev.s0 = ev.watch(y[:n], y[n:], t)
                 if first >= 0:
-                    ev.s0[first] = ev.leaving(first, y[:n], y[n:], t, before)
+                    ev.s0[first] = ev.leaving(first, y[:n], y[n:], t, prev[first])
+                    ties = ev.ties(first, prev, ev.s0)
+                    for tie in ties:           # crossed by this instant too: act now
+                        qe, ve, _ = ev.apply(tie, y[:n], y[n:], t)
+                        y = np.concatenate([qe, ve])
+                        if ev.stopped:
+                            break
+                    if ev.stopped:
+                        stop = t
+                        record(t, y[:n], y[n:], work)
+                        break
+                    if ties:
+                        ctx.after_step(y[:n])
+                        ev.s0 = ev.watch(y[:n], y[n:], t)
+                        for tie in [first, *ties]:
+                            ev.s0[tie] = ev.leaving(tie, y[:n], y[n:], t, prev[tie])
             if project or first >= 0:
                 stage_power.clear()
                 k1 = f(y, t)

@@ -179,7 +179,20 @@ class NumericEvents:
         return self.rests(k - self.ne) and self.crosses(k, a[k], b[k])
 
     def first_crossing(self, a, b) -> int:
-        return next((k for k in range(2 * self.ne) if self.watched(k, a, b)), -1)
+        """The first watched value that crosses from a to b, or -1; every one that does
+        is kept for ties()."""
+        self._crossed = [k for k in range(2 * self.ne) if self.watched(k, a, b)]
+        return self._crossed[0] if self._crossed else -1
+
+    def ties(self, first: int, before, now) -> list:
+        """The watched values other than ``first`` that crossed in the step (the last
+        first_crossing) and had crossed by the instant whose values are ``now``
+        (``before``: the values the step started from). After the first event acts
+        and the values are read at its instant, these are past their zero there and
+        would never be seen to cross: they act at the same instant
+        (engine/fcc_event_locate.c, "Ties")."""
+        return [k for k in getattr(self, "_crossed", ())
+                if k != first and self.watched(k, before, now)]
 
     # -- solves with the used rows ------------------------------------------------------
     def _rows(self, q, v):

@@ -219,9 +219,22 @@ def _events(ctx, step, accelerations, set_time, start, q, v, work, t0, h):
         if ev.stopped:
             return q, v, work, t_event
         ctx.after_step(q)
-        before = ev.s0[first]
+        prev = ev.s0
         ev.s0 = ev.watch(q, v, t_event)
-        ev.s0[first] = ev.leaving(first, q, v, t_event, before)
+        ev.s0[first] = ev.leaving(first, q, v, t_event, prev[first])
+        ties = ev.ties(first, prev, ev.s0)
+        for j in ties:                       # crossed by this instant too: act now
+            count += 1
+            q, v, done = ev.apply(j if count <= ev.max_per_step else -1 - j, q, v,
+                                  t_event)
+            count -= not done
+            if ev.stopped:
+                return q, v, work, t_event
+        if ties:
+            ctx.after_step(q)
+            ev.s0 = ev.watch(q, v, t_event)
+            for j in [first, *ties]:
+                ev.s0[j] = ev.leaving(j, q, v, t_event, prev[j])
         t0, h = t_event, h - best
         start = (q, v, work)
         if h <= 0.0:

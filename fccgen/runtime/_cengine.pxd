@@ -470,6 +470,14 @@ cdef extern from "fcc_rk4.h":
     void fcc_run_finish(fcc_engine *e) noexcept nogil
 
 
+cdef extern from "fcc_sens_dopri5.h":
+    ctypedef struct fcc_sens_dp5:
+        fcc_sens *s
+        int control
+        const double *scale
+        double *work
+
+
 cdef extern from "fcc_dopri5.h":
     ctypedef struct fcc_dopri5:
         int project
@@ -490,6 +498,7 @@ cdef extern from "fcc_dopri5.h":
         double *w_out
         double w
         double q_bound, v_bound
+        fcc_sens_dp5 sens
 
     int fcc_dopri5_start(fcc_dopri5 *r, fcc_engine *e, const double *q0,
                          const double *v0) noexcept nogil

@@ -21,11 +21,13 @@ from ._engine cimport Engine
 from ._events cimport ev_state
 from ._power cimport power_state
 from ._runloop cimport array_data, now, past_deadline
+from ._sens cimport sens_events, sens_state
 
 from ._messages import error_message
 from fccgen.results.result import keep_rows
 
 WORK_ARRAYS = 15                          # FCC_DOPRI5_WORK: arrays of 2 n numbers
+SENS_WORK = 15                            # FCC_SENS_DOPRI5_WORK: np x 2 n numbers each
 
 
 def output_times(double t_end, double output_dt):
@@ -38,10 +40,15 @@ def output_times(double t_end, double output_dt):
 
 def simulate_dopri5(Engine engine, q0, v0, double t_end, double output_dt, double rtol,
                     double atol, double h0, bint project, progress=None,
-                    double progress_interval=0.5, events=None, work=None):
+                    double progress_interval=0.5, events=None, work=None, sens=None,
+                    sens_scale=None):
     """DOPRI5 from (q0, v0) (used as given) to t_end; records at 0, every output_dt and
     t_end by dense output. h0: the first step (0: Hairer's automatic choice). work: a
     _power.WorkTracker (None: none), whose work each record gets (array work).
+    sens: a _sens.Sensitivities (None: none; needs project and the dense path) whose
+    ``records`` the run fills, one per record; sens_scale: None, or each parameter's
+    size (np numbers > 0), which puts the sensitivities into the error control with
+    the absolute tolerance atol / size (engine/fcc_sens_dopri5.h).
 
     Returns (arrays, stats) like simulate_rk4, with stats steps (accepted),
     rejected_steps, rhs_evaluations, newton_iterations, projection_failures,
@@ -58,6 +65,8 @@ def simulate_dopri5(Engine engine, q0, v0, double t_end, double output_dt, doubl
         raise ValueError("events need the projected DOPRI5 (projection on)")
     if work is not None:
         work.fits(engine)
+    if sens is not None and (not project or engine.c.sparse):
+        raise ValueError("sensitivities need the projected DOPRI5 on the dense path")
     cdef double[::1] qv = engine.vector(q0, "q0"), vv = engine.vector(v0, "v0")
     engine.reset_warm_start()           # a run does not depend on earlier solves
     if not (np.all(np.isfinite(qv)) and np.all(np.isfinite(vv))):
@@ -86,6 +95,18 @@ def simulate_dopri5(Engine engine, q0, v0, double t_end, double output_dt, doubl
     r.ev = ev_state(events)
     r.pw = power_state(work)
     r.w_out = array_data(work_out)
+    if sens is not None:
+        n_sens = sens.n_params
+        sens_work = np.zeros((SENS_WORK, n_sens, 2 * n))
+        scale = np.ones(n_sens) if sens_scale is None else np.array(sens_scale, float)
+        if scale.shape != (n_sens,) or not np.all(scale > 0) or not np.all(np.isfinite(scale)):
+            raise ValueError(f"sens_scale must be {n_sens} finite numbers > 0")
+        r.sens.s = sens_state(sens, n_out)
+        r.sens.control = sens_scale is not None
+        r.sens.scale = array_data(scale)
+        r.sens.work = array_data(sens_work)
+        if r.ev != NULL:
+            sens_events(sens, r.ev, r.ev.spec.cap_log)
     r.n_out = r.accepted = r.rejected = r.n_rhs = r.newton_total = 0
     r.max_cerr = 0.0
     if events is not None:

@@ -17,6 +17,7 @@ import numpy as np
 from fccgen import rank as rank_rule
 
 from . import sparse_setup
+from .setup_reuse import jacobian_key, shared_decision
 from .sparsity import jacobian_csr
 
 from ._assemble cimport ASM_B, ASM_G, ASM_M, Assembler
@@ -66,6 +67,14 @@ cdef object ints(const int *p, int k):
 cdef object doubles(const double *p, int k):
     """p[:k] as a fresh array."""
     return np.array([p[i] for i in range(k)], dtype=float)
+
+
+def _watch_basis(B, groups, int rank):
+    """The right singular vectors of the row-scaled dense B beyond the first rank."""
+    m, n = B.shape
+    _, _, vt = np.linalg.svd(B / rank_rule.row_scales(B, groups)[:, None],
+                             full_matrices=m < n)     # vt: n x n
+    return vt[rank:].T
 
 
 cdef class SparseEngine(Engine):
@@ -412,9 +421,11 @@ cdef class SparseEngine(Engine):
         groups = [self.asm.model.row_group[i] for i in range(m)]
         try:
             if isinstance(B, np.ndarray):
-                _, _, vt = np.linalg.svd(B / rank_rule.row_scales(B, groups)[:, None],
-                                         full_matrices=m < n)     # vt: n x n
-                basis = vt[rank:rank + k].T
+                # a function of B alone: kept per process by its bytes, as the rank
+                # decisions are (setup_reuse.shared_decision), so an engine of other
+                # masses at the same start (with_parameters, simulate_many) reuses it
+                basis, _ = shared_decision(jacobian_key("watch", B, groups, rank),
+                                           lambda: _watch_basis(B, groups, rank))
             else:
                 from fccgen.rank import sparse as rank_sparse
                 basis = rank_sparse.smallest_right_vectors(
@@ -453,7 +464,8 @@ cdef class SparseEngine(Engine):
         the rank-growth watch; sparse_solves, sparse_unconverged (refinements that
         did not converge), sparse_dense_fallbacks (of those, redone densely) and
         sparse_beyond_rank (of those, stopped at a direction beyond the decided rank);
-        chord_steps and chord_steps_undone, the position projection's chord steps kept
+        sparse_iterations and sparse_most_iterations, the solves with A the
+        refinements took, in all and in the longest (engine/fcc_al_refine.c); chord_steps and chord_steps_undone, the position projection's chord steps kept
         and undone (engine/fcc_sparse_engine.c)."""
         stats = Engine.rank_statistics(self)
         stats.update(factorisations=self.c.sp.n_factor, drops=self.c.sol.n_drop,
@@ -463,6 +475,8 @@ cdef class SparseEngine(Engine):
                      sparse_unconverged=self.c.sp.n_unconverged,
                      sparse_dense_fallbacks=self.c.sp.n_fallback,
                      sparse_beyond_rank=self.c.sp.n_beyond_rank,
+                     sparse_iterations=self.c.sp.n_iterations,
+                     sparse_most_iterations=self.c.sp.most_iterations,
                      chord_steps=self.c.sp.n_chord,
                      chord_steps_undone=self.c.sp.n_chord_undone)
         return stats

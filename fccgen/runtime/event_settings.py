@@ -8,10 +8,24 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-# more events than this in one step: a Zeno sequence, the contact rests
+# the Zeno guard's margin: more events in one step than MAX_PER_STEP beyond those the
+# model's event functions can carry without a Zeno loop (max_per_step), the contact rests
 MAX_PER_STEP = 50
 # rows of a run's event log; the events past them are counted (EventSet.dropped)
 LOG_ROWS = 100_000
+
+
+def max_per_step(n_events: int) -> int:
+    """The Zeno guard of a model with ``n_events`` event functions: the events one step
+    may carry before the next bounce rests instead (engine/fcc_rk4.c).
+
+    Without a Zeno loop each event function acts at most twice in one step (its
+    crossing, and the release of a bounce that rested; a lock and its unlock are two
+    functions), so 2 n_events is what a step can legitimately carry: a mast whose
+    latches, one per bay, all cross in the same step by symmetry. A Zeno loop (a bounce
+    whose flights shrink geometrically) never stops firing: it still meets the guard,
+    after MAX_PER_STEP events more than that, a bounded number per step."""
+    return MAX_PER_STEP + 2 * n_events
 
 
 @dataclass(frozen=True)

@@ -25,6 +25,7 @@ import numpy as np
 
 from ._engine import Engine
 from ._sparse import SparseEngine
+from .setup_reuse import jacobian_key, shared_decision
 from .sparsity import structure
 
 SPARSE_MIN_COORDINATES = 25
@@ -91,7 +92,12 @@ def reduced_mass_spread(M: np.ndarray, B_scaled: np.ndarray, rank: int) -> float
     if rank >= M.shape[0] or not scale > 0.0:
         return 1.0
     if B_scaled.size:
-        null = np.linalg.svd(B_scaled, full_matrices=True)[2][rank:].T
+        # a function of B alone, kept per process by its bytes like the rank decisions
+        # (setup_reuse.shared_decision): a solver of other masses at the same start
+        # (with_parameters, simulate_many, a sensitivity's shifted models) reuses it
+        null, _ = shared_decision(
+            jacobian_key("null", B_scaled, None, rank),
+            lambda: np.linalg.svd(B_scaled, full_matrices=True)[2][rank:].T)
     else:
         null = np.eye(M.shape[0])
     return float(np.linalg.eigvalsh(null.T @ M @ null)[0]) / scale

@@ -6,6 +6,7 @@ simulation is one call into the engine, which keeps the per-step loop in C.
 """
 from __future__ import annotations
 
+import functools
 import importlib
 import statistics
 import time
@@ -304,14 +305,15 @@ class CompiledSolver:
         sensitivities: parameter keys (``with_parameters`` keys, e.g.
         ``["bodies.arm.mass", "loads[0].stiffness"]``); their derivatives are
         integrated with the motion and read with ``result.sensitivity(column, key)``
-        (fccgen.runtime.sensitivity, docs/sensitivities.md).
+        (fccgen.runtime.sensitivity, docs/sensitivities.md); methods rk4 and dopri5.
+        With dopri5, ``sensitivity_error=True`` puts them into the error control.
         """
         if error is not None and inputs:
             raise ValueError("an error target (error=) chooses its own runs; give "
                              "inputs to a run with a method and step instead")
         if sensitivities is not None and error is not None:
-            raise ValueError("sensitivities are integrated with a fixed-step run: give "
-                             "dt, not an error target")
+            raise ValueError("sensitivities are integrated by one rk4 or dopri5 run: give "
+                             "its dt or rtol, not an error target")
         if error is not None:
             from ..target_error import simulate_to_error
             return simulate_to_error(self, error, error_on, t_end=t_end, output_dt=output_dt,
@@ -338,10 +340,13 @@ class CompiledSolver:
         d = self.plan.model.simulate
         m = registry.get(d.method if method is None else method, METHODS)
         keys = None
+        sens_error = method_options.pop("sensitivity_error", None)
+        if sens_error is not None and sensitivities is None:
+            raise ValueError("sensitivity_error needs sensitivities=[...]")
         if sensitivities is not None:
             from .sensitivity import run as sensitivity_run
             keys = sensitivity_run.check_request(self, sensitivities, m.name,
-                                                 bool(project) and m.projects)
+                                                 bool(project) and m.projects, sens_error)
         opts = registry.options_for(m, rtol, atol, method_options)
         sched = registry.schedule(m, d, t_end, dt, output_dt, opts)
         held = input_run(self.plan, inputs, m.name, sched)
@@ -349,17 +354,20 @@ class CompiledSolver:
             self._asm.put_params(held.slots, held.table[0, held.columns])
         try:
             return self._simulate_held(m, opts, sched, held, dt, project, q0, v0,
-                                       progress, reactions, event_tol, rest_speed, keys)
+                                       progress, reactions, event_tol, rest_speed, keys,
+                                       bool(sens_error))
         finally:
             if held is not None:                 # direct calls see the start values
                 self._asm.put_params(held.slots, [self.plan.model.inputs[held.names[c]]
                                                   for c in held.columns])
 
     def _simulate_held(self, m, opts, sched, held, dt, project, q0, v0, progress,
-                       reactions, event_tol, rest_speed, keys=None) -> Result:
+                       reactions, event_tol, rest_speed, keys=None,
+                       sens_error=False) -> Result:
         """One run (:meth:`simulate`) with the inputs set (``held``); keys: the
-        parameters of its sensitivities (checked), or None."""
-        sens = None
+        parameters of its sensitivities (checked), or None; sens_error: dopri5's error
+        control includes them."""
+        sens = sens_scale = sens_engine = None
         if keys is not None:
             from .sensitivity import run as sensitivity_run
         self.set_time(0.0)
@@ -370,18 +378,22 @@ class CompiledSolver:
         project = bool(project) and m.projects
         if keys is not None:
             from .params import module_directory
-            sens = sensitivity_run.setup(self, keys, module_directory(self.module).parents[1])
+            sens = sensitivity_run.setup(self, keys, module_directory(self.module).parents[1],
+                                         m.name)
+            sens_engine = sensitivity_run.engine_for(self, keys, m.name)
+            if sens_error:
+                sens_scale = sensitivity_run.error_scale(self, keys)
         report = run_reporter(progress, sched.t_end)
         events = self._event_set(event_tol, rest_speed)
         self._event_inputs(events, held)
         tracker, untracked = work_tracker(self.plan, self.module, m.name,
-                                          self.sparse and (keys is None or
-                                                           sensitivity_run.on_sparse(self)))
+                                          self.sparse and (sens_engine is None or
+                                                           sens_engine is self._engine))
         kept = {}
 
         def run():
             arrays, stats = self._run(m, sched, opts, project, q0, v0, report, events,
-                                      tracker, held, sens)
+                                      tracker, held, sens, sens_scale, sens_engine)
             kept["work"] = arrays.get("work") if tracker is not None else None
             return arrays, stats
         try:
@@ -413,8 +425,8 @@ class CompiledSolver:
                                                                 result.events)
         add_driver_columns(self, result)
         check_driver_branches(self.plan, result)
-        used = (self.dense_engine() if m.name == "ali3p" else
-                sensitivity_run.engine_for(self) if sens else self._engine)
+        used = self.dense_engine() if m.name == "ali3p" else (
+            self._engine if sens is None else sens_engine)
         stats = used.rank_statistics()
         rank_rule.report_run(result, decision, stats,
                              driven=bool(driver_rows(self.plan)))
@@ -426,7 +438,9 @@ class CompiledSolver:
                      kinetic_peak(self, result, stats.get("kinetic_energy_peak")),
                      kept.get("work"), untracked)
         if sens is not None:
-            sensitivity_run.attach(self, result, keys, sens)
+            sensitivity_run.attach(self, result, keys, sens, m.name)
+            if m.name == "dopri5":
+                result.info["sensitivity_error_control"] = bool(sens_error)
         return add_reactions(self, result) if reactions else result
 
     def dense_engine(self):
@@ -454,14 +468,22 @@ class CompiledSolver:
             return None
         from ._events import EventSet
         from . import event_settings as settings
-        st = settings.event_settings(self.plan, self.events_module)
+        st = self._event_settings
         events = EventSet(self.events_module, self.n_q, st.directions, st.actions,
                           st.rows, st.rows2, st.restitution, st.angle_rows, tol=tol,
-                          v_rest=rest_speed, max_per_step=settings.MAX_PER_STEP,
+                          v_rest=rest_speed,
+                          max_per_step=settings.max_per_step(len(st.actions)),
                           max_log=settings.LOG_ROWS, constants=st.constants)
         if st.mirror_slots:
             events.mirror(self._asm, st.mirror_slots, st.mirror_angles)
         return events
+
+    @functools.cached_property
+    def _event_settings(self):
+        """The settings of the model's compiled events (fccgen.runtime.event_settings),
+        made once per solver: its plan and event module do not change."""
+        from .event_settings import event_settings
+        return event_settings(self.plan, self.events_module)
 
     def _event_inputs(self, events, held) -> None:
         """Give the run's event set the inputs its event functions read (held: the
@@ -469,8 +491,7 @@ class CompiledSolver:
         writes the later ones (held.event_slots, held.event_columns)."""
         if events is None or held is None:
             return
-        from .event_settings import event_settings
-        st = event_settings(self.plan, self.events_module)
+        st = self._event_settings
         if st.input_slots:
             held.event_slots = np.array(st.input_slots, np.intc)
             held.event_columns = np.array(st.input_columns, np.intc)
@@ -574,12 +595,12 @@ class CompiledSolver:
         return q0, v0
 
     def _run(self, m, sched, opts, project, q0, v0, report, events=None, work=None,
-             held=None, sens=None):
+             held=None, sens=None, sens_scale=None, sens_engine=None):
         """(arrays, stats) of one run of method m (held: inputs that change over the
-        run, fccgen.runs.inputs; rk4 and baumgarte only; sens: rk4's sensitivities)."""
-        if sens is not None:
-            from .sensitivity.run import engine_for
-        s, e = sched, (self._engine if sens is None else engine_for(self))
+        run, fccgen.runs.inputs; rk4 and baumgarte only; sens: rk4's or dopri5's
+        sensitivities, carried by sens_engine; sens_scale: the parameters' sizes for
+        dopri5's error control of them, None: not controlled)."""
+        s, e = sched, (self._engine if sens is None else sens_engine)
         held = None if held is None or held.constant or not (
             len(held.slots) or len(held.event_slots)) else (
             held.slots, held.columns, held.table, held.event_slots, held.event_columns)
@@ -598,7 +619,8 @@ class CompiledSolver:
         if m.name == "dopri5":
             return simulate_dopri5(e, q0, v0, s.t_end, s.output_dt, opts["rtol"],
                                    opts["atol"], s.dt or 0.0, project, report,
-                                   self.progress_interval, events=events, work=work)
+                                   self.progress_interval, events=events, work=work,
+                                   sens=sens, sens_scale=sens_scale)
         if m.name == "ali3p":                # assembles dense M and B itself
             from ._ali3p import simulate_ali3p
             return simulate_ali3p(self.dense_engine(), q0, v0, s.t_end, s.dt, s.n_steps, s.every, opts,

@@ -24,7 +24,9 @@
  * constants). Redundant rows need no rank decision.
  *
  * Augmented-Lagrangian steps stop when the estimated remaining change,
- * |dx| rate / (1 - rate), is at most AL_STOP |x|; a step with rate above SLOW (or the
+ * |dx| rate / (1 - rate), is at most AL_STOP |x| (|x| or the floor x_floor under it,
+ * whichever is larger: the velocity projection's, fcc_sparse_engine.c; 0 for the
+ * other solves); a step with rate above SLOW (or the
  * al_max-th) hands over to conjugate-gradient corrections. Their iterations stop when
  * the preconditioned residual r2^T diag(alpha) r2 of the constraints is at most
  * CG_TOL^2 times its value after the first augmented-Lagrangian step (a test on the
@@ -32,13 +34,14 @@
  * null space of B^T, which the redundant rows make large), or after cg_max steps. The
  * refinement ends when a correction after the first starts below that bound (its
  * right-hand side is rounding: nothing left for the iterations) or changes x by at
- * most REFINE_STOP |x|; after refine_max corrections it is a solve that did not
- * converge (counted, and redone by the dense solve when the model is small enough:
- * fcc_sparse_engine.c). The bound is relative to the first step's residual, not to the
- * first correction's: after al_max steps that converged slowly the correction may
- * start at rounding already (the scissor mast of 17 bays at t = 0.2 s), and iterations
- * below it only amplify the noise. CG_TOL 1e-8: measured on the A02 chain of 80 loops
- * at its flat position, 1e-9 reaches the same accuracy and 1e-10 no longer converges.
+ * most REFINE_STOP |x| (the same floor); after refine_max corrections it is a solve
+ * that did not converge (counted, and redone by the dense solve when the model is
+ * small enough: fcc_sparse_engine.c). The bound is relative to the first step's
+ * residual, not to the first correction's: after al_max steps that converged slowly
+ * the correction may start at rounding already (the scissor mast of 17 bays at
+ * t = 0.2 s), and iterations below it only amplify the noise. CG_TOL 1e-8: measured
+ * on the A02 chain of 80 loops at its flat position, 1e-9 reaches the same accuracy
+ * and 1e-10 no longer converges.
  * FCC_CG_MAX 400: that chain takes 180 steps there (80 eigenvalues of
  * diag(alpha) B A^{-1} B^T spread between 1e-10 and 0.99: every loop's row nearly
  * dependent).
@@ -272,7 +275,7 @@ static int refine(fcc_engine *e, const double *b, double *x, int warm, int *solv
 {
     fcc_sparse *s = &e->sp;
     int i, it, n = e->n, m = e->m, cg = 0;
-    double nd = 0.0, nx = 0.0, prev = 0.0, rate, rz_stop = -1.0;
+    double nd = 0.0, nx = 0.0, prev = 0.0, rate, rz_stop = -1.0, size;
     int pending = 0;
     memset(x, 0, (size_t)n * sizeof(double));
     for (it = 0; it < s->al_max + s->refine_max; it++) {
@@ -307,15 +310,16 @@ static int refine(fcc_engine *e, const double *b, double *x, int warm, int *solv
         }
         if (!(nd > 0.0))                        /* zero, or NaN (the caller checks x) */
             return 1;
+        size = nx > s->x_floor ? nx : s->x_floor;   /* |x|, or the floor under it */
         if (cg) {
-            if (nd <= REFINE_STOP * nx || (cg > 1 && s->cg_steps == 0))
+            if (nd <= REFINE_STOP * size || (cg > 1 && s->cg_steps == 0))
                 return 1;
             cg++;
             if (cg > s->refine_max)
                 return 0;
         } else if (it > 0) {
             rate = nd / prev;
-            if (rate < 0.5 && nd * rate / (1.0 - rate) <= stop * nx)
+            if (rate < 0.5 && nd * rate / (1.0 - rate) <= stop * size)
                 return 1;
             if (rate > SLOW)
                 cg = 1;

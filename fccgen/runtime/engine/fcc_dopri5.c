@@ -42,6 +42,13 @@ static const double D4 = -10690763975.0 / 1880347072.0;
 static const double D5 = 701980252875.0 / 199316789632.0;
 static const double D6 = -1453857185.0 / 822651844.0;
 static const double D7 = 69997945.0 / 29380423.0;
+/* the same weights on K1..K7, for the sensitivities' stages (fcc_sens_dopri5.h) */
+static const double EW[7] = {71.0 / 57600.0, 0.0, -71.0 / 16695.0, 71.0 / 1920.0,
+                             -17253.0 / 339200.0, 22.0 / 525.0, -1.0 / 40.0};
+static const double DW[7] = {-12715105075.0 / 11282082432.0, 0.0,
+                             87487479700.0 / 32700410799.0, -10690763975.0 / 1880347072.0,
+                             701980252875.0 / 199316789632.0, -1453857185.0 / 822651844.0,
+                             69997945.0 / 29380423.0};
 
 static const double SAFETY = 0.9, FACMIN = 0.2, FACMAX = 10.0;
 static const double UROUND = 2.220446049250313e-16;
@@ -61,6 +68,19 @@ static int f(fcc_engine *e, fcc_dopri5 *r, int stage, double t, const double *y,
         return -1;                            /* active lock rows (events) */
     if (r->pw != NULL)                        /* the stage's power (fcc_work.h) */
         r->p[stage - 1] = fcc_stage_power(e, r->pw, y, y + n, k + n);
+    return 0;
+}
+
+/* Stage `stage` of a step of size h (f), then the sensitivities' (w: the stage's
+ * weights on the earlier stages, as for combine). */
+static int fs(fcc_engine *e, fcc_dopri5 *r, int stage, double t, const double *y,
+              double *k, int reuse, double h, const double *w)
+{
+    if (f(e, r, stage, t, y, k, reuse) < 0)
+        return -1;
+    if (r->sens.s != NULL)
+        return fcc_sens_dp5_stage(e, &r->sens, stage, h, w, y, y + r->n2 / 2,
+                                  k + r->n2 / 2);
     return 0;
 }
 
@@ -84,22 +104,22 @@ static int stages(fcc_engine *e, fcc_dopri5 *r, double h)
     double w[6];
     w[0] = A21;
     combine(r, r->yt, h, 1, w);
-    if (f(e, r, 2, r->t + C2 * h, r->yt, r->k[1], 0) < 0) return -1;
+    if (fs(e, r, 2, r->t + C2 * h, r->yt, r->k[1], 0, h, w) < 0) return -1;
     w[0] = A31; w[1] = A32;
     combine(r, r->yt, h, 2, w);
-    if (f(e, r, 3, r->t + C3 * h, r->yt, r->k[2], 0) < 0) return -1;
+    if (fs(e, r, 3, r->t + C3 * h, r->yt, r->k[2], 0, h, w) < 0) return -1;
     w[0] = A41; w[1] = A42; w[2] = A43;
     combine(r, r->yt, h, 3, w);
-    if (f(e, r, 4, r->t + C4 * h, r->yt, r->k[3], 0) < 0) return -1;
+    if (fs(e, r, 4, r->t + C4 * h, r->yt, r->k[3], 0, h, w) < 0) return -1;
     w[0] = A51; w[1] = A52; w[2] = A53; w[3] = A54;
     combine(r, r->yt, h, 4, w);
-    if (f(e, r, 5, r->t + C5 * h, r->yt, r->k[4], 0) < 0) return -1;
+    if (fs(e, r, 5, r->t + C5 * h, r->yt, r->k[4], 0, h, w) < 0) return -1;
     w[0] = A61; w[1] = A62; w[2] = A63; w[3] = A64; w[4] = A65;
     combine(r, r->yt, h, 5, w);
-    if (f(e, r, 6, r->t + h, r->yt, r->k[5], 0) < 0) return -1;
+    if (fs(e, r, 6, r->t + h, r->yt, r->k[5], 0, h, w) < 0) return -1;
     w[0] = A71; w[1] = 0.0; w[2] = A73; w[3] = A74; w[4] = A75; w[5] = A76;
     combine(r, r->y1, h, 6, w);
-    return f(e, r, 7, r->t + h, r->y1, r->k[6], 0);
+    return fs(e, r, 7, r->t + h, r->y1, r->k[6], 0, h, w);
 }
 
 /* The scaled RMS norm of the local error estimate (NaN stays NaN: a rejection). */
@@ -113,7 +133,13 @@ static double error_norm(fcc_dopri5 *r, double h)
         sk = r->atol + r->rtol * fmax(fabs(r->y[i]), fabs(r->y1[i]));
         acc += (d / sk) * (d / sk);
     }
-    return sqrt(acc / r->n2);
+    acc = sqrt(acc / r->n2);
+    if (r->sens.s != NULL) {                  /* the sensitivities' (an option) */
+        d = fcc_sens_dp5_error(&r->sens, h, EW, r->atol, r->rtol);
+        if (!(d <= acc))
+            acc = d;
+    }
+    return acc;
 }
 
 /* Coefficients of the continuous extension over the step y -> y1. */
@@ -131,6 +157,8 @@ static void dense(fcc_dopri5 *r, double h)
         r->rc[4][i] = h * (D1 * r->k[0][i] + D3 * r->k[2][i] + D4 * r->k[3][i]
                            + D5 * r->k[4][i] + D6 * r->k[5][i] + D7 * r->k[6][i]);
     }
+    if (r->sens.s != NULL)
+        fcc_sens_dp5_dense(&r->sens, h, DW);
 }
 
 /* The work over the step by the fifth-order weights, and its continuous extension
@@ -169,6 +197,8 @@ static int project(fcc_engine *e, fcc_dopri5 *r, double *y, int reuse)
     e->err_where = FCC_AT_VELOCITIES;
     if (fcc_project_velocities(e, y, y + n, e->b_fresh) < 0)
         return -1;
+    if (r->sens.s != NULL && fcc_sens_project(e, r->sens.s, y, y + n) < 0)
+        return -1;                            /* the state's s (or an output's) */
     if (r->ev != NULL)
         return fcc_ev_correct(e, r->ev, y, y + n);
     return 0;
@@ -219,6 +249,7 @@ static int first_event(fcc_engine *e, fcc_dopri5 *r, double h, double t1, double
         return -1;
     *theta = 1.0;
     first = k;
+    fcc_ev_mark_crossed(ev);
     for (j = k; j < 2 * ev->spec->ne; j++) {
         if (j > k && !fcc_ev_watched(ev, j, ev->s0, ev->s1))     /* a held lock */
             continue;
@@ -232,16 +263,27 @@ static int first_event(fcc_engine *e, fcc_dopri5 *r, double h, double t1, double
     return first;
 }
 
-/* Act on event k at the (projected) state r->y, r->t; the next step's values. */
+/* Act on event k at the (projected) state r->y, r->t, then on the events tied with
+ * it (fcc_ev_next_tie); the next step's values. */
 static int after_event(fcc_engine *e, fcc_dopri5 *r, int k)
 {
     fcc_events *ev = r->ev;
-    int n = r->n2 / 2, rc = 0;
-    if (k >= 0) {
+    int n = r->n2 / 2, rc = 0, j, rc_j;
+    if (k >= 0)
+        fcc_ev_keep_start(ev, k);
+    for (j = k; j >= 0; j = fcc_ev_next_tie(ev)) {
         e->err_t = r->t;
-        rc = fcc_ev_apply(e, ev, k, r->y, r->y + n, r->t);
-        if (rc < 0)
+        if (r->sens.s != NULL
+                && fcc_sens_event_before(e, r->sens.s, j, r->y, r->y + n, r->t) < 0)
             return -1;
+        rc_j = fcc_ev_apply(e, ev, j, r->y, r->y + n, r->t);
+        if (rc_j < 0)
+            return -1;
+        if (r->sens.s != NULL
+                && fcc_sens_event_after(e, r->sens.s, j, rc_j, r->y, r->y + n, r->t) < 0)
+            return -1;
+        if (j == k)
+            rc = rc_j;
         if (ev->stop) {
             r->stopped = 1;
             r->t_stop = r->t;
@@ -250,17 +292,24 @@ static int after_event(fcc_engine *e, fcc_dopri5 *r, int k)
                 if (r->w_out != NULL)
                     r->w_out[r->n_out] = r->w;
                 fcc_write_record(e, &r->out, r->n_out, r->y, r->y + n);
+                if (r->sens.s != NULL)       /* the total derivative at the stop */
+                    fcc_sens_record(r->sens.s, r->n_out);
                 r->n_out++;
             }
             return 0;
         }
+        if (j == k) {
+            fcc_ev_refresh(ev, r->y);
+            if (fcc_ev_watch(e, ev, r->y, r->y + n, r->t, ev->s0) < 0)
+                return -1;
+            if (rc == 0)
+                ev->s0[k] = fcc_ev_leaving(ev, k, r->y, r->y + n, r->t);
+        }
     }
+    if (k >= 0)
+        return fcc_ev_settle(e, ev, r->y, r->y + n, r->t, k, rc == 0);
     fcc_ev_refresh(ev, r->y);
-    if (fcc_ev_watch(e, ev, r->y, r->y + n, r->t, ev->s0) < 0)
-        return -1;
-    if (k >= 0 && rc == 0)
-        ev->s0[k] = fcc_ev_leaving(ev, k, r->y, r->y + n, r->t);
-    return 0;
+    return fcc_ev_watch(e, ev, r->y, r->y + n, r->t, ev->s0) < 0 ? -1 : 0;
 }
 
 /* Write the requested output r->n_out from the dense output of the last step. */
@@ -273,6 +322,8 @@ static int record(fcc_engine *e, fcc_dopri5 *r)
                                              : r->w;
     if (j > 0) {
         dense_at(r, (r->out.t[j] - r->t0) / r->h, r->yt);
+        if (r->sens.s != NULL)             /* s there, projected with the output */
+            fcc_sens_dp5_output(&r->sens, (r->out.t[j] - r->t0) / r->h);
         if (r->project) {
             fcc_put_time(e->asmb, r->out.t[j]);
             if (project(e, r, r->yt, 0) < 0)
@@ -281,6 +332,11 @@ static int record(fcc_engine *e, fcc_dopri5 *r)
         }
     } else {
         memcpy(r->yt, r->y, (size_t)r->n2 * sizeof(double));
+    }
+    if (r->sens.s != NULL) {
+        fcc_sens_record(r->sens.s, j);
+        if (j > 0)
+            fcc_sens_dp5_restore(&r->sens);
     }
     cerr = fcc_write_record(e, &r->out, j, r->yt, r->yt + n);
     if (!(cerr <= r->max_cerr))
@@ -319,6 +375,8 @@ static int accept(fcc_engine *e, fcc_dopri5 *r, double h)
         if (record(e, r) < 0)
             return -1;
     memcpy(r->y, r->y1, (size_t)r->n2 * sizeof(double));
+    if (r->sens.s != NULL)                    /* s at the step's end (or the event) */
+        fcc_sens_dp5_take(&r->sens, th);
     if (r->pw != NULL)
         r->w = work_at(r, th);                /* th: 1, or the event's fraction */
     e->err_t = r->t;
@@ -344,7 +402,7 @@ static int accept(fcc_engine *e, fcc_dopri5 *r, double h)
                 return 0;
         }
         e->err_where = FCC_AT_STAGE;
-        return f(e, r, 1, r->t, r->y, r->k[0], e->factor_valid);
+        return fs(e, r, 1, r->t, r->y, r->k[0], e->factor_valid, 0.0, NULL);
     }
     memcpy(r->k[0], r->k[6], (size_t)r->n2 * sizeof(double));        /* FSAL */
     r->p[0] = r->p[6];
@@ -365,6 +423,8 @@ static void flush(fcc_engine *e, fcc_dopri5 *r)
         if (r->w_out != NULL)
             r->w_out[r->n_out] = r->w;
         cerr = fcc_write_record(e, &r->out, r->n_out, r->y, r->y + n);
+        if (r->sens.s != NULL)
+            fcc_sens_record(r->sens.s, r->n_out);
         if (!(cerr <= r->max_cerr))
             r->max_cerr = cerr;
         r->n_out++;
@@ -482,12 +542,14 @@ int fcc_dopri5_start(fcc_dopri5 *r, fcc_engine *e, const double *q0, const doubl
     }
     if (r->ev != NULL)
         fcc_ev_watch(e, r->ev, r->y, r->y + n, 0.0, r->ev->s0);
+    if (r->sens.s != NULL)
+        fcc_sens_dp5_start(&r->sens);
     e->running = 1;
     record(e, r);                           /* the first record: y as given */
     e->err_where = FCC_AT_STAGE;
     e->err_t = 0.0;
     e->err_h = r->h0;
-    status = f(e, r, 1, 0.0, r->y, r->k[0], 0);
+    status = fs(e, r, 1, 0.0, r->y, r->k[0], 0, 0.0, NULL);
     if (status == 0 && r->h == 0.0) {
         r->h = initial_step(e, r);
         status = r->h < 0 ? -1 : 0;

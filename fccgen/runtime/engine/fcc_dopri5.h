@@ -4,6 +4,7 @@
 #define FCC_DOPRI5_H
 
 #include "fcc_events.h"
+#include "fcc_sens_dopri5.h"
 #include "fcc_work.h"
 #include "fcc_run.h"
 
@@ -42,12 +43,15 @@ typedef struct fcc_dopri5 {
     double p[7];              /* the stages' powers */
     double rw[5];             /* W's continuous extension over the last step */
     double q_bound, v_bound;  /* max |q|, max |v| past these: diverged (v: infinity) */
+    /* forward sensitivities (settings: sens.s NULL, none; needs project and the dense
+     * path; sens.s started by the caller, its work set up here) */
+    fcc_sens_dp5 sens;
 } fcc_dopri5;
 
 /* Start a run from (q0, v0) with the settings in r: the first record, the first
  * stage and (h0 = 0) the starting step, the divergence bounds (fcc_divergence_bounds
  * without a speed bound). The settings are project, rtol, atol, t_end, h0, n_req,
- * out, ev, work, pause, pause_ctx, pw and w_out (zero the struct first: NULL pointers
+ * out, ev, work, pause, pause_ctx, pw, w_out and sens (zero the struct first: NULL pointers
  * are "none"). The events are reset by the caller (fcc_events_reset); events without
  * event functions (ne = 0) only re-base the angle references after every step, with
  * event functions they need project. A record at an event's time shows the state

@@ -153,3 +153,57 @@ int fcc_ev_crossed(fcc_events *ev, const double *a, const double *b)
             return k;
     return -1;
 }
+
+/* Ties. The integrators locate the earliest crossing of a step, act on it, and read
+ * every watched value again at its instant to go on from there. Another event that
+ * crossed by that instant as well (two latches of a symmetric structure, balls
+ * dropped from one height: an exact tie, or one within the location tolerance) is
+ * then already past its zero in the values read, so it would never be seen to cross:
+ * a limit passed through, a latch never locked, without a word. These functions let
+ * the integrator act on each of them at the same instant instead. */
+enum { TIE_NONE, TIE_CROSSED, TIE_ACTED };
+
+void fcc_ev_mark_crossed(fcc_events *ev)
+{
+    int k;
+    for (k = 0; k < 2 * ev->spec->ne; k++)
+        ev->tie[k] = fcc_ev_watched(ev, k, ev->s0, ev->s1) ? TIE_CROSSED : TIE_NONE;
+}
+
+void fcc_ev_keep_start(fcc_events *ev, int first)
+{
+    memcpy(ev->s_prev, ev->s0, (size_t)(2 * ev->spec->ne) * sizeof(double));
+    ev->tie[first] = TIE_NONE;                  /* the integrator's own */
+}
+
+int fcc_ev_next_tie(fcc_events *ev)
+{
+    int k;
+    for (k = 0; k < 2 * ev->spec->ne; k++)
+        if (ev->tie[k] == TIE_CROSSED && fcc_ev_watched(ev, k, ev->s_prev, ev->s0)) {
+            ev->tie[k] = TIE_ACTED;
+            return k;
+        }
+    return -1;
+}
+
+int fcc_ev_settle(fcc_engine *e, fcc_events *ev, const double *q, const double *v,
+                  double t, int first, int first_leaves)
+{
+    int k, acted = 0;
+    for (k = 0; k < 2 * ev->spec->ne; k++)
+        acted |= ev->tie[k] == TIE_ACTED;
+    if (!acted)
+        return 0;
+    fcc_ev_refresh(ev, q);
+    if (fcc_ev_watch(e, ev, q, v, t, ev->s0) < 0)
+        return -1;
+    if (first_leaves)
+        ev->s0[first] = fcc_ev_leaving(ev, first, q, v, t);
+    for (k = 0; k < 2 * ev->spec->ne; k++)
+        if (ev->tie[k] == TIE_ACTED) {
+            ev->s0[k] = fcc_ev_leaving(ev, k, q, v, t);
+            ev->tie[k] = TIE_NONE;
+        }
+    return 0;
+}

@@ -66,6 +66,9 @@ typedef struct fcc_events {
     int *used;                /* ... and independent: it enters the solves (rank) */
     int n_used;
     int *rested;              /* per event: its bounce rests (release is watched) */
+    int *tie;                 /* per watched value (2 ne): TIE_ marks of the step's
+                                 crossings (fcc_ev_mark_crossed, fcc_ev_next_tie) */
+    double *s_prev;           /* 2 ne: the watched values before the located instant */
     double *rel_sign;         /* per event: the sign making its release function > 0
                                  when the resting contact's multiplier pulls */
     double *acc;              /* n: accelerations for the release functions */
@@ -145,6 +148,19 @@ int fcc_ev_crossed(fcc_events *ev, const double *a, const double *b);
 /* Watched value k crosses from a[k] to b[k] and counts: not a held lock or rest
  * (whose function hovers at zero by the position tolerance). */
 int fcc_ev_watched(fcc_events *ev, int k, const double *a, const double *b);
+/* Ties: events that cross at (or within the location tolerance of) the same instant.
+ * fcc_ev_mark_crossed marks every watched value that crosses from s0 to s1 (after
+ * fcc_ev_crossed found one); fcc_ev_keep_start keeps s0 before the located instant's
+ * values replace it and unmarks first, the event the integrator acts on itself; after
+ * it acted and s0 was read at its instant, fcc_ev_next_tie returns another marked
+ * value that had crossed by then (from the kept values to s0), marked as acted, or -1; fcc_ev_settle reads s0 again after the
+ * ties acted and puts each acted one (and first, when first_leaves) where
+ * fcc_ev_leaving says. */
+void fcc_ev_mark_crossed(fcc_events *ev);
+void fcc_ev_keep_start(fcc_events *ev, int first);
+int fcc_ev_next_tie(fcc_events *ev);
+int fcc_ev_settle(fcc_engine *e, fcc_events *ev, const double *q, const double *v,
+                  double t, int first, int first_leaves);
 int fcc_ev_crosses(fcc_events *ev, int k, double a, double b);
 int fcc_ev_constrain(fcc_engine *e, fcc_events *ev, const double *q, const double *v,
                      double t, double *a);

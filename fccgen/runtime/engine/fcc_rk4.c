@@ -165,6 +165,21 @@ static int locate(fcc_engine *e, fcc_rk4 *r, int k, double t0, double h, double 
     return 0;
 }
 
+/* Act on event k (-1 - k: rest it, the Zeno guard) at the located state, with the
+ * sensitivities' jump when they run; fcc_ev_apply's return. */
+static int act(fcc_engine *e, fcc_rk4 *r, int k, double t)
+{
+    int j = k < 0 ? -1 - k : k, rc;
+    if (r->sens != NULL && fcc_sens_event_before(e, r->sens, j, r->q, r->v, t) < 0)
+        return -1;
+    rc = fcc_ev_apply(e, r->ev, k, r->q, r->v, t);
+    if (rc < 0)
+        return -1;
+    if (r->sens != NULL && fcc_sens_event_after(e, r->sens, j, rc, r->q, r->v, t) < 0)
+        return -1;
+    return rc;
+}
+
 /* After a step from t0 of size h (state projected): find the first event that
  * crossed, locate it, act, and integrate the rest of the step again; repeat (at most
  * 4 max_per_step times). ev->s0 holds the event values at the step's start. */
@@ -185,6 +200,7 @@ static int events(fcc_engine *e, fcc_rk4 *r, double t0, double h)
         }
         best = h;
         first = k;
+        fcc_ev_mark_crossed(ev);
         for (j = k; j < 2 * ne; j++) {           /* the earliest of those that crossed */
             if (j > k && !fcc_ev_watched(ev, j, ev->s0, ev->s1))   /* a held lock */
                 continue;
@@ -197,28 +213,28 @@ static int events(fcc_engine *e, fcc_rk4 *r, double t0, double h)
         }
         if (state_at(e, r, t0, best) < 0 || after_step(e, r) < 0)
             return -1;
-        count++;
         e->err_t = t0 + best;
-        if (r->sens != NULL
-                && fcc_sens_event_before(e, r->sens, first, r->q, r->v, t0 + best) < 0)
-            return -1;
-        rc = fcc_ev_apply(e, ev, count <= max_per_step ? first : -1 - first, r->q, r->v,
-                          t0 + best);
-        if (rc < 0)
-            return -1;
-        if (r->sens != NULL
-                && fcc_sens_event_after(e, r->sens, first, rc, r->q, r->v, t0 + best) < 0)
-            return -1;
-        count -= rc;                         /* an impact that was none does not count */
-        if (ev->stop) {
-            r->stopped = 1;
-            r->t_stop = t0 + best;
-            return 0;
+        fcc_ev_keep_start(ev, first);
+        for (j = first; j >= 0; j = fcc_ev_next_tie(ev)) {
+            count++;                         /* first, then the ties of its instant */
+            rc = act(e, r, count <= max_per_step ? j : -1 - j, t0 + best);
+            if (rc < 0)
+                return -1;
+            count -= rc;                     /* an impact that was none does not count */
+            if (ev->stop) {
+                r->stopped = 1;
+                r->t_stop = t0 + best;
+                return 0;
+            }
+            if (j == first) {
+                fcc_ev_refresh(ev, r->q);
+                if (fcc_ev_watch(e, ev, r->q, r->v, t0 + best, ev->s0) < 0)
+                    return -1;
+                ev->s0[first] = fcc_ev_leaving(ev, first, r->q, r->v, t0 + best);
+            }
         }
-        fcc_ev_refresh(ev, r->q);
-        if (fcc_ev_watch(e, ev, r->q, r->v, t0 + best, ev->s0) < 0)
+        if (fcc_ev_settle(e, ev, r->q, r->v, t0 + best, first, 1) < 0)
             return -1;
-        ev->s0[first] = fcc_ev_leaving(ev, first, r->q, r->v, t0 + best);
         t0 = t0 + best;
         h = h - best;
         memcpy(r->saved, r->q, (size_t)e->n * sizeof(double));

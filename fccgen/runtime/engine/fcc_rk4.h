@@ -40,8 +40,8 @@ typedef struct fcc_rk4 {
     double *w_out;
     double w, wsave;          /* W done so far; at the saved step start (events) */
     double p[4];              /* the stages' powers */
-    fcc_sens *sens;           /* forward sensitivities (NULL: none; needs project, no
-                                 events, the dense path; started by the caller) */
+    fcc_sens *sens;           /* forward sensitivities (NULL: none; needs project;
+                                 started by the caller) */
 } fcc_rk4;
 
 /* Start a run from (q0, v0) with the settings in r (the rest of r is set here): the

@@ -128,26 +128,55 @@ void fcc_sens_sweep(fcc_engine *e, fcc_sens *s, const double *q, const double *v
     }
 }
 
-/* lam of the stage's solve: B^T lam = f - h - M a (f, h, M assembled at the stage).
- * Returns 0 or -1 (the engine's error record filled). */
+void fcc_sens_sparse_multipliers(fcc_engine *e, const double *Q, const double *b,
+                                 double *x, double *lam, int warm)
+{
+    /* warm: from the last accelerations' multipliers (the stage's, when they
+     * converged), else from zero; lam: the refinement's last multipliers (an
+     * unconverged solve is counted as any) */
+    memcpy(lam, e->sp.lam_warm, (size_t)e->m * sizeof(double));
+    fcc_sp_kkt_solve_from(e, Q, NULL, b, x, lam, warm && e->sp.warm_valid, 0);
+    memcpy(lam, e->sp.lam, (size_t)e->m * sizeof(double));
+}
+
+/* (M a)_i on the dense path (M assembled), 0 on the sparse path (whose multipliers
+ * come from the blocks: fcc_sens_sparse_stage_lam). */
+static double Mv(const fcc_engine *e, const double *a, int i)
+{
+    const double *Mi;
+    double acc = 0.0;
+    int j, n = e->n;
+    if (e->sparse)
+        return 0.0;
+    Mi = e->asmb->M + (size_t)i * n;
+    for (j = 0; j < n; j++)
+        acc += Mi[j] * a[j];
+    return acc;
+}
+
+/* lam of the stage's solve: B^T lam = f - h - M a (f, h assembled at the stage; M
+ * too on the dense path, its blocks on the sparse path). Returns 0 or -1. */
 static int multipliers(fcc_engine *e, fcc_sens *s, const double *a)
 {
     const fcc_assembly *as = e->asmb;
-    int i, j, n = s->n;
-    double acc;
-    const double *Mi;
-    if (e->sparse && (i = fcc_sens_sparse_multipliers(e, s, a)) != 0)
-        return i > 0 ? 0 : -1;                 /* else: M, B gathered and factored */
-    for (i = 0; i < n; i++) {
-        Mi = as->M + (size_t)i * n;
-        acc = as->f[i] - as->h[i];
-        for (j = 0; j < n; j++)
-            acc -= Mi[j] * a[j];
-        s->r[i] = acc;
-    }
+    int i, n = s->n;
+    for (i = 0; i < n; i++)
+        s->r[i] = as->f[i] - as->h[i] - Mv(e, a, i);
     if (fcc_sens_rows(s) > 0)                  /* + G^T mu of the locked rows */
         fcc_sens_rows_force(s, s->r);
-    fcc_dense_multipliers(&e->sol, s->r, s->lam, s->y);
+    if (!e->sparse) {
+        fcc_dense_multipliers(&e->sol, s->r, s->lam, s->y);
+        return 0;
+    }
+    /* the sparse path, r = f - h (+ G^T mu): the acceleration solve's converged
+     * multipliers corrected once, else the stage's system again, M x + B^T lam = r,
+     * B x = -c, for its multipliers (x: the same a) */
+    i = fcc_sens_sparse_stage_lam(e, s, a);
+    if (i != 0)
+        return i > 0 ? 0 : -1;
+    for (i = 0; i < s->m; i++)
+        s->gp[i] = -as->c[i];
+    fcc_sens_sparse_multipliers(e, s->r, s->gp, s->y, s->lam, 1);
     return 0;
 }
 
@@ -158,30 +187,41 @@ static int bad(fcc_engine *e, const double *x, int n)
     return fcc_fail(e, FCC_ERR_NONFINITE_RESULT, 0, 0);
 }
 
+int fcc_sens_stage_begin(fcc_engine *e, fcc_sens *s, const double *a)
+{
+    if (fcc_sens_rows(s) > 0)                  /* the stage's rows' multipliers */
+        fcc_sens_keep_mu(s);
+    return multipliers(e, s, a);
+}
+
+int fcc_sens_stage_acc(fcc_engine *e, fcc_sens *s, int j, const double *q,
+                       const double *v, const double *a, const double *sq,
+                       const double *sv, double *sa)
+{
+    int rows = fcc_sens_rows(s);
+    fcc_sens_sweep(e, s, q, v, a, s->lam, sq, sv, s->dP + (size_t)j * s->model->n_p);
+    if (rows > 0)
+        fcc_sens_rows_rhs(s, q, sq);
+    if (fcc_sens_solve(e, s, s->rhs, NULL, s->b, sa) < 0)
+        return -1;
+    if (rows > 0 && fcc_sens_rows_acc(e, s, q, v, a, sq, sv, sa) < 0)
+        return -1;
+    return bad(e, sa, s->n) ? -1 : 0;
+}
+
 int fcc_sens_rk4_stage(fcc_engine *e, fcc_sens *s, int k, const double *q,
                        const double *v, const double *a)
 {
     static const int stage_q[4] = {SQ, SQS, SQS, SQS}, stage_v[4] = {SV, SV2, SV3, SV4};
-    int i, j, n = s->n, np_all = s->model->n_p;
+    int i, j, n = s->n;
     double h = s->h, h2 = 0.5 * h, h6 = h / 6.0;
-    int rows = fcc_sens_rows(s);
     double *sq, *sv, *sqs, *sa;
-    if (rows > 0)                              /* the stage's rows' multipliers */
-        fcc_sens_keep_mu(s);
-    if (multipliers(e, s, a) < 0)
+    if (fcc_sens_stage_begin(e, s, a) < 0)
         return -1;
     for (j = 0; j < s->np; j++) {
         sa = row(s, j, SA1 + k - 1);
-        sq = row(s, j, stage_q[k - 1]);
-        sv = row(s, j, stage_v[k - 1]);
-        fcc_sens_sweep(e, s, q, v, a, s->lam, sq, sv, s->dP + (size_t)j * np_all);
-        if (rows > 0)
-            fcc_sens_rows_rhs(s, q, sq);
-        if (fcc_sens_solve(e, s, s->rhs, NULL, s->b, sa) < 0)
-            return -1;
-        if (rows > 0 && fcc_sens_rows_acc(e, s, q, v, a, sq, sv, sa) < 0)
-            return -1;
-        if (bad(e, sa, n))
+        if (fcc_sens_stage_acc(e, s, j, q, v, a, row(s, j, stage_q[k - 1]),
+                               row(s, j, stage_v[k - 1]), sa) < 0)
             return -1;
         sq = row(s, j, SQ);
         sv = row(s, j, SV);

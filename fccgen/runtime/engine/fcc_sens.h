@@ -15,9 +15,9 @@
  *     s_q <- argmin |s_q' - s_q|_M  with  B s_q' = -(dg/dp) dP_j
  *     s_v <- argmin |s_v' - s_v|_M  with  B s_v' = -dPhi[s_q', dP_j],  Phi = B v + dg/dt
  *
- * Either path (the sparse path's solves and multipliers: fcc_sens_sparse.h; the event
- * rows of fcc_sens_events.c need the dense one). All work arrays come from
- * fcc_sens_init; every other call
+ * Either path (the sparse path's solves and stage multipliers: fcc_sens_sparse.h;
+ * its other multipliers by a solve: fcc_sens_sparse_multipliers). All work arrays
+ * come from fcc_sens_init; every other call
  * returns 0 or -1 with the engine's error record filled.
  */
 #ifndef FCC_SENS_H
@@ -51,6 +51,9 @@ typedef struct fcc_sens {
     double *dG, *G1, *G2;          /* nr x n: d(Jacobian of the rows) along s_q; work */
     double *rb1, *rb2;             /* 2 (nr + ne + 1), nr + ne + 1 numbers */
     double *vm, *am, *ap, *dv, *w, *x, *r0, *alpha;   /* n each (alpha: m + 1) */
+    double *sg1, *sg2;             /* ne x n: event gradients along s_q (a bounce) */
+    double *gk, *dgk, *wz, *vp;    /* n each: a bounce's gradient, its change, response,
+                                      plastic speeds */
 } fcc_sens;
 
 /* Allocate for np parameters of the model (dP: np x model->n_p numbers, kept by
@@ -68,6 +71,13 @@ void fcc_sens_begin_step(fcc_sens *s, double h);
  * parameter, then the next stage's sensitivities (after k = 4: the step's end). */
 int fcc_sens_rk4_stage(fcc_engine *e, fcc_sens *s, int k, const double *q,
                        const double *v, const double *a);
+/* Any method's stage at (q, v) with accelerations a (f, h, M, B and the factorisation
+ * assembled there, locked rows constrained): begin once (the stage's multipliers),
+ * then s_a of parameter j along the stage's (sq, sv) into sa. */
+int fcc_sens_stage_begin(fcc_engine *e, fcc_sens *s, const double *a);
+int fcc_sens_stage_acc(fcc_engine *e, fcc_sens *s, int j, const double *q,
+                       const double *v, const double *a, const double *sq,
+                       const double *sv, double *sa);
 /* The linearised projections at the projected (q, v), after fcc_project_velocities
  * (its factorisation held). */
 int fcc_sens_project(fcc_engine *e, fcc_sens *s, const double *q, const double *v);
@@ -83,6 +93,13 @@ double *fcc_sens_sv(const fcc_sens *s, int j);
 void fcc_sens_sweep(fcc_engine *e, fcc_sens *s, const double *q, const double *v,
                     const double *a, const double *lam, const double *sq,
                     const double *sv, const double *dPj);
+
+/* The sparse path's multipliers of a system the step's factorisation holds: lam (m)
+ * of M x + B^T lam = Q, B x = b (b NULL: 0), by the refinement (x: n numbers of
+ * work); warm: from the last accelerations' multipliers. (The dense path takes them
+ * from its QR of B: fcc_dense_multipliers.) */
+void fcc_sens_sparse_multipliers(fcc_engine *e, const double *Q, const double *b,
+                                 double *x, double *lam, int warm);
 
 /* Sensitivities through events (fcc_sens_events.c).
  *
@@ -102,7 +119,16 @@ void fcc_sens_sweep(fcc_engine *e, fcc_sens *s, const double *q, const double *v
  * projection of s adds them: G s_a = -d(G a + Gdot v)[s_q, s_v], G s_q = d(held),
  * G s_v = -dG[s_q] v (the rows' second derivatives by central differences of their
  * generated Jacobian and bias along s_q: O(eps^2), about 1e-10 relative).
- * Bounces, rests and releases are not carried (refused before a run). */
+ * bounce (restitution e_k, Newton's law along the response w to g = ds_k/dq): with
+ * v_p = v- + mu_p w the plastic impact onto B, the used rows and g (mu_p = -g v- /
+ * g w), v+ = (1 + e) v_p - e v-, so dv+ = (1 + e) dv_p - e dv-, dv_p the plastic
+ * impact's linearisation with g as one more row (its change dg[s_q] by central
+ * differences of the generated event gradients, as the rows'); q+ = q-. A bounce that
+ * rests (too slow, or the Zeno guard) is a lock of its row: the lock's jump.
+ * release (of a resting bounce): its function is the row's multiplier mu, so
+ * dte/dp = -dmu / (dmu/dt), dmu the stage's linearised multiplier along the total
+ * derivative (and dP), dmu/dt by central differences along the motion; then as an
+ * unlock. */
 /* Carry the sensitivities through ev's events; tout: cap x np (logged events).
  * Returns FCC_OK or FCC_ERR_MEMORY. */
 int fcc_sens_events_init(fcc_sens *s, struct fcc_events *ev, double *tout, long cap);

@@ -40,38 +40,25 @@ int fcc_sens_solve(fcc_engine *e, fcc_sens *s, const double *Q, const double *w,
 /* The acceleration solve's lambda is accurate to about RHO eps of itself only (its
  * last augmented-Lagrangian update multiplies the rounding of B x - b by alpha), which
  * the stages' dB[s_q]^T lambda would carry into s_a (4e-10 of the sensitivities on the
- * double pendulum). One correction removes it: r1 = f - h - M a - B^T lambda is formed
+ * double pendulum). One correction removes it: r1 = r - M a - B^T lambda is formed
  * directly (rounding of f, not alpha times rounding of B x) and M dx + B^T dlam = r1,
- * B dx = 0 solved the same way; dlam, itself about RHO eps of lambda, is accurate to
- * RHO eps of itself. One solve per stage, whatever the number of parameters. */
-static void correct(fcc_engine *e, fcc_sens *s, const double *a)
+ * B dx = 0 solved the same way, from zero; dlam, itself about RHO eps of lambda, is
+ * accurate to RHO eps of itself. One solve per stage, whatever the number of
+ * parameters. */
+int fcc_sens_sparse_stage_lam(fcc_engine *e, fcc_sens *s, const double *a)
 {
     int i, n = e->n;
-    fcc_sp_mult_m_full(e, a, s->r, 0);
-    memset(s->rhs, 0, (size_t)n * sizeof(double));
+    fcc_sparse *sp = &e->sp;
+    if (!sp->warm_valid)            /* the acceleration solve did not converge */
+        return 0;
+    memcpy(s->lam, sp->lam_warm, (size_t)e->m * sizeof(double));
+    fcc_sp_mult_m_full(e, a, s->rhs, 0);
     fcc_sp_mult_bt(e, s->lam, NULL, s->rhs);
     for (i = 0; i < n; i++)
-        s->r[i] = e->asmb->f[i] - e->asmb->h[i] - s->r[i] - s->rhs[i];
+        s->rhs[i] = s->r[i] - s->rhs[i];
     memset(s->b, 0, (size_t)e->m * sizeof(double));
-    if (fcc_sp_kkt_solve_from(e, s->r, NULL, NULL, s->y, s->b, 0, 0))
+    if (fcc_sp_kkt_solve_from(e, s->rhs, NULL, NULL, s->y, s->b, 0, 0))
         for (i = 0; i < e->m; i++)
             s->lam[i] += s->b[i];
-}
-
-int fcc_sens_sparse_multipliers(fcc_engine *e, fcc_sens *s, const double *a)
-{
-    fcc_sparse *sp = &e->sp;
-    if (sp->warm_valid) {           /* the acceleration solve converged: its lambda */
-        memcpy(s->lam, sp->lam_warm, (size_t)e->m * sizeof(double));
-        correct(e, s, a);
-        return 1;
-    }
-    /* It did not (redone densely when small enough): the dense multipliers of M and B
-     * gathered from the blocks, as that fallback. */
-    if (e->lapack == NULL || e->n > sp->dense_fallback_max)
-        return fcc_fail(e, FCC_ERR_NO_LAPACK, 0, 0);
-    fcc_sp_gather_dense(e);
-    if (fcc_dense_factor(&e->sol, e->asmb->M, e->asmb->B) != 0)
-        return fcc_fail(e, FCC_ERR_SINGULAR, 0, 0);
-    return 0;
+    return 1;
 }

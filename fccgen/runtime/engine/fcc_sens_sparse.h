@@ -21,10 +21,10 @@
  * the sparse path w or b is not zero where its view leaves them out. */
 int fcc_sens_solve(fcc_engine *e, fcc_sens *s, const double *Q, const double *w,
                    const double *b, double *x);
-/* The sparse path: s->lam of the stage (a: its accelerations) after
- * fcc_sp_accelerations, corrected once (fcc_sens_sparse.c). Returns 1 when
- * done, 0 when the dense multipliers from the gathered M and B are to be taken (the
- * acceleration solve did not converge and was redone densely), -1 on an error. */
-int fcc_sens_sparse_multipliers(fcc_engine *e, fcc_sens *s, const double *a);
+/* The sparse path: s->lam of the stage (a: its accelerations; s->r: f - h (+ G^T mu)
+ * on entry) after fcc_sp_accelerations, the converged multipliers of that solve
+ * corrected once (fcc_sens_sparse.c). Returns 1 when done, 0 when that solve did not
+ * converge (the caller solves the stage's system again: fcc_sens_sparse_multipliers). */
+int fcc_sens_sparse_stage_lam(fcc_engine *e, fcc_sens *s, const double *a);
 
 #endif

@@ -102,6 +102,8 @@ typedef struct fcc_sparse {
     int cg_max, refine_max, al_max;
     double rho;
     int cg_steps;
+    double x_floor;             /* the stop tests' floor under |x| (0: none) */
+    double v_peak;              /* largest max |v_i| a velocity projection met */
     /* the sparse engine (fcc_sparse_engine.c, fcc_sparse_watch.c) */
     int n_track;                /* tracked null-space directions (0: no watch) */
     double *track;              /* n x FCC_TRACK_MAX: their orthonormal basis N */

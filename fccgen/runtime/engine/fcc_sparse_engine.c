@@ -40,6 +40,21 @@
  * decided rank") take exact steps only, whose solves fall back to the dense path's
  * treatment of those rows.
  *
+ * The velocity projection's floor. The refinement's stop tests are relative to |x|
+ * (fcc_al_refine.c); for the velocity projection they are relative to the larger of
+ * |w| and the largest max |v_i| the run's velocity projections met, this one's input
+ * included (reset at each run's rank decision, so a run never depends on an earlier
+ * one). Every velocity of a run descends from those through RK updates, impulses and
+ * projections, each of which rounds at the scale of its operands: the velocities carry
+ * an absolute error of about eps times that peak whatever their size now, and so does
+ * the projection's right-hand side M v. Where the projection's result is far below
+ * the peak, a change relative to it alone is that rounding: a boom latched at 0 DOF
+ * projects velocities of 1e-17 m/s (it deployed at 1 m/s) whose components along its
+ * weak constraint directions converge at 0.02 per augmented-Lagrangian step, and met
+ * the relative test after eight steps and a conjugate-gradient correction (a third
+ * of the locked step), two with the floor. Where |w| is the run's scale, the floor
+ * changes nothing. The acceleration and Newton solves keep their relative tests.
+ *
  * A solve whose refinement did not converge (constraints so ill-conditioned that the
  * conjugate-gradient corrections run out of steps) is counted, and redone by the dense
  * path's solve (pivoted QR of B at the decided rank, fcc_dense.c) on M and B gathered
@@ -248,6 +263,18 @@ static void watch_kinetic_energy(fcc_engine *e, const double *v, const double *w
     fcc_note_energy_cut(e, before, cut);
 }
 
+/* The velocity projection's floor under |w| in the refinement's stop tests
+ * (fcc_al_refine.c): the largest max |v_i| the run's velocity projections met, this
+ * one's input included (file docstring, "The velocity projection's floor"). */
+static double velocity_floor(fcc_engine *e, const double *v)
+{
+    int i;
+    for (i = 0; i < e->n; i++)
+        if (fabs(v[i]) > e->sp.v_peak)
+            e->sp.v_peak = fabs(v[i]);
+    return e->sp.v_peak;
+}
+
 int fcc_sp_project_velocities(fcc_engine *e, const double *q, double *v, int have_B)
 {
     fcc_sparse *s = &e->sp;
@@ -259,7 +286,9 @@ int fcc_sp_project_velocities(fcc_engine *e, const double *q, double *v, int hav
         fcc_sp_mult_m(e, v, s->mv, 0);
     else                                       /* M v whole: v moves pinned coordinates */
         fcc_sp_mult_m_full(e, v, s->mv, 0);
+    s->x_floor = velocity_floor(e, v);
     fcc_sp_solve_kkt(e, s->mv, NULL, e->nb, e->vtmp, 0, 0);
+    s->x_floor = 0.0;
     if (fcc_check_result(e, q, v, e->vtmp, FCC_ASM_M | FCC_ASM_B) < 0)
         return -1;
     watch_kinetic_energy(e, v, e->vtmp);

@@ -118,6 +118,7 @@ void fcc_sparse_reset_stats(fcc_engine *e)
     fcc_sparse *s = &e->sp;
     s->n_factor = s->n_solves = s->n_iterations = s->n_unconverged = 0;
     s->n_beyond_rank = 0;
+    s->v_peak = 0.0;
     s->n_fallback = 0;
     s->n_chord = s->n_chord_undone = 0;
     e->sol.n_drop = 0;

@@ -6,9 +6,9 @@ positions, stiffnesses, dampings, free lengths, load values, gravity, cable
 properties, initial speeds) has exact derivatives from one forward difference of any
 size: dP = (P(x + d) - P(x)) / d for the elements' parameters P and the consistent
 start (q0, v0). The difference is taken twice (d and 2 d); if the two disagree past
-rounding, the key is not affine (a geometry key: points, directions, lengths of
-distance constraints move the assembled start and enter the kernels through l, alpha,
-beta) and is refused with a sentence.
+rounding, the key is not affine and is refused with a sentence. Geometry keys (points,
+load points, distance constraints' lengths) enter nonlinearly and move the assembled
+start: fccgen.runtime.sensitivity.geometry.
 """
 from __future__ import annotations
 
@@ -16,6 +16,7 @@ import numpy as np
 
 from ...errors import ModelError
 from ..params import _target, split_key, value_of
+from .geometry import geometry_direction, kind
 
 RUN_SETTINGS = ("t_end", "dt", "output_dt")
 # The relative size of the difference: large, so that rounding (eps |P| / d) is small.
@@ -52,11 +53,8 @@ def _numbers(solver, key: str, x: float):
 
 
 NOT_LINEAR = (
-    "the model's numbers are not linear in this key (a geometry key: it enters the "
-    "kernels through the bodies' lengths and angles); sensitivities to geometry are not "
-    "supported yet",
-    "the assembled start is not linear in this key (a geometry key: it moves the points "
-    "the start is assembled from); sensitivities to geometry are not supported yet",
+    "the model's numbers are not linear in this key, as a key of this kind must be",
+    "the assembled start is not linear in this key, as a key of this kind must be",
     "the initial speeds depend on this key nonlinearly (speeds that the constraints and "
     "the given joint rates leave free are chosen in the kinetic-energy metric); give "
     "initial speeds the constraints allow, or joint rates for every freedom")
@@ -90,7 +88,8 @@ def _time_mask(plan) -> np.ndarray:
 def directions(solver, keys) -> tuple[np.ndarray, np.ndarray]:
     """(dP, S0): dP[j] the elements' parameters' derivative with respect to keys[j]
     (n_p numbers), S0[j] = [dq0/dp_j; dv0/dp_j]. ModelError for a key that names
-    nothing settable, a run setting, a structural zero, or a geometry key."""
+    nothing settable, a run setting, a structural zero, or a geometry key that
+    fccgen.runtime.sensitivity.geometry refuses."""
     model = solver.plan.model
     base = _numbers(solver, keys[0], current_value(model, keys[0])) if keys else None
     mask = _time_mask(solver.plan)
@@ -100,6 +99,11 @@ def directions(solver, keys) -> tuple[np.ndarray, np.ndarray]:
         if not np.isfinite(x):
             raise ModelError(model.source, None, key, "the component index is too large",
                              show_value=False)
+        if kind(key) is not None:
+            one_dP, one_S0 = geometry_direction(solver, key, x, mask)
+            dP.append(one_dP)
+            S0.append(one_S0)
+            continue
         one, two, d = _shifted(solver, model, key, x)
         d1 = [(a - b) / d for a, b in zip(one, base)]
         d2 = [(a - b) / (2 * d) for a, b in zip(two, base)]

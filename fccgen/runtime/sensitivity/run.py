@@ -1,8 +1,8 @@
 """A run with forward sensitivities: the checks, the set-up (fccgen.runtime.sensitivity.
 parameters, the parameter-derivative module) and the sensitivities' columns.
 
-The engine carries d(q, v)/dp through RK4's own stages and the linearised
-projections (engine/fcc_sens.h); this module turns the records into
+The engine carries d(q, v)/dp through the stages of RK4 or DOPRI5 (engine/fcc_sens.h,
+fcc_sens_dopri5.h) and the linearised projections; this module turns the records into
 ``d(<column>)/d(<key>)`` for the coordinate and speed columns and, by the chain rule
 through the same output functions, for every other column of the state.
 """
@@ -11,13 +11,17 @@ from __future__ import annotations
 
 from ...errors import ModelError
 from .columns import column_name, column_sensitivities
+from .geometry import kind as geometry_kind
 from .parameters import directions
 
 
 # The event actions whose jumps the engine carries the sensitivities through
 # (engine/fcc_sens_events.c).
-CARRIED = ("stop", "log", "lock", "unlock")
+# A bounce carries its rests (its row's lock) and releases (engine/fcc_sens.h).
+CARRIED = ("stop", "log", "lock", "unlock", "bounce")
 TIME_KEY = "d(time)/d({})"
+# The methods that carry them (engine/fcc_rk4.c, fcc_dopri5.c).
+METHODS = ("rk4", "dopri5")
 
 
 def split_keys(keys) -> list[str]:
@@ -28,9 +32,11 @@ def split_keys(keys) -> list[str]:
     return [str(k).strip() for k in keys if str(k).strip()]
 
 
-def check_request(solver, keys, method: str, project: bool) -> list[str]:
+def check_request(solver, keys, method: str, project: bool,
+                  error_control=None) -> list[str]:
     """The keys as a list of strings, or ModelError / ValueError saying what cannot be
-    done (and why) before anything runs."""
+    done (and why) before anything runs. error_control: the ``sensitivity_error``
+    option (None: not given; dopri5 only)."""
     model = solver.plan.model
     keys = split_keys(keys)
     if not keys:
@@ -38,61 +44,90 @@ def check_request(solver, keys, method: str, project: bool) -> list[str]:
                          "(e.g. bodies.arm.mass)")
     if len(set(keys)) != len(keys):
         raise ValueError(f"sensitivities: a key is named twice: {', '.join(keys)}")
-    if method != "rk4":
-        raise ValueError(f"sensitivities are integrated by the rk4 method (the model's "
-                         f"or method='rk4'), not by {method}")
+    if method not in METHODS:
+        raise ValueError(f"sensitivities are integrated by the rk4 or dopri5 method (the "
+                         f"model's, or method='rk4' or 'dopri5'), not by {method}")
+    if error_control is not None and method != "dopri5":
+        raise ValueError("sensitivity_error puts the sensitivities into dopri5's error "
+                         f"control; {method} has none (its steps are dt)")
+    if error_control is not None and not isinstance(error_control, bool):
+        raise ValueError(f"sensitivity_error must be True or False, not {error_control!r}")
     if not project:
-        raise ValueError("sensitivities need the projected rk4 (project=True)")
+        raise ValueError(f"sensitivities need the projected {method} (project=True)")
+    if method == "dopri5" and solver.linear_solver == "sparse":
+        raise ValueError("dopri5 carries sensitivities on the dense path only; load the "
+                         "model with linear_solver='auto' or 'dense', or use rk4 on the "
+                         "sparse path")
+    if solver.linear_solver == "sparse":
+        moved = [key for key in keys if geometry_kind(key) is not None]
+        if moved:
+            # a geometry key can move coordinates the sparse path holds fixed (a planar
+            # model's pinned out-of-plane coordinates), whose change its solves leave out
+            raise ValueError(f"sensitivities to geometry ({', '.join(moved)}) run on the "
+                             "dense path only; load the model with linear_solver='auto' "
+                             "or 'dense'")
     for k, event in enumerate(model.events):
         if event.action not in CARRIED:
             raise ModelError(model.source, event.where.line, f"events[{k}] ({event.name})",
                              f"sensitivities are carried through {', '.join(CARRIED)} "
-                             f"events, not through a {event.action} (the impact's and the "
-                             "rest's jumps are not derived yet; joint limits are bounces)",
+                             f"events, not through a {event.action}",
                              show_value=False)
-    if solver.linear_solver == "sparse" and dense_reason(solver):
-        raise ValueError(f"sensitivities of this model run on the dense path: "
-                         f"{dense_reason(solver)}; load the solver with "
-                         f"linear_solver='dense' or 'auto'")
+        if event.action == "bounce" and solver.linear_solver == "sparse":
+            # the impact's, rest's and release's jumps (engine/fcc_sens_events.c)
+            # take the dense path's mass matrix and multipliers
+            raise ModelError(model.source, event.where.line, f"events[{k}] ({event.name})",
+                             "sensitivities are carried through a bounce (a joint "
+                             "limit) on the dense path only; load the model with "
+                             "linear_solver='auto' or 'dense'", show_value=False)
     return keys
 
 
-# The event actions whose sensitivities need the dense path (engine/fcc_sens_events.c:
-# the locked rows' stage and projection terms are formed with the dense M and B).
-DENSE_ACTIONS = ("lock", "unlock")
-
-
-def dense_reason(solver) -> str | None:
-    """Why a run with sensitivities of a solver on the sparse path takes the dense
-    path instead, or None (it stays on the sparse path)."""
-    actions = sorted({ev.action for ev in solver.plan.model.events} & set(DENSE_ACTIONS))
-    if actions:
-        return (f"the model's {' and '.join(actions)} events carry their sensitivities "
-                "with the dense matrices M and B")
+def dense_reason(solver, keys, method: str) -> str | None:
+    """Why a run with sensitivities of a solver whose own path is the sparse one
+    takes the dense path instead (under linear_solver="auto"; "sparse" refuses these:
+    check_request), or None (it stays on the sparse path)."""
+    if method == "dopri5":
+        return "dopri5 carries sensitivities on the dense path only"
+    moved = [key for key in keys if geometry_kind(key) is not None]
+    if moved:
+        return (f"sensitivities to geometry ({', '.join(moved)}) can move coordinates "
+                "the sparse path holds fixed")
+    if any(ev.action == "bounce" for ev in solver.plan.model.events):
+        return "the model's bounce events carry their sensitivities with the dense M"
     return None
 
 
-def on_sparse(solver) -> bool:
-    """Whether a run of ``solver`` with sensitivities takes the sparse path (the
-    solver's own path is the sparse one and nothing needs the dense matrices)."""
-    return bool(solver.sparse) and dense_reason(solver) is None
+def on_sparse(solver, keys, method: str) -> bool:
+    """Whether a run of ``solver`` with sensitivities to ``keys`` by ``method`` takes
+    the sparse path (the solver's own path is the sparse one and nothing needs the
+    dense matrices)."""
+    return bool(solver.sparse) and dense_reason(solver, keys, method) is None
 
 
-def engine_for(solver):
+def engine_for(solver, keys, method: str):
     """The engine a run with sensitivities takes (on_sparse: the solver's own)."""
-    return solver._engine if on_sparse(solver) else solver.dense_engine()
+    return solver._engine if on_sparse(solver, keys, method) else solver.dense_engine()
 
 
-def setup(solver, keys, build_dir):
+def setup(solver, keys, build_dir, method: str = "rk4"):
     """The engine's Sensitivities for ``keys`` (checked) of ``solver``."""
     from .._sens import Sensitivities
     from .build import load_dp
     dP, S0 = directions(solver, keys)
     module = load_dp(solver.plan, build_dir)
-    return Sensitivities(engine_for(solver).asm, module, dP, S0)
+    return Sensitivities(engine_for(solver, keys, method).asm, module, dP, S0)
 
 
-def attach(solver, result, keys, sens) -> None:
+def error_scale(solver, keys) -> list[float]:
+    """Each parameter's size for dopri5's error control of the sensitivities (the
+    tolerance of d(state)/dp_j is atol / size: p_j dq/dp_j is measured like q):
+    |value|, or 1 for a parameter that is 0."""
+    from .parameters import current_value
+    model = solver.plan.model
+    return [abs(current_value(model, key)) or 1.0 for key in keys]
+
+
+def attach(solver, result, keys, sens, method: str = "rk4") -> None:
     """Add the columns ``d(<column>)/d(<key>)`` of every column of the state and key
     (fccgen.runtime.sensitivity.columns) to ``result``; ``info["sensitivities"]``: the keys."""
     records = sens.records
@@ -119,9 +154,10 @@ def attach(solver, result, keys, sens) -> None:
             for j, key in enumerate(keys):
                 row[TIME_KEY.format(key)] = float(rows[i, j])
     result.info["sensitivities"] = list(keys)
-    result.info["sensitivity_path"] = "sparse" if on_sparse(solver) else "dense"
-    if solver.sparse and not on_sparse(solver):
+    sparse = on_sparse(solver, keys, method)
+    result.info["sensitivity_path"] = "sparse" if sparse else "dense"
+    if solver.sparse and not sparse:
         result.info["sensitivity_path_note"] = (
             f"the run took the dense path although the model's own path is the sparse "
-            f"one: {dense_reason(solver)}")
+            f"one: {dense_reason(solver, keys, method)}")
     result.info["sensitivity_column_error"] = worst

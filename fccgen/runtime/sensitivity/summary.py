@@ -9,9 +9,11 @@ import numpy as np
 def summary(result, out=None) -> str:
     """The lines the command prints for ``result`` (written to ``out`` if given)."""
     keys = result.info["sensitivities"]
-    lines = [f"rk4: {result.info.get('steps')} steps to t = {result.t[-1]:.6g} with the "
-             f"sensitivities to {', '.join(keys)} in "
-             f"{result.info.get('wall_time', 0.0):.3g} s"]
+    control = (" (in the error control)" if result.info.get("sensitivity_error_control")
+               else "")
+    lines = [f"{result.info.get('method', 'rk4')}: {result.info.get('steps')} steps to "
+             f"t = {result.t[-1]:.6g} with the sensitivities to {', '.join(keys)}{control} "
+             f"in {result.info.get('wall_time', 0.0):.3g} s"]
     for key in keys:
         cols = [c for c in result.names if not c.startswith("d(")
                 and f"d({c})/d({key})" in result.columns]
