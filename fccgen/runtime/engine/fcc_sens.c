@@ -34,7 +34,8 @@ int fcc_sens_init(fcc_sens *s, const fcc_model *model, const fcc_dp_table *dp, i
     s->np = np;
     s->dP = dP;
     total = (size_t)np * N_ROWS * (size_t)n + 4 * (size_t)n + 5 * (size_t)(m + 1)
-            + 5 * (size_t)L + (size_t)(G + 1) + (size_t)(L + 3 * G + 1);
+            + 5 * (size_t)L + (size_t)(G + 1) + (size_t)(L + 3 * G + 1)
+            + (size_t)np * (size_t)(m + 1);
     s->S = calloc(total, sizeof(double));
     if (s->S == NULL)
         return FCC_ERR_MEMORY;
@@ -53,6 +54,7 @@ int fcc_sens_init(fcc_sens *s, const fcc_model *model, const fcc_dp_table *dp, i
     s->lsv = s->lsq + L;
     s->llam = s->lsv + L;
     s->lout = s->llam + G + 1;
+    s->warm = s->lout + L + 3 * G + 1;
     return FCC_OK;
 }
 
@@ -202,7 +204,8 @@ int fcc_sens_stage_acc(fcc_engine *e, fcc_sens *s, int j, const double *q,
     fcc_sens_sweep(e, s, q, v, a, s->lam, sq, sv, s->dP + (size_t)j * s->model->n_p);
     if (rows > 0)
         fcc_sens_rows_rhs(s, q, sq);
-    if (fcc_sens_solve(e, s, s->rhs, NULL, s->b, sa) < 0)
+    if (fcc_sens_solve_from(e, s, s->rhs, s->b, sa,
+                            s->warm + (size_t)j * (size_t)(s->m + 1)) < 0)
         return -1;
     if (rows > 0 && fcc_sens_rows_acc(e, s, q, v, a, sq, sv, sa) < 0)
         return -1;

@@ -37,6 +37,8 @@ typedef struct fcc_sens {
     double *S;                     /* per p_j, 10 n: sq sv sqs sv2 sv3 sv4 sa1..sa4 */
     double *lam, *r, *rhs, *b, *gp, *phi, *y, *zero;   /* work */
     double *lq, *lv, *la, *lsq, *lsv, *llam, *lout;    /* an element's */
+    double *warm;                  /* np x (m + 1): the sparse path's last multipliers of
+                                      p_j's stage solve, [m]: 1 when they converged */
     double h;                      /* the step being taken */
     /* events (fcc_sens_events.c; all NULL/0 without fcc_sens_events_init) */
     struct fcc_events *ev;         /* the run's events (not owned) */

@@ -37,6 +37,23 @@ int fcc_sens_solve(fcc_engine *e, fcc_sens *s, const double *Q, const double *w,
     return 0;
 }
 
+int fcc_sens_solve_from(fcc_engine *e, fcc_sens *s, const double *Q, const double *b,
+                        double *x, double *lam_io)
+{
+    int m = e->m;
+    if (!e->sparse)
+        return fcc_sens_solve(e, s, Q, NULL, b, x);
+    if (!unread(b, m, e->sp.pat->fixed_rows, e->sp.pat->n_fixed_rows))
+        return fcc_fail(e, FCC_ERR_ARGUMENT, 0, 1);
+    if (fcc_sp_kkt_solve_from(e, Q, NULL, b, x, lam_io, lam_io[m] != 0.0, 0)) {
+        lam_io[m] = 1.0;
+        return 0;
+    }
+    lam_io[m] = 0.0;                   /* not converged: from zero, else densely */
+    fcc_solve_constrained(e, Q, NULL, b, x);
+    return 0;
+}
+
 /* The acceleration solve's lambda is accurate to about RHO eps of itself only (its
  * last augmented-Lagrangian update multiplies the rounding of B x - b by alpha), which
  * the stages' dB[s_q]^T lambda would carry into s_a (4e-10 of the sensitivities on the
