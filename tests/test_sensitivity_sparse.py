@@ -126,3 +126,21 @@ def test_auto_takes_the_dense_path_where_it_must(paths, build_dir):
                       reactions=False, sensitivities=["bodies.a1.mass"])
     assert r.info["sensitivity_path"] == "dense"
     assert "dopri5" in r.info["sensitivity_path_note"]
+
+
+def test_linear_directions_are_found_once_per_solver(paths, monkeypatch):
+    """A second call's linear keys come from the solver's own record, equal to the
+    first; another solver (with_parameters) finds its own."""
+    from fccgen.runtime.sensitivity import parameters
+    solver = paths("boom")[0]
+    first = parameters.directions(solver, BOOM_KEYS)
+
+    def refused(*args):
+        raise AssertionError("the directions were found again")
+    monkeypatch.setattr(parameters, "_shifted", refused)
+    again = parameters.directions(solver, BOOM_KEYS[::-1])
+    assert np.array_equal(again[0], first[0][::-1])
+    assert np.array_equal(again[1], first[1][::-1])
+    other = solver.with_parameters({"bodies.a1.mass": 2.0})
+    with pytest.raises(AssertionError, match="found again"):
+        parameters.directions(other, BOOM_KEYS[:1])
