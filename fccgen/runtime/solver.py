@@ -367,7 +367,7 @@ class CompiledSolver:
         """One run (:meth:`simulate`) with the inputs set (``held``); keys: the
         parameters of its sensitivities (checked), or None; sens_error: dopri5's error
         control includes them."""
-        sens = sens_scale = None
+        sens = sens_scale = sens_engine = None
         if keys is not None:
             from .sensitivity import run as sensitivity_run
         self.set_time(0.0)
@@ -378,19 +378,22 @@ class CompiledSolver:
         project = bool(project) and m.projects
         if keys is not None:
             from .params import module_directory
-            sens = sensitivity_run.setup(self, keys, module_directory(self.module).parents[1])
+            sens = sensitivity_run.setup(self, keys, module_directory(self.module).parents[1],
+                                         m.name)
+            sens_engine = sensitivity_run.engine_for(self, keys, m.name)
             if sens_error:
                 sens_scale = sensitivity_run.error_scale(self, keys)
         report = run_reporter(progress, sched.t_end)
         events = self._event_set(event_tol, rest_speed)
         self._event_inputs(events, held)
         tracker, untracked = work_tracker(self.plan, self.module, m.name,
-                                          self.sparse and keys is None)
+                                          self.sparse and (sens_engine is None or
+                                                           sens_engine is self._engine))
         kept = {}
 
         def run():
             arrays, stats = self._run(m, sched, opts, project, q0, v0, report, events,
-                                      tracker, held, sens, sens_scale)
+                                      tracker, held, sens, sens_scale, sens_engine)
             kept["work"] = arrays.get("work") if tracker is not None else None
             return arrays, stats
         try:
@@ -423,7 +426,7 @@ class CompiledSolver:
         add_driver_columns(self, result)
         check_driver_branches(self.plan, result)
         used = self.dense_engine() if m.name == "ali3p" else (
-            self._engine if sens is None else sensitivity_run.engine(self))
+            self._engine if sens is None else sens_engine)
         stats = used.rank_statistics()
         rank_rule.report_run(result, decision, stats,
                              driven=bool(driver_rows(self.plan)))
@@ -435,7 +438,7 @@ class CompiledSolver:
                      kinetic_peak(self, result, stats.get("kinetic_energy_peak")),
                      kept.get("work"), untracked)
         if sens is not None:
-            sensitivity_run.attach(self, result, keys, sens)
+            sensitivity_run.attach(self, result, keys, sens, m.name)
             if m.name == "dopri5":
                 result.info["sensitivity_error_control"] = bool(sens_error)
         return add_reactions(self, result) if reactions else result
@@ -592,15 +595,12 @@ class CompiledSolver:
         return q0, v0
 
     def _run(self, m, sched, opts, project, q0, v0, report, events=None, work=None,
-             held=None, sens=None, sens_scale=None):
+             held=None, sens=None, sens_scale=None, sens_engine=None):
         """(arrays, stats) of one run of method m (held: inputs that change over the
         run, fccgen.runs.inputs; rk4 and baumgarte only; sens: rk4's or dopri5's
-        sensitivities; sens_scale: the parameters' sizes for dopri5's error control of
-        them, None: not controlled)."""
-        s, e = sched, self._engine
-        if sens is not None:
-            from .sensitivity.run import engine
-            e = engine(self)
+        sensitivities, carried by sens_engine; sens_scale: the parameters' sizes for
+        dopri5's error control of them, None: not controlled)."""
+        s, e = sched, (self._engine if sens is None else sens_engine)
         held = None if held is None or held.constant or not (
             len(held.slots) or len(held.event_slots)) else (
             held.slots, held.columns, held.table, held.event_slots, held.event_columns)

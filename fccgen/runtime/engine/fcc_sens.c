@@ -5,6 +5,7 @@
 #include <string.h>
 
 #include "fcc_sens.h"
+#include "fcc_sens_sparse.h"
 
 enum { SQ, SV, SQS, SV2, SV3, SV4, SA1, SA2, SA3, SA4, N_ROWS };
 
@@ -33,7 +34,8 @@ int fcc_sens_init(fcc_sens *s, const fcc_model *model, const fcc_dp_table *dp, i
     s->np = np;
     s->dP = dP;
     total = (size_t)np * N_ROWS * (size_t)n + 4 * (size_t)n + 5 * (size_t)(m + 1)
-            + 5 * (size_t)L + (size_t)(G + 1) + (size_t)(L + 3 * G + 1);
+            + 5 * (size_t)L + (size_t)(G + 1) + (size_t)(L + 3 * G + 1)
+            + (size_t)np * (size_t)(m + 1);
     s->S = calloc(total, sizeof(double));
     if (s->S == NULL)
         return FCC_ERR_MEMORY;
@@ -52,6 +54,7 @@ int fcc_sens_init(fcc_sens *s, const fcc_model *model, const fcc_dp_table *dp, i
     s->lsv = s->lsq + L;
     s->llam = s->lsv + L;
     s->lout = s->llam + G + 1;
+    s->warm = s->lout + L + 3 * G + 1;
     return FCC_OK;
 }
 
@@ -139,7 +142,7 @@ void fcc_sens_sparse_multipliers(fcc_engine *e, const double *Q, const double *b
 }
 
 /* (M a)_i on the dense path (M assembled), 0 on the sparse path (whose multipliers
- * solve the stage's system again). */
+ * come from the blocks: fcc_sens_sparse_stage_lam). */
 static double Mv(const fcc_engine *e, const double *a, int i)
 {
     const double *Mi;
@@ -154,8 +157,8 @@ static double Mv(const fcc_engine *e, const double *a, int i)
 }
 
 /* lam of the stage's solve: B^T lam = f - h - M a (f, h assembled at the stage; M
- * too on the dense path, its blocks on the sparse path). */
-static void multipliers(fcc_engine *e, fcc_sens *s, const double *a)
+ * too on the dense path, its blocks on the sparse path). Returns 0 or -1. */
+static int multipliers(fcc_engine *e, fcc_sens *s, const double *a)
 {
     const fcc_assembly *as = e->asmb;
     int i, n = s->n;
@@ -165,13 +168,18 @@ static void multipliers(fcc_engine *e, fcc_sens *s, const double *a)
         fcc_sens_rows_force(s, s->r);
     if (!e->sparse) {
         fcc_dense_multipliers(&e->sol, s->r, s->lam, s->y);
-        return;
+        return 0;
     }
-    /* the sparse path: r = f - h (+ G^T mu); the stage's system again,
-     * M x + B^T lam = r, B x = -c, for its multipliers (x: the same a) */
+    /* the sparse path, r = f - h (+ G^T mu): the acceleration solve's converged
+     * multipliers corrected once, else the stage's system again, M x + B^T lam = r,
+     * B x = -c, for its multipliers (x: the same a) */
+    i = fcc_sens_sparse_stage_lam(e, s, a);
+    if (i != 0)
+        return i > 0 ? 0 : -1;
     for (i = 0; i < s->m; i++)
         s->gp[i] = -as->c[i];
     fcc_sens_sparse_multipliers(e, s->r, s->gp, s->y, s->lam, 1);
+    return 0;
 }
 
 static int bad(fcc_engine *e, const double *x, int n)
@@ -181,11 +189,11 @@ static int bad(fcc_engine *e, const double *x, int n)
     return fcc_fail(e, FCC_ERR_NONFINITE_RESULT, 0, 0);
 }
 
-void fcc_sens_stage_begin(fcc_engine *e, fcc_sens *s, const double *a)
+int fcc_sens_stage_begin(fcc_engine *e, fcc_sens *s, const double *a)
 {
     if (fcc_sens_rows(s) > 0)                  /* the stage's rows' multipliers */
         fcc_sens_keep_mu(s);
-    multipliers(e, s, a);
+    return multipliers(e, s, a);
 }
 
 int fcc_sens_stage_acc(fcc_engine *e, fcc_sens *s, int j, const double *q,
@@ -196,7 +204,9 @@ int fcc_sens_stage_acc(fcc_engine *e, fcc_sens *s, int j, const double *q,
     fcc_sens_sweep(e, s, q, v, a, s->lam, sq, sv, s->dP + (size_t)j * s->model->n_p);
     if (rows > 0)
         fcc_sens_rows_rhs(s, q, sq);
-    fcc_solve_constrained(e, s->rhs, NULL, s->b, sa);
+    if (fcc_sens_solve_from(e, s, s->rhs, s->b, sa,
+                            s->warm + (size_t)j * (size_t)(s->m + 1)) < 0)
+        return -1;
     if (rows > 0 && fcc_sens_rows_acc(e, s, q, v, a, sq, sv, sa) < 0)
         return -1;
     return bad(e, sa, s->n) ? -1 : 0;
@@ -209,7 +219,8 @@ int fcc_sens_rk4_stage(fcc_engine *e, fcc_sens *s, int k, const double *q,
     int i, j, n = s->n;
     double h = s->h, h2 = 0.5 * h, h6 = h / 6.0;
     double *sq, *sv, *sqs, *sa;
-    fcc_sens_stage_begin(e, s, a);
+    if (fcc_sens_stage_begin(e, s, a) < 0)
+        return -1;
     for (j = 0; j < s->np; j++) {
         sa = row(s, j, SA1 + k - 1);
         if (fcc_sens_stage_acc(e, s, j, q, v, a, row(s, j, stage_q[k - 1]),
@@ -254,14 +265,16 @@ int fcc_sens_project(fcc_engine *e, fcc_sens *s, const double *q, const double *
         /* positions: gp = -(dg/dp) dP_j does not depend on the direction's q part */
         fcc_sens_sweep(e, s, q, v, s->zero, s->zero, s->zero, s->zero,
                        s->dP + (size_t)j * np_all);
-        fcc_solve_constrained(e, NULL, sq, s->gp, s->y);
+        if (fcc_sens_solve(e, s, NULL, sq, s->gp, s->y) < 0)
+            return -1;
         memcpy(sq, s->y, (size_t)n * sizeof(double));
         if (fcc_sens_rows(s) > 0 && fcc_sens_rows_positions(e, s, j, q, sq) < 0)
             return -1;
         /* speeds: phi = -dPhi[s_q, dP_j] with the projected s_q */
         fcc_sens_sweep(e, s, q, v, s->zero, s->zero, sq, s->zero,
                        s->dP + (size_t)j * np_all);
-        fcc_solve_constrained(e, NULL, sv, s->phi, s->y);
+        if (fcc_sens_solve(e, s, NULL, sv, s->phi, s->y) < 0)
+            return -1;
         memcpy(sv, s->y, (size_t)n * sizeof(double));
         if (fcc_sens_rows(s) > 0 && fcc_sens_rows_speeds(e, s, q, v, sq, sv) < 0)
             return -1;

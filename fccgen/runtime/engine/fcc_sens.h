@@ -15,8 +15,9 @@
  *     s_q <- argmin |s_q' - s_q|_M  with  B s_q' = -(dg/dp) dP_j
  *     s_v <- argmin |s_v' - s_v|_M  with  B s_v' = -dPhi[s_q', dP_j],  Phi = B v + dg/dt
  *
- * Both paths (the sparse one takes the multipliers by a solve:
- * fcc_sens_sparse_multipliers). All work arrays come from fcc_sens_init; every other call
+ * Either path (the sparse path's solves and stage multipliers: fcc_sens_sparse.h;
+ * its other multipliers by a solve: fcc_sens_sparse_multipliers). All work arrays
+ * come from fcc_sens_init; every other call
  * returns 0 or -1 with the engine's error record filled.
  */
 #ifndef FCC_SENS_H
@@ -36,6 +37,8 @@ typedef struct fcc_sens {
     double *S;                     /* per p_j, 10 n: sq sv sqs sv2 sv3 sv4 sa1..sa4 */
     double *lam, *r, *rhs, *b, *gp, *phi, *y, *zero;   /* work */
     double *lq, *lv, *la, *lsq, *lsv, *llam, *lout;    /* an element's */
+    double *warm;                  /* np x (m + 1): the sparse path's last multipliers of
+                                      p_j's stage solve, [m]: 1 when they converged */
     double h;                      /* the step being taken */
     /* events (fcc_sens_events.c; all NULL/0 without fcc_sens_events_init) */
     struct fcc_events *ev;         /* the run's events (not owned) */
@@ -73,7 +76,7 @@ int fcc_sens_rk4_stage(fcc_engine *e, fcc_sens *s, int k, const double *q,
 /* Any method's stage at (q, v) with accelerations a (f, h, M, B and the factorisation
  * assembled there, locked rows constrained): begin once (the stage's multipliers),
  * then s_a of parameter j along the stage's (sq, sv) into sa. */
-void fcc_sens_stage_begin(fcc_engine *e, fcc_sens *s, const double *a);
+int fcc_sens_stage_begin(fcc_engine *e, fcc_sens *s, const double *a);
 int fcc_sens_stage_acc(fcc_engine *e, fcc_sens *s, int j, const double *q,
                        const double *v, const double *a, const double *sq,
                        const double *sv, double *sa);

@@ -12,6 +12,8 @@ start: fccgen.runtime.sensitivity.geometry.
 """
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 
 from ...errors import ModelError
@@ -21,6 +23,9 @@ from .geometry import geometry_direction, kind
 RUN_SETTINGS = ("t_end", "dt", "output_dt")
 # The relative size of the difference: large, so that rounding (eps |P| / d) is small.
 REL_STEP = 0.125
+# Per solver: each linear key's (dP row, S0 row), found once (they depend on the
+# solver's model only, which a solver never changes: with_parameters makes another).
+_LINEAR = weakref.WeakKeyDictionary()
 
 
 def current_value(model, key: str) -> float:
@@ -91,10 +96,15 @@ def directions(solver, keys) -> tuple[np.ndarray, np.ndarray]:
     nothing settable, a run setting, a structural zero, or a geometry key that
     fccgen.runtime.sensitivity.geometry refuses."""
     model = solver.plan.model
-    base = _numbers(solver, keys[0], current_value(model, keys[0])) if keys else None
+    known = _LINEAR.setdefault(solver, {})
+    base = None
     mask = _time_mask(solver.plan)
     dP, S0 = [], []
     for key in keys:
+        if key in known:
+            dP.append(known[key][0])
+            S0.append(known[key][1])
+            continue
         x = current_value(model, key)
         if not np.isfinite(x):
             raise ModelError(model.source, None, key, "the component index is too large",
@@ -104,6 +114,8 @@ def directions(solver, keys) -> tuple[np.ndarray, np.ndarray]:
             dP.append(one_dP)
             S0.append(one_S0)
             continue
+        if base is None:
+            base = _numbers(solver, key, x)
         one, two, d = _shifted(solver, model, key, x)
         d1 = [(a - b) / d for a, b in zip(one, base)]
         d2 = [(a - b) / (2 * d) for a, b in zip(two, base)]
@@ -114,6 +126,7 @@ def directions(solver, keys) -> tuple[np.ndarray, np.ndarray]:
             if np.max(np.abs(g1 - g2), initial=0.0) > 1e-11 * scale:
                 raise ModelError(model.source, None, key, NOT_LINEAR[part],
                                  show_value=False)
-        dP.append(d1[0])
-        S0.append(np.concatenate([d1[1], d1[2]]))
+        known[key] = (d1[0], np.concatenate([d1[1], d1[2]]))
+        dP.append(known[key][0])
+        S0.append(known[key][1])
     return np.array(dP), np.array(S0)

@@ -82,20 +82,40 @@ def check_request(solver, keys, method: str, project: bool,
     return keys
 
 
-def engine(solver):
-    """The engine a run with sensitivities takes: the sparse path's when the solver was
-    loaded with linear_solver="sparse" (the exported engine's), else the dense path's
-    (also under "auto")."""
-    return solver._engine if solver.linear_solver == "sparse" else solver.dense_engine()
+def dense_reason(solver, keys, method: str) -> str | None:
+    """Why a run with sensitivities of a solver whose own path is the sparse one
+    takes the dense path instead (under linear_solver="auto"; "sparse" refuses these:
+    check_request), or None (it stays on the sparse path)."""
+    if method == "dopri5":
+        return "dopri5 carries sensitivities on the dense path only"
+    moved = [key for key in keys if geometry_kind(key) is not None]
+    if moved:
+        return (f"sensitivities to geometry ({', '.join(moved)}) can move coordinates "
+                "the sparse path holds fixed")
+    if any(ev.action == "bounce" for ev in solver.plan.model.events):
+        return "the model's bounce events carry their sensitivities with the dense M"
+    return None
 
 
-def setup(solver, keys, build_dir):
+def on_sparse(solver, keys, method: str) -> bool:
+    """Whether a run of ``solver`` with sensitivities to ``keys`` by ``method`` takes
+    the sparse path (the solver's own path is the sparse one and nothing needs the
+    dense matrices)."""
+    return bool(solver.sparse) and dense_reason(solver, keys, method) is None
+
+
+def engine_for(solver, keys, method: str):
+    """The engine a run with sensitivities takes (on_sparse: the solver's own)."""
+    return solver._engine if on_sparse(solver, keys, method) else solver.dense_engine()
+
+
+def setup(solver, keys, build_dir, method: str = "rk4"):
     """The engine's Sensitivities for ``keys`` (checked) of ``solver``."""
     from .._sens import Sensitivities
     from .build import load_dp
     dP, S0 = directions(solver, keys)
     module = load_dp(solver.plan, build_dir)
-    return Sensitivities(engine(solver).asm, module, dP, S0)
+    return Sensitivities(engine_for(solver, keys, method).asm, module, dP, S0)
 
 
 def error_scale(solver, keys) -> list[float]:
@@ -107,7 +127,7 @@ def error_scale(solver, keys) -> list[float]:
     return [abs(current_value(model, key)) or 1.0 for key in keys]
 
 
-def attach(solver, result, keys, sens) -> None:
+def attach(solver, result, keys, sens, method: str = "rk4") -> None:
     """Add the columns ``d(<column>)/d(<key>)`` of every column of the state and key
     (fccgen.runtime.sensitivity.columns) to ``result``; ``info["sensitivities"]``: the keys."""
     records = sens.records
@@ -134,4 +154,10 @@ def attach(solver, result, keys, sens) -> None:
             for j, key in enumerate(keys):
                 row[TIME_KEY.format(key)] = float(rows[i, j])
     result.info["sensitivities"] = list(keys)
+    sparse = on_sparse(solver, keys, method)
+    result.info["sensitivity_path"] = "sparse" if sparse else "dense"
+    if solver.sparse and not sparse:
+        result.info["sensitivity_path_note"] = (
+            f"the run took the dense path although the model's own path is the sparse "
+            f"one: {dense_reason(solver, keys, method)}")
     result.info["sensitivity_column_error"] = worst

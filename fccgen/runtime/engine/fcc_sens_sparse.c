@@ -1,0 +1,81 @@
+/* Sensitivities on the sparse path (fcc_sens_sparse.h). */
+#include <math.h>
+#include <string.h>
+
+#include "fcc_sens_sparse.h"
+
+/* Zero where the sparse view does not read it: max |u_k| over the k listed is at most
+ * rounding (1e-12) of max |u| (all u zero there: exact zeros in practice, the tangent
+ * kernels of a fixed row or pinned coordinate multiply zeros). */
+static int unread(const double *u, int n, const int *list, int count)
+{
+    int i;
+    double all = 0.0, left = 0.0;
+    if (u == NULL || count == 0)
+        return 1;
+    for (i = 0; i < n; i++)
+        if (fabs(u[i]) > all)
+            all = fabs(u[i]);
+    for (i = 0; i < count; i++)
+        if (fabs(u[list[i]]) > left)
+            left = fabs(u[list[i]]);
+    return left <= 1e-12 * all;
+}
+
+int fcc_sens_solve(fcc_engine *e, fcc_sens *s, const double *Q, const double *w,
+                   const double *b, double *x)
+{
+    const fcc_pattern *P;
+    (void)s;
+    if (e->sparse) {
+        P = e->sp.pat;
+        if (!unread(w, e->n, P->pinned, P->n_pinned)
+                || !unread(b, e->m, P->fixed_rows, P->n_fixed_rows))
+            return fcc_fail(e, FCC_ERR_ARGUMENT, 0, 1);
+    }
+    fcc_solve_constrained(e, Q, w, b, x);
+    return 0;
+}
+
+int fcc_sens_solve_from(fcc_engine *e, fcc_sens *s, const double *Q, const double *b,
+                        double *x, double *lam_io)
+{
+    int m = e->m;
+    if (!e->sparse)
+        return fcc_sens_solve(e, s, Q, NULL, b, x);
+    if (!unread(b, m, e->sp.pat->fixed_rows, e->sp.pat->n_fixed_rows))
+        return fcc_fail(e, FCC_ERR_ARGUMENT, 0, 1);
+    if (fcc_sp_kkt_solve_from(e, Q, NULL, b, x, lam_io, lam_io[m] != 0.0, 0)) {
+        lam_io[m] = 1.0;
+        return 0;
+    }
+    lam_io[m] = 0.0;                   /* not converged: from zero, else densely */
+    fcc_solve_constrained(e, Q, NULL, b, x);
+    return 0;
+}
+
+/* The acceleration solve's lambda is accurate to about RHO eps of itself only (its
+ * last augmented-Lagrangian update multiplies the rounding of B x - b by alpha), which
+ * the stages' dB[s_q]^T lambda would carry into s_a (4e-10 of the sensitivities on the
+ * double pendulum). One correction removes it: r1 = r - M a - B^T lambda is formed
+ * directly (rounding of f, not alpha times rounding of B x) and M dx + B^T dlam = r1,
+ * B dx = 0 solved the same way, from zero; dlam, itself about RHO eps of lambda, is
+ * accurate to RHO eps of itself. One solve per stage, whatever the number of
+ * parameters. */
+int fcc_sens_sparse_stage_lam(fcc_engine *e, fcc_sens *s, const double *a)
+{
+    int i, n = e->n;
+    fcc_sparse *sp = &e->sp;
+    if (!sp->warm_valid)            /* the acceleration solve did not converge */
+        return 0;
+    memcpy(s->lam, sp->lam_warm, (size_t)e->m * sizeof(double));
+    fcc_sp_mult_m_full(e, a, s->rhs, 0);
+    fcc_sp_mult_bt(e, s->lam, NULL, s->rhs);
+    for (i = 0; i < n; i++)
+        s->rhs[i] = s->r[i] - s->rhs[i];
+    memset(s->b, 0, (size_t)e->m * sizeof(double));
+    if (fcc_sp_kkt_solve_from(e, s->rhs, NULL, NULL, s->y, s->b, 0, 0))
+        for (i = 0; i < e->m; i++)
+            s->lam[i] += s->b[i];
+    return 1;
+}
