@@ -86,6 +86,11 @@
  * (about 1e-5 relative rounding in one solve), which the refinement's true residuals
  * remove, as they remove RHO's: the runs agree with the dense path's to 4e-11 there
  * (2e-12 with RHO: tests/test_sparse_singular_boost.py).
+ * Only the motion's own solves raise alpha (the accelerations, from lam_warm, and the
+ * solves from zero: Newton, velocities, event responses); the sensitivities' solves,
+ * which carry their own multipliers, keep the factor they find (a raise inside them
+ * stopped the latch pendulum's sensitivity run with non-finite values at its latch:
+ * tests/test_sensitivity_events.py).
  * Models with rows beyond the decided rank (below) keep RHO: raising alpha moves x
  * along such a row by t / (1 + t) of a wrong amount (fcc_sparse_blocks.c, RHO). A
  * raised factor that fails its pivot test is replaced by RHO's again.
@@ -396,7 +401,8 @@ int fcc_sp_kkt_solve_from(fcc_engine *e, const double *Q, const double *w,
     if (status < 0) {
         memset(s->lam, 0, (size_t)m * sizeof(double));
         status = refine(e, b, x, 0, &solves, newton ? NEWTON_STOP : AL_STOP,
-                        s->boost == 1.0 && s->beyond_quotient == 0.0);
+                        s->boost == 1.0 && s->beyond_quotient == 0.0
+                        && (lam_io == NULL || lam_io == s->lam_warm));
     }
     if (status == -2) {                   /* slow with RHO: again with the boost */
         memset(s->lam, 0, (size_t)m * sizeof(double));
