@@ -157,8 +157,8 @@ static double Mv(const fcc_engine *e, const double *a, int i)
 }
 
 /* lam of the stage's solve: B^T lam = f - h - M a (f, h assembled at the stage; M
- * too on the dense path, its blocks on the sparse path). Returns 0 or -1. */
-static int multipliers(fcc_engine *e, fcc_sens *s, const double *a)
+ * too on the dense path, its blocks on the sparse path). */
+static void multipliers(fcc_engine *e, fcc_sens *s, const double *a)
 {
     const fcc_assembly *as = e->asmb;
     int i, n = s->n;
@@ -168,18 +168,16 @@ static int multipliers(fcc_engine *e, fcc_sens *s, const double *a)
         fcc_sens_rows_force(s, s->r);
     if (!e->sparse) {
         fcc_dense_multipliers(&e->sol, s->r, s->lam, s->y);
-        return 0;
+        return;
     }
     /* the sparse path, r = f - h (+ G^T mu): the acceleration solve's converged
      * multipliers corrected once, else the stage's system again, M x + B^T lam = r,
      * B x = -c, for its multipliers (x: the same a) */
-    i = fcc_sens_sparse_stage_lam(e, s, a);
-    if (i != 0)
-        return i > 0 ? 0 : -1;
+    if (fcc_sens_sparse_stage_lam(e, s, a))
+        return;
     for (i = 0; i < s->m; i++)
         s->gp[i] = -as->c[i];
     fcc_sens_sparse_multipliers(e, s->r, s->gp, s->y, s->lam, 1);
-    return 0;
 }
 
 static int bad(fcc_engine *e, const double *x, int n)
@@ -189,11 +187,11 @@ static int bad(fcc_engine *e, const double *x, int n)
     return fcc_fail(e, FCC_ERR_NONFINITE_RESULT, 0, 0);
 }
 
-int fcc_sens_stage_begin(fcc_engine *e, fcc_sens *s, const double *a)
+void fcc_sens_stage_begin(fcc_engine *e, fcc_sens *s, const double *a)
 {
     if (fcc_sens_rows(s) > 0)                  /* the stage's rows' multipliers */
         fcc_sens_keep_mu(s);
-    return multipliers(e, s, a);
+    multipliers(e, s, a);
 }
 
 int fcc_sens_stage_acc(fcc_engine *e, fcc_sens *s, int j, const double *q,
@@ -204,7 +202,7 @@ int fcc_sens_stage_acc(fcc_engine *e, fcc_sens *s, int j, const double *q,
     fcc_sens_sweep(e, s, q, v, a, s->lam, sq, sv, s->dP + (size_t)j * s->model->n_p);
     if (rows > 0)
         fcc_sens_rows_rhs(s, q, sq);
-    if (fcc_sens_solve_from(e, s, s->rhs, s->b, sa,
+    if (fcc_sens_solve_from(e, s->rhs, s->b, sa,
                             s->warm + (size_t)j * (size_t)(s->m + 1)) < 0)
         return -1;
     if (rows > 0 && fcc_sens_rows_acc(e, s, q, v, a, sq, sv, sa) < 0)
@@ -219,8 +217,7 @@ int fcc_sens_rk4_stage(fcc_engine *e, fcc_sens *s, int k, const double *q,
     int i, j, n = s->n;
     double h = s->h, h2 = 0.5 * h, h6 = h / 6.0;
     double *sq, *sv, *sqs, *sa;
-    if (fcc_sens_stage_begin(e, s, a) < 0)
-        return -1;
+    fcc_sens_stage_begin(e, s, a);
     for (j = 0; j < s->np; j++) {
         sa = row(s, j, SA1 + k - 1);
         if (fcc_sens_stage_acc(e, s, j, q, v, a, row(s, j, stage_q[k - 1]),
@@ -265,7 +262,7 @@ int fcc_sens_project(fcc_engine *e, fcc_sens *s, const double *q, const double *
         /* positions: gp = -(dg/dp) dP_j does not depend on the direction's q part */
         fcc_sens_sweep(e, s, q, v, s->zero, s->zero, s->zero, s->zero,
                        s->dP + (size_t)j * np_all);
-        if (fcc_sens_solve(e, s, NULL, sq, s->gp, s->y) < 0)
+        if (fcc_sens_solve(e, NULL, sq, s->gp, s->y) < 0)
             return -1;
         memcpy(sq, s->y, (size_t)n * sizeof(double));
         if (fcc_sens_rows(s) > 0 && fcc_sens_rows_positions(e, s, j, q, sq) < 0)
@@ -273,7 +270,7 @@ int fcc_sens_project(fcc_engine *e, fcc_sens *s, const double *q, const double *
         /* speeds: phi = -dPhi[s_q, dP_j] with the projected s_q */
         fcc_sens_sweep(e, s, q, v, s->zero, s->zero, sq, s->zero,
                        s->dP + (size_t)j * np_all);
-        if (fcc_sens_solve(e, s, NULL, sv, s->phi, s->y) < 0)
+        if (fcc_sens_solve(e, NULL, sv, s->phi, s->y) < 0)
             return -1;
         memcpy(sv, s->y, (size_t)n * sizeof(double));
         if (fcc_sens_rows(s) > 0 && fcc_sens_rows_speeds(e, s, q, v, sq, sv) < 0)

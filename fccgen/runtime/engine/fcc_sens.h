@@ -76,7 +76,7 @@ int fcc_sens_rk4_stage(fcc_engine *e, fcc_sens *s, int k, const double *q,
 /* Any method's stage at (q, v) with accelerations a (f, h, M, B and the factorisation
  * assembled there, locked rows constrained): begin once (the stage's multipliers),
  * then s_a of parameter j along the stage's (sq, sv) into sa. */
-int fcc_sens_stage_begin(fcc_engine *e, fcc_sens *s, const double *a);
+void fcc_sens_stage_begin(fcc_engine *e, fcc_sens *s, const double *a);
 int fcc_sens_stage_acc(fcc_engine *e, fcc_sens *s, int j, const double *q,
                        const double *v, const double *a, const double *sq,
                        const double *sv, double *sa);

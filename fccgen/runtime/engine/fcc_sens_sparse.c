@@ -22,29 +22,34 @@ static int unread(const double *u, int n, const int *list, int count)
     return left <= 1e-12 * all;
 }
 
-int fcc_sens_solve(fcc_engine *e, fcc_sens *s, const double *Q, const double *w,
-                   const double *b, double *x)
+/* -1 (FCC_ERR_ARGUMENT, err_detail 1) when on the sparse path w or b is not zero where
+ * its view leaves them out (w, b may be NULL), else 0. */
+static int outside_view(fcc_engine *e, const double *w, const double *b)
 {
-    const fcc_pattern *P;
-    (void)s;
-    if (e->sparse) {
-        P = e->sp.pat;
-        if (!unread(w, e->n, P->pinned, P->n_pinned)
-                || !unread(b, e->m, P->fixed_rows, P->n_fixed_rows))
-            return fcc_fail(e, FCC_ERR_ARGUMENT, 0, 1);
-    }
+    const fcc_pattern *P = e->sp.pat;
+    if (e->sparse && (!unread(w, e->n, P->pinned, P->n_pinned)
+                      || !unread(b, e->m, P->fixed_rows, P->n_fixed_rows)))
+        return fcc_fail(e, FCC_ERR_ARGUMENT, 0, 1);
+    return 0;
+}
+
+int fcc_sens_solve(fcc_engine *e, const double *Q, const double *w, const double *b,
+                   double *x)
+{
+    if (outside_view(e, w, b) < 0)
+        return -1;
     fcc_solve_constrained(e, Q, w, b, x);
     return 0;
 }
 
-int fcc_sens_solve_from(fcc_engine *e, fcc_sens *s, const double *Q, const double *b,
-                        double *x, double *lam_io)
+int fcc_sens_solve_from(fcc_engine *e, const double *Q, const double *b, double *x,
+                        double *lam_io)
 {
     int m = e->m;
     if (!e->sparse)
-        return fcc_sens_solve(e, s, Q, NULL, b, x);
-    if (!unread(b, m, e->sp.pat->fixed_rows, e->sp.pat->n_fixed_rows))
-        return fcc_fail(e, FCC_ERR_ARGUMENT, 0, 1);
+        return fcc_sens_solve(e, Q, NULL, b, x);
+    if (outside_view(e, NULL, b) < 0)
+        return -1;
     if (fcc_sp_kkt_solve_from(e, Q, NULL, b, x, lam_io, lam_io[m] != 0.0, 0)) {
         lam_io[m] = 1.0;
         return 0;
