@@ -378,9 +378,9 @@ class CompiledSolver:
         project = bool(project) and m.projects
         if keys is not None:
             from .params import module_directory
-            sens = sensitivity_run.setup(self, keys, module_directory(self.module).parents[1],
-                                         m.name)
             sens_engine = sensitivity_run.engine_for(self, keys, m.name)
+            sens = sensitivity_run.setup(self, keys, module_directory(self.module).parents[1],
+                                         sens_engine)
             if sens_error:
                 sens_scale = sensitivity_run.error_scale(self, keys)
         report = run_reporter(progress, sched.t_end)

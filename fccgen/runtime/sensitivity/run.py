@@ -109,13 +109,13 @@ def engine_for(solver, keys, method: str):
     return solver._engine if on_sparse(solver, keys, method) else solver.dense_engine()
 
 
-def setup(solver, keys, build_dir, method: str = "rk4"):
-    """The engine's Sensitivities for ``keys`` (checked) of ``solver``."""
+def setup(solver, keys, build_dir, engine):
+    """The Sensitivities for ``keys`` (checked) of ``solver`` on ``engine`` (engine_for)."""
     from .._sens import Sensitivities
     from .build import load_dp
     dP, S0 = directions(solver, keys)
     module = load_dp(solver.plan, build_dir)
-    return Sensitivities(engine_for(solver, keys, method).asm, module, dP, S0)
+    return Sensitivities(engine.asm, module, dP, S0)
 
 
 def error_scale(solver, keys) -> list[float]:
@@ -154,10 +154,11 @@ def attach(solver, result, keys, sens, method: str = "rk4") -> None:
             for j, key in enumerate(keys):
                 row[TIME_KEY.format(key)] = float(rows[i, j])
     result.info["sensitivities"] = list(keys)
-    sparse = on_sparse(solver, keys, method)
+    reason = dense_reason(solver, keys, method) if solver.sparse else None
+    sparse = bool(solver.sparse) and reason is None          # on_sparse
     result.info["sensitivity_path"] = "sparse" if sparse else "dense"
-    if solver.sparse and not sparse:
+    if reason is not None:
         result.info["sensitivity_path_note"] = (
             f"the run took the dense path although the model's own path is the sparse "
-            f"one: {dense_reason(solver, keys, method)}")
+            f"one: {reason}")
     result.info["sensitivity_column_error"] = worst
