@@ -35,11 +35,16 @@ VARIABLE_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(?:\.[A-Za-z_][A-Za-z0-9_]*|\
 CFLAGS = ["-std=c99", "-O2", "-fPIC", "-Wall", "-Wextra", "-pedantic"]
 
 
+def xml_attribute(text: str) -> str:
+    """Text XML-escaped for a double-quoted attribute."""
+    return escape(text, {'"': "&quot;"})
+
+
 def xml_name(name: str) -> str:
     """A variable name checked against VARIABLE_NAME (never mended), XML-escaped."""
     if not isinstance(name, str) or not VARIABLE_NAME.fullmatch(name):
         raise ValueError(f"{name!r} cannot be an FMU variable name")
-    return escape(name, {'"': "&quot;"})
+    return xml_attribute(name)
 
 
 def model_description(ctx: dict, columns, keys, inputs, t_end, output_dt,
@@ -59,13 +64,13 @@ def model_description(ctx: dict, columns, keys, inputs, t_end, output_dt,
                               start=repr(float(x0))))
     types = {}
     if event_names:
-        types = {t: [(escape(item, {'"': "&quot;"}), value) for item, value in items]
+        types = {t: [(xml_attribute(item), value) for item, value in items]
                  for t, items in enumeration_items(event_names, ACTIONS).items()}
         for v in EVENT_OUTPUTS:
             variables.append(dict(name=xml_name(v.name), vr=len(variables),
                                   causality="output", variability="discrete", initial=None,
                                   start=None, type=v.type, declared=DECLARED.get(v.field),
-                                  description=escape(v.description, {'"': "&quot;"})))
+                                  description=xml_attribute(v.description)))
     for v in variables:
         v.setdefault("type", "Real")
         v.setdefault("declared", None)
@@ -130,7 +135,8 @@ def export_fmu(model_path, fmu_path, build_dir="generated", *, progress=None) ->
                           "variable of the model (rename the item that makes it)")
     env = environment()
     ctx = dict(n=name, version=__version__, has_events=bool(events),
-               event_outputs=[v.field for v in EVENT_OUTPUTS], actions=list(ACTIONS))
+               event_outputs=[v.field for v in EVENT_OUTPUTS],
+               event_integer=[v.type != "Real" for v in EVENT_OUTPUTS], actions=list(ACTIONS))
     files["fccgen_fmi2.h"] = env.get_template("fmi2.h.jinja").render(ctx)
     guid = guid_of({**files, f"{name}_fmu.c": env.get_template("fmu.c.jinja").render(
         {**ctx, "guid": ""})})
