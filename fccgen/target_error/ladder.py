@@ -41,29 +41,21 @@ def measure(pilot: Pilot, method: str, s_mid: float, *, reference: Fit | None = 
         n = max(2, 2 * math.ceil(pilot.sample_dt / s_mid / 2 - 1e-9))   # even
         usable = reference is not None and reference.status == "ok"
         _fixed(pilot, fit, [pilot.sample_dt / (n // 2), pilot.sample_dt / n],
-               reference if usable else None, can_win)
+               reference if usable else None, can_win, aim)
     return fit
 
 
 def _adaptive(pilot: Pilot, fit: Fit, ladder: list, aim) -> None:
-    kappa = KAPPA[fit.method]
     results = [_rung(pilot, fit, s) for s in ladder]
     if None in results:
         return
-    finer = (aim is None
-             or _provisional(fit, pilot, results, aim) <= ladder[1] * math.sqrt(kappa))
-    third = _rung(pilot, fit, ladder[1] / kappa if finer else ladder[0] * kappa)
-    if third is None:
-        return
-    if finer:
-        results.append(third)
-    else:
-        results.insert(0, third)
-        fit.rungs.insert(0, fit.rungs.pop())
-    _by_rungs(pilot, fit, results, kappa)
+    results = _third(pilot, fit, results, aim)
+    if results is not None:
+        _by_rungs(pilot, fit, results, KAPPA[fit.method])
 
 
-def _fixed(pilot: Pilot, fit: Fit, ladder: list, reference: Fit | None, can_win) -> None:
+def _fixed(pilot: Pilot, fit: Fit, ladder: list, reference: Fit | None, can_win,
+           aim) -> None:
     kappa = KAPPA[fit.method]
     coarse = _rung(pilot, fit, ladder[0])
     if coarse is None:
@@ -88,9 +80,11 @@ def _fixed(pilot: Pilot, fit: Fit, ladder: list, reference: Fit | None, can_win)
     ratio = kappa ** NOMINAL_ORDER[fit.method]
     if _stops(fit, can_win, _trial(pilot, fit, 1, pair, ratio / (ratio - 1), "rungs")):
         return
-    fine = _rung(pilot, fit, ladder[1] / kappa)
-    if fine is not None:
-        _by_rungs(pilot, fit, [coarse, mid, fine], kappa)
+    results = _third(pilot, fit, [coarse, mid], aim)
+    if results is not None:
+        # the growth from the pair on the pilot's own output times (a coarser third
+        # rung records on fewer of them)
+        _by_rungs(pilot, fit, results, kappa, growth_of=pair)
 
 
 def _judged(pilot: Pilot, fit: Fit, result, reference: Fit | None):
@@ -125,18 +119,47 @@ def _stops(fit: Fit, can_win, trial: Fit) -> bool:
     return bool(why)
 
 
-def _by_rungs(pilot: Pilot, fit: Fit, results: list, kappa: float) -> None:
+def _by_rungs(pilot: Pilot, fit: Fit, results: list, kappa: float,
+              growth_of=None) -> None:
     fit.judged_by = "rungs"
     fit_rungs(fit, pilot, [distance(a, b, pilot.what, fit.t_piece)
-                           for a, b in zip(results, results[1:])], kappa)
+                           for a, b in zip(results, results[1:])], kappa,
+              growth_of=growth_of)
     fit.finest = results[-1]
 
 
-def _rung(pilot: Pilot, fit: Fit, s: float):
-    """One rung's result (its cost and steps recorded in fit.rungs), or None with the
-    fit marked failed (or unsupported) and why."""
+def _third(pilot: Pilot, fit: Fit, results: list, aim) -> list | None:
+    """The pair's results with the third rung, coarsest first, or None (the fit
+    failed). The third rung lies where the choice does: ``kappa`` times coarser than
+    the coarse rung (the cheapest rung) unless the pair places the choice below its
+    finer rung, else ``kappa`` times finer. A coarser rung that fails (it diverges,
+    its step underflows) gives way to the finer one."""
+    kappa = KAPPA[fit.method]
+    coarse, fine = fit.rungs[0][0], fit.rungs[1][0]
+    if aim is not None and _provisional(fit, pilot, results, aim) >= fine:
+        kept = len(fit.rungs)
+        third = _rung(pilot, fit, coarse * kappa, wide=True)
+        if third is not None and math.isfinite(
+                float(np.max(distance(third, results[0], pilot.what, fit.t_piece)[1]))):
+            fit.rungs.insert(0, fit.rungs.pop())
+            return [third, *results]
+        del fit.rungs[kept:]
+        fit.status, fit.note = "ok", ""
+    third = _rung(pilot, fit, fine / kappa)
+    return None if third is None else [*results, third]
+
+
+def _rung(pilot: Pilot, fit: Fit, s: float, wide: bool = False):
+    """One rung's result (its cost and steps over the piece recorded in fit.rungs), or
+    None with the fit marked failed (or unsupported) and why. wide: a fixed step that
+    may not divide the pilot's output interval records on the multiples of it that it
+    divides, over the piece rounded up to them (its cost scaled to the piece)."""
+    t_end, out = fit.t_piece, None
     try:
-        r = pilot.run(fit.method, s, fit.t_piece)
+        if wide and fit.method != "dopri5":
+            out = recording_interval(pilot.sample_dt, s)
+            t_end = out * math.ceil(fit.t_piece / out - 1e-9)
+        r = pilot.run(fit.method, s, t_end, out)
     except (FccgenError, ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
         fit.status = ("unsupported" if isinstance(exc, ValueError)
                       and "unknown method" in str(exc) else "failed")
@@ -146,9 +169,20 @@ def _rung(pilot: Pilot, fit: Fit, s: float):
         check_columns(pilot.what, r)
     cost = evaluations(r.info)
     pilot.cost += cost
-    fit.rungs.append((s, cost, int(r.info["steps"]),
+    share = fit.t_piece / t_end
+    fit.rungs.append((s, cost * share, int(round(r.info["steps"] * share)),
                       int(r.info.get("rejected_steps") or 0)))
     return r
+
+
+def recording_interval(sample_dt: float, h: float) -> float:
+    """The shortest multiple of the pilot's output interval that a fixed step h
+    divides a whole number of times (h itself when h is a multiple of it)."""
+    for k in range(1, 65):
+        n = k * sample_dt / h
+        if n >= 1 - 1e-9 and abs(n - round(n)) <= 1e-9 * n:
+            return k * sample_dt
+    raise ValueError(f"a pilot step {h:g} shares no output time with {sample_dt:g}")
 
 
 def _provisional(fit: Fit, pilot: Pilot, results, aim) -> float:
@@ -156,8 +190,10 @@ def _provisional(fit: Fit, pilot: Pilot, results, aim) -> float:
     would choose for ``aim`` = (error, t_end)."""
     t, d = distance(results[0], results[1], pilot.what, fit.t_piece)
     e = float(np.max(d))
-    if not (math.isfinite(e) and e > pilot.noise):
+    if not math.isfinite(e):
         return 0.0
+    if e <= pilot.noise:             # the pair agrees to the noise: the choice lies above
+        return math.inf
     ratio = KAPPA[fit.method] ** NOMINAL_ORDER[fit.method]
     trial = _trial(pilot, fit, 1, (t, d), ratio / (ratio - 1), "rungs")
     return trial.s0 * (aim[0] / trial.truncation_at(trial.s0, aim[1])) ** (1 / trial.order)

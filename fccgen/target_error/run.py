@@ -234,18 +234,19 @@ def measure_candidates(frame, error: float, only, has_events: bool) -> list:
     growth = frame.t_end / frame.t_piece
     tol = min(1e-5, max(1e-10, error / (frame.length_scale * 5 * growth)))
     fits, step, dopri = [], None, None
+    aim = (SAFETY * error, frame.t_end)
     if "dopri5" in names:
-        dopri = measure(frame, "dopri5", tol, aim=(SAFETY * error, frame.t_end))
+        dopri = measure(frame, "dopri5", tol, aim=aim)
         fits.append(dopri)
         if dopri.rungs:
             steps = dopri.rungs[min(1, len(dopri.rungs) - 1)][2]
             step = frame.t_piece / max(steps, 1)
     step = step or frame.output_dt / 8
     if "rk4" in names:
-        fits.append(measure(frame, "rk4", step / 2, reference=dopri,
+        fits.append(measure(frame, "rk4", step / 2, reference=dopri, aim=aim,
                             can_win=None if only else _can_win(frame, dopri, error)))
     if "ali3p" in names or (not only and not has_events and _stiff(fits)):
-        fits.append(measure(frame, "ali3p", 4 * step, reference=dopri))
+        fits.append(measure(frame, "ali3p", 4 * step, reference=dopri, aim=aim))
     share_growth(fits)
     return fits
 
