@@ -38,11 +38,19 @@ def measure(pilot: Pilot, method: str, s_mid: float, *, reference: Fit | None = 
     if method == "dopri5":
         _adaptive(pilot, fit, [KAPPA[method] * s_mid, s_mid], aim)
     else:
-        n = max(2, 2 * math.ceil(pilot.sample_dt / s_mid / 2 - 1e-9))   # even
         usable = reference is not None and reference.status == "ok"
-        _fixed(pilot, fit, [pilot.sample_dt / (n // 2), pilot.sample_dt / n],
-               reference if usable else None, can_win, aim)
+        _fixed(pilot, fit, fixed_pair(pilot, s_mid), reference if usable else None,
+               can_win, aim)
     return fit
+
+
+def fixed_pair(pilot: Pilot, s_mid: float) -> list:
+    """The steps ``[2h, h]`` of a fixed-step candidate's pair about s_mid: h divides
+    the pilot's output interval, so that both record on every output time (their
+    difference history gives the growth in time, run.share_growth)."""
+    dt = pilot.sample_dt
+    n = max(2, 2 * math.ceil(dt / s_mid / 2 - 1e-9))   # even
+    return [dt / (n // 2), dt / n]
 
 
 def _adaptive(pilot: Pilot, fit: Fit, ladder: list, aim) -> None:
@@ -138,7 +146,7 @@ def _third(pilot: Pilot, fit: Fit, results: list, aim) -> list | None:
     coarse, fine = fit.rungs[0][0], fit.rungs[1][0]
     if aim is not None and _provisional(fit, pilot, results, aim) >= fine:
         kept = len(fit.rungs)
-        third = _rung(pilot, fit, coarse * kappa, wide=True)
+        third = _rung(pilot, fit, coarse * kappa)
         if third is not None and math.isfinite(
                 float(np.max(distance(third, results[0], pilot.what, fit.t_piece)[1]))):
             fit.rungs.insert(0, fit.rungs.pop())
@@ -149,16 +157,16 @@ def _third(pilot: Pilot, fit: Fit, results: list, aim) -> list | None:
     return None if third is None else [*results, third]
 
 
-def _rung(pilot: Pilot, fit: Fit, s: float, wide: bool = False):
+def _rung(pilot: Pilot, fit: Fit, s: float):
     """One rung's result (its cost and steps over the piece recorded in fit.rungs), or
-    None with the fit marked failed (or unsupported) and why. wide: a fixed step that
-    may not divide the pilot's output interval records on the multiples of it that it
-    divides, over the piece rounded up to them (its cost scaled to the piece)."""
+    None with the fit marked failed (or unsupported) and why. A fixed step coarser
+    than the pilot's output interval records on the multiples of it that it divides,
+    over the piece rounded to them (its cost and steps scaled to the piece)."""
     t_end, out = fit.t_piece, None
     try:
-        if wide and fit.method != "dopri5":
+        if fit.method != "dopri5":
             out = recording_interval(pilot.sample_dt, s)
-            t_end = out * math.ceil(fit.t_piece / out - 1e-9)
+            t_end = _span(pilot, fit.t_piece, out)
         r = pilot.run(fit.method, s, t_end, out)
     except (FccgenError, ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
         fit.status = ("unsupported" if isinstance(exc, ValueError)
@@ -173,6 +181,17 @@ def _rung(pilot: Pilot, fit: Fit, s: float, wide: bool = False):
     fit.rungs.append((s, cost * share, int(round(r.info["steps"] * share)),
                       int(r.info.get("rejected_steps") or 0)))
     return r
+
+
+def _span(pilot: Pilot, t_piece: float, out: float) -> float:
+    """The piece in whole recording intervals: rounded up, or down where up would
+    pass the end of the run."""
+    n = math.ceil(t_piece / out - 1e-9)
+    if n * out > pilot.t_end * (1 + 1e-9):
+        n = math.floor(pilot.t_end / out + 1e-9)
+    if n < 1:
+        raise ValueError(f"a pilot step records every {out:g}, longer than the run")
+    return n * out
 
 
 def recording_interval(sample_dt: float, h: float) -> float:
