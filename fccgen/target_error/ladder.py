@@ -23,8 +23,8 @@ import numpy as np
 
 from ..errors import FccgenError
 from .compare import check_columns, distance
-from .pilot import (KAPPA, NOMINAL_ORDER, REFERENCE_MARGIN, ROUNDOFF_PER_STEP, Fit, Pilot,
-                    evaluations, fit_rungs, growth)
+from .pilot import (KAPPA, NOMINAL_ORDER, PILOT_SAMPLES, REFERENCE_MARGIN,
+                    ROUNDOFF_PER_STEP, Fit, Pilot, evaluations, fit_rungs, growth)
 
 
 def measure(pilot: Pilot, method: str, s_mid: float, *, reference: Fit | None = None,
@@ -46,9 +46,14 @@ def measure(pilot: Pilot, method: str, s_mid: float, *, reference: Fit | None = 
 
 def fixed_pair(pilot: Pilot, s_mid: float) -> list:
     """The steps ``[2h, h]`` of a fixed-step candidate's pair about s_mid: h divides
-    the pilot's output interval, so that both record on every output time (their
-    difference history gives the growth in time, run.share_growth)."""
+    the pilot's output interval, or is a whole multiple of it as long as the coarse
+    step still records PILOT_SAMPLES times in the piece (their difference history on
+    those times gives the growth in time, run.share_growth)."""
     dt = pilot.sample_dt
+    m = min(math.floor(s_mid / dt + 1e-9),
+            math.floor(pilot.t_piece / (2 * PILOT_SAMPLES * dt) + 1e-9))
+    if m >= 1:
+        return [2 * m * dt, m * dt]
     n = max(2, 2 * math.ceil(dt / s_mid / 2 - 1e-9))   # even
     return [dt / (n // 2), dt / n]
 
