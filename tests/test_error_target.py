@@ -177,3 +177,29 @@ def test_a02_says_that_its_flat_positions_make_the_estimate_no_promise(runs):
     assert found["smallest"] < 0.1 * found["start"] and 0.72 <= found["time"] <= 2.0
     [text] = [t for t in texts if "comes near singular positions" in t]
     assert "not a promise" in text and f"{found['smallest']:.2g}" in text
+
+
+def test_the_pilot_measures_rk4_where_its_choice_lies(runs):
+    """A02's first 0.6 s at 1e-6: the pilot records every 0.05 / 9 s, which holds rk4's
+    pair to 5.6 and 2.8 ms where the run can take 25 ms. The pair places the choice
+    above it, so the third rung doubles the coarse step (recording on every other
+    output time) rather than halving the fine one, and the choice may go to four times
+    that rung (choice.EXTRAPOLATION)."""
+    result, _, _ = runs("a02s", 1e-6)
+    rows = {c["method"]: c for c in result.info["accuracy"]["candidates"]}
+    sample = 0.05 / 9
+    assert [r[0] for r in rows["rk4"]["rungs"]] == pytest.approx(
+        [2 * sample, sample, sample / 2])
+    assert result.info["method"] == "rk4" and result.info["dt"] > 4 * sample
+
+
+def test_a_fixed_step_pair_may_step_a_multiple_of_the_output_interval(runs):
+    """The solar array records every 10 ms and its pilot's piece (0.3 s) holds 30 of
+    those: rk4's pair steps 20 and 10 ms (the coarse one still records 15 times in the
+    piece, enough for the growth) rather than 10 and 5, where dopri5's pilot steps
+    25 ms. At 20 ms dopri5's finest rung judges it, and rk4 stops there: it cannot be
+    the cheapest."""
+    result, _, _ = runs("solar", 1e-6)
+    rows = {c["method"]: c for c in result.info["accuracy"]["candidates"]}
+    assert [r[0] for r in rows["rk4"]["rungs"]] == pytest.approx([0.02])
+    assert rows["rk4"]["status"] == "skipped" and rows["rk4"]["judged_by"]

@@ -156,8 +156,11 @@ def _third(pilot: Pilot, fit: Fit, results: list, aim) -> list | None:
                 float(np.max(distance(third, results[0], pilot.what, fit.t_piece)[1]))):
             fit.rungs.insert(0, fit.rungs.pop())
             return [third, *results]
+        why = (fit.note if third is None
+               else f"{fit.setting} = {coarse * kappa:.3g}: it left the motion")
         del fit.rungs[kept:]
-        fit.status, fit.note = "ok", ""
+        fit.status = "ok"
+        fit.note = f"a coarser rung failed ({why}); a finer one ran"
     third = _rung(pilot, fit, fine / kappa)
     return None if third is None else [*results, third]
 

@@ -200,8 +200,9 @@ def fit_rungs(fit: Fit, pilot: Pilot, histories, kappa: float,
         fit.order = nominal
         if e1 > pilot.noise:         # the coarse rung, judged by the middle one
             rung, e = 0, e1
-        fit.note = ("the pilot's finest rungs agree to the projections' noise: the order "
-                    "was not measured, the method's nominal order is used")
+        fit.note = "; ".join(filter(None, (
+            fit.note, "the pilot's finest rungs agree to the projections' noise: the "
+            "order was not measured, the method's nominal order is used")))
     ratio = kappa ** fit.order
     fit.s0 = fit.rungs[rung][0]
     # error of a rung = its difference from the next finer rung * R / (R - 1), or its
