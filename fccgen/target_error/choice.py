@@ -66,7 +66,7 @@ def twin_factor(method: str, value: float, fit: Fit | None) -> float:
     if (fit is None or not fit.rungs or method not in WIDE_TWIN
             or not abs(fit.measured_order / NOMINAL_ORDER[method] - 1) <= ORDER_MATCH):
         return KAPPA[method]
-    bound = KAPPA[method] * fit.rungs[0][0]
+    bound = KAPPA[method] * fit.reach
     classic = twin_share(fit)
     # the check runs both twins over about the pilot's piece: worth it only if the wide
     # twin saves more than that (dopri5 on the solar array: its steps barely follow rtol)
@@ -96,7 +96,7 @@ def twin_share(fit: Fit, factor: float | None = None) -> float:
 def predict(fit: Fit, target: float, t_end: float, output_dt: float) -> dict:
     """The setting a candidate would take and what the fit predicts for it."""
     s = min(fit.setting_for(SAFETY * target, t_end),
-            EXTRAPOLATION[fit.method] * fit.rungs[0][0])
+            EXTRAPOLATION[fit.method] * fit.reach)
     if fit.method == "dopri5":
         s = min(RTOL_MAX, max(RTOL_MIN, s))
     else:

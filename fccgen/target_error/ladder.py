@@ -22,6 +22,7 @@ import math
 import numpy as np
 
 from ..errors import FccgenError
+from .choice import ORDER_MATCH
 from .compare import check_columns, distance
 from .pilot import (KAPPA, NOMINAL_ORDER, PILOT_SAMPLES, REFERENCE_MARGIN,
                     ROUNDOFF_PER_STEP, Fit, Pilot, evaluations, fit_rungs, growth)
@@ -65,6 +66,7 @@ def _adaptive(pilot: Pilot, fit: Fit, ladder: list, aim) -> None:
     results = _third(pilot, fit, results, aim)
     if results is not None:
         _by_rungs(pilot, fit, results, KAPPA[fit.method])
+        _reach(fit, ladder[0])
 
 
 def _fixed(pilot: Pilot, fit: Fit, ladder: list, reference: Fit | None, can_win,
@@ -91,13 +93,25 @@ def _fixed(pilot: Pilot, fit: Fit, ladder: list, reference: Fit | None, can_win,
             return
     pair = distance(coarse, mid, pilot.what, fit.t_piece)
     ratio = kappa ** NOMINAL_ORDER[fit.method]
-    if _stops(fit, can_win, _trial(pilot, fit, 1, pair, ratio / (ratio - 1), "rungs")):
+    if _stops(fit, can_win, _trial(pilot, fit, 0, pair, ratio / (ratio - 1), "rungs")):
         return
     results = _third(pilot, fit, [coarse, mid], aim)
     if results is not None:
         # the growth from the pair on the pilot's own output times (a coarser third
         # rung records on fewer of them)
         _by_rungs(pilot, fit, results, kappa, growth_of=pair)
+        _reach(fit, ladder[0])
+
+
+def _reach(fit: Fit, pair_coarse: float) -> None:
+    """A coarser third rung widens the settings the choice may take
+    (choice.EXTRAPOLATION) only when the three rungs measured the method's order
+    within ORDER_MATCH, or more: a lower one says the coarser rung may have left the
+    range where the error follows the setting (dopri5 on Andrews' mechanism measures
+    0.79 with a rung at 256 rtol), and the choice then extrapolates from the pair."""
+    low = fit.measured_order < (1 - ORDER_MATCH) * NOMINAL_ORDER[fit.method]
+    if fit.rungs[0][0] > pair_coarse * (1 + 1e-9) and low:
+        fit.reach_rung = 1
 
 
 def _judged(pilot: Pilot, fit: Fit, result, reference: Fit | None):
@@ -222,5 +236,5 @@ def _provisional(fit: Fit, pilot: Pilot, results, aim) -> float:
     if e <= pilot.noise:             # the pair agrees to the noise: the choice lies above
         return math.inf
     ratio = KAPPA[fit.method] ** NOMINAL_ORDER[fit.method]
-    trial = _trial(pilot, fit, 1, (t, d), ratio / (ratio - 1), "rungs")
+    trial = _trial(pilot, fit, 0, (t, d), ratio / (ratio - 1), "rungs")
     return trial.s0 * (aim[0] / trial.truncation_at(trial.s0, aim[1])) ** (1 / trial.order)

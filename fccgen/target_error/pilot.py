@@ -79,6 +79,7 @@ class Fit:
     roundoff: float = 0.0          # round-off per step (length units)
     judged_by: str = ""            # "rungs" (step doubling) or the reference's label
     finest: object = field(default=None, repr=False)    # the finest rung's result
+    reach_rung: int = 0            # the rung the choice may extrapolate from (its index)
 
     def truncation_at(self, s: float, t_end: float) -> float:
         return (self.err0 * (s / self.s0) ** self.order
@@ -107,8 +108,14 @@ class Fit:
     def as_dict(self) -> dict:
         keys = ("method", "setting", "status", "note", "s0", "err0", "order",
                 "measured_order", "cost0", "steps0", "cost_exponent", "growth", "t_piece",
-                "roundoff", "judged_by", "rungs")
+                "roundoff", "judged_by", "rungs", "reach_rung")
         return {k: getattr(self, k) for k in keys}
+
+    @property
+    def reach(self) -> float:
+        """The coarsest setting whose rung the choice extrapolates from
+        (choice.EXTRAPOLATION, choice.twin_factor)."""
+        return self.rungs[self.reach_rung][0]
 
     @property
     def finest_error(self) -> float:
