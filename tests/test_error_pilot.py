@@ -6,13 +6,15 @@ from __future__ import annotations
 
 import math
 import warnings
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 from fccgen.errors import FccgenError, RunWarning
+from fccgen.target_error import ladder
 from fccgen.target_error.ladder import recording_interval
-from fccgen.target_error.pilot import Pilot
+from fccgen.target_error.pilot import Fit, Pilot
 
 SHORT = dict(t_end=1.0, output_dt=0.01)
 # rk4 alone over 1 s of the double pendulum: with no dopri5 steps to start from, its
@@ -91,3 +93,20 @@ def test_a_coarser_rung_that_fails_gives_way_to_the_finer_one(double, monkeypatc
     # the pair measured, the choice holds to four times its coarse step
     assert result.info["dt"] <= 4 * PAIR[0] + 1e-12
     assert result.info["error_estimate"] <= 1e-5
+
+
+@pytest.mark.parametrize("method, kappa, order", [("dopri5", 16.0, 1.0), ("rk4", 2.0, 4.0)])
+def test_a_pairs_difference_is_the_error_of_its_coarser_rung(monkeypatch, method, kappa,
+                                                              order):
+    """The provisional choice from a pair alone: with errors C s^a, rungs at kappa s and
+    s differ by C s^a (kappa^a - 1), and the setting that meets E is (E / C)^(1/a)."""
+    C, s, E = 1e-3, 1e-2 if method == "rk4" else 1e-8, 1e-12
+    t = np.linspace(0.0, 1.0, 11)
+    d = C * s ** order * (kappa ** order - 1) * t        # grows like t over the piece
+    monkeypatch.setattr(ladder, "distance", lambda a, b, what, t_end: (t, d))
+    pilot = SimpleNamespace(noise=1e-18, length_scale=1.0, what=None)
+    fit = Fit(method, "rtol" if method == "dopri5" else "dt", 1.0,
+              rungs=[(kappa * s, 10.0, 1, 0), (s, 20.0, 2, 0)])
+    # aimed at the end of the piece, where the growth adds nothing
+    found = ladder._provisional(fit, pilot, [None, None], (E, 1.0))
+    assert found == pytest.approx((E / C) ** (1 / order), rel=1e-9)
