@@ -158,12 +158,13 @@ def _by_rungs(pilot: Pilot, fit: Fit, results: list, kappa: float,
 def _third(pilot: Pilot, fit: Fit, results: list, aim) -> list | None:
     """The pair's results with the third rung, coarsest first, or None (the fit
     failed). The third rung lies where the choice does: ``kappa`` times coarser than
-    the coarse rung (the cheapest rung) unless the pair places the choice below its
-    finer rung, else ``kappa`` times finer. A coarser rung that fails (it diverges,
-    its step underflows) gives way to the finer one."""
+    the coarse rung (the cheapest rung) unless the pair places the choice more than
+    half a rung (sqrt(kappa)) below its finer rung, else ``kappa`` times finer. A
+    coarser rung that fails (it diverges, its step underflows) gives way to the finer
+    one."""
     kappa = KAPPA[fit.method]
     coarse, fine = fit.rungs[0][0], fit.rungs[1][0]
-    if aim is not None and _provisional(fit, pilot, results, aim) >= fine:
+    if aim is not None and _provisional(fit, pilot, results, aim) >= fine / math.sqrt(kappa):
         kept = len(fit.rungs)
         third = _rung(pilot, fit, coarse * kappa)
         if third is not None and math.isfinite(
