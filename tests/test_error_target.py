@@ -25,7 +25,7 @@ import pytest
 
 import error_references as refs
 from conftest import ROOT
-from fccgen.errors import RunWarning
+from fccgen.errors import RunWarning, SimulationError
 from fccgen.target_error.compare import compared, speeds
 
 GRID = json.loads((ROOT / "tests" / "data" / "error_target_grid.json").read_text())
@@ -203,3 +203,34 @@ def test_a_fixed_step_pair_may_step_a_multiple_of_the_output_interval(runs):
     rows = {c["method"]: c for c in result.info["accuracy"]["candidates"]}
     assert [r[0] for r in rows["rk4"]["rungs"]] == pytest.approx([0.02])
     assert rows["rk4"]["status"] == "skipped" and rows["rk4"]["judged_by"]
+
+
+def test_a_repeat_that_fails_leaves_the_first_run_and_says_why(solvers, monkeypatch):
+    """A repeat can fail where the first run did not (A02 over 20 s at 1e-6: dopri5 at
+    rtol 1e-13 underflows its step at the first flat position). The first run is
+    finished work: it stays the result, and its warning says that the repeat failed
+    and why (forced here on Andrews' repeat at 1e-6)."""
+    from fccgen.target_error import run as target_run
+    real = target_run._attempt
+    why = "DOPRI5 step size underflow (forced)"
+
+    def attempt(solver, frame, choice, progress, reactions, twin=None):
+        if "repeated" in choice.reason:
+            raise SimulationError(why)
+        return real(solver, frame, choice, progress, reactions, twin=twin)
+
+    monkeypatch.setattr(target_run, "_attempt", attempt)
+    case = refs.CASES["andrews"]
+    result, texts = run_to(solvers("andrews"), 1e-6, t_end=case.t_end,
+                           output_dt=case.output_dt)
+    acc = result.info["accuracy"]
+    assert acc["repeated"] is None and acc["repeat_failed"]["error"] == why
+    assert acc["method"] == "dopri5" and acc["repeat_failed"]["value"] < acc["value"]
+    assert result.info["error_estimate"] > 1e-6
+    [text] = [t for t in texts if "exceeds the target" in t]
+    assert f"failed ({why})" in text and "the result is the first run" in text
+    assert "would reach" not in text
+    # the first run's own twin is its estimate; nothing of the failed repeat is counted
+    cost = acc["cost"]
+    assert cost["repeat"] == 0 and cost["estimate"] > 0
+    assert cost["whole"] == cost["pilot"] + cost["run"] + cost["estimate"]
