@@ -20,7 +20,8 @@ from .pilot import KAPPA, NOMINAL_ORDER, PILOT_FRACTION, Fit, fixed_step
 SAFETY = 0.5
 RTOL_MIN, RTOL_MAX = 1e-13, 1e-3     # the tolerances the choice may take
 CANDIDATES = ("dopri5", "rk4", "ali3p")
-# The coarsest setting the choice may take, as a multiple of the coarsest pilot rung:
+# The coarsest setting the choice may take, as a multiple of the coarsest pilot rung
+# that measured the method's order (Fit.reach):
 # half a rung (dopri5) or two rungs (fixed steps) beyond what the pilot measured.
 # Beyond it a method may leave its asymptotic range (dopri5 at loose tolerances: the
 # error no longer follows the tolerance, and the twin's estimate with it; measured on

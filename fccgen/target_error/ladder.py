@@ -1,19 +1,21 @@
 """Which pilot rungs run, coarsest first, and when a candidate stops early.
 
-dopri5 runs ``16 rtol`` and ``rtol``, then ``rtol / 16``, or ``256 rtol`` when the
-pair already places the choice above ``4 rtol``: the rungs then bracket the tolerance
-the run will take (the choice extrapolates no further than half a rung beyond them,
-fccgen.target_error.choice.EXTRAPOLATION), and the added rung is the cheapest.
-
-A fixed-step candidate (rk4, ali3p) runs steps ``2h`` and ``h``. When a reference
-(dopri5's finest rung) is at least REFERENCE_MARGIN times more accurate than a rung,
-the rung's distance from it is its error: two rungs then give order, constant and
-growth, and the finest rung ``h / 2`` (half of the candidate's pilot cost) is not run.
-Otherwise the three rungs are compared among themselves (step doubling). After each
-rung, ``can_win`` sees the most optimistic fit measured so far (the method's nominal
-order, no larger than any it can measure); when it says the candidate cannot be the
-cheapest, no more rungs run and the fit is "skipped", its growth measured all the
-same (the fixed-step history is the smoothest one, see run.share_growth).
+Each candidate runs a pair: dopri5 at ``16 rtol`` and ``rtol``, a fixed-step method
+(rk4, ali3p) at ``2h`` and ``h`` on the pilot's output times (fixed_pair). When a
+reference (dopri5's finest rung) is at least REFERENCE_MARGIN times more accurate than
+a fixed-step rung, the rung's distance from it is its error: the pair then gives order,
+constant and growth, and no third rung runs. Otherwise a third rung runs where the
+choice lies (_third): the pair alone, at the method's order, places the choice, and the
+third rung is ``kappa`` times coarser than the pair, the cheapest rung, unless that
+places the choice more than half a rung below the pair's finer rung; then it is
+``kappa`` times finer. The rungs then bracket the setting the run will take (the
+choice extrapolates no further than fccgen.target_error.choice.EXTRAPOLATION beyond
+the coarsest rung that measured the method's order, _reach). A coarser rung that fails
+gives way to the finer one. After each fixed-step rung, ``can_win`` sees the most
+optimistic fit measured so far (the method's nominal order, no larger than any it can
+measure); when it says the candidate cannot be the cheapest, no more rungs run and the
+fit is "skipped", its growth measured all the same (the fixed-step history is the
+smoothest one, see run.share_growth).
 """
 from __future__ import annotations
 
@@ -164,7 +166,8 @@ def _third(pilot: Pilot, fit: Fit, results: list, aim) -> list | None:
     one."""
     kappa = KAPPA[fit.method]
     coarse, fine = fit.rungs[0][0], fit.rungs[1][0]
-    if aim is not None and _provisional(fit, pilot, results, aim) >= fine / math.sqrt(kappa):
+    if aim is not None and (_provisional(fit, pilot, results, aim)
+                            >= fine / math.sqrt(kappa)):
         kept = len(fit.rungs)
         third = _rung(pilot, fit, coarse * kappa)
         if third is not None and math.isfinite(
