@@ -72,7 +72,9 @@ def measure(name: str, levels, build_dir, model_dir, grid: dict) -> list[dict]:
                    repeated=bool(acc["repeated"]), pilot=cost["pilot"], run=cost["run"],
                    estimate_cost=cost["estimate"], repeat=cost["repeat"],
                    whole=cost["whole"], best=cheapest(grid, name, level), cpu=cpu,
-                   warned=" | ".join(str(w.message) for w in seen))
+                   # the files name the model relative to the repository
+                   warned=" | ".join(str(w.message) for w in seen).replace(
+                       f"{ROOT}{os.sep}", ""))
         rows.append(row)
         print(f"{name} E={level:g}: true {row['true_error']:.3g}, estimate "
               f"{row['estimate']:.3g}, {row['method']} {row['setting']}"

@@ -25,7 +25,7 @@ import pytest
 
 import error_references as refs
 from conftest import ROOT
-from fccgen.errors import RunWarning
+from fccgen.errors import RunWarning, SimulationError
 from fccgen.target_error.compare import compared, speeds
 
 GRID = json.loads((ROOT / "tests" / "data" / "error_target_grid.json").read_text())
@@ -177,3 +177,60 @@ def test_a02_says_that_its_flat_positions_make_the_estimate_no_promise(runs):
     assert found["smallest"] < 0.1 * found["start"] and 0.72 <= found["time"] <= 2.0
     [text] = [t for t in texts if "comes near singular positions" in t]
     assert "not a promise" in text and f"{found['smallest']:.2g}" in text
+
+
+def test_the_pilot_measures_rk4_where_its_choice_lies(runs):
+    """A02's first 0.6 s at 1e-6: the pilot records every 0.05 / 9 s, which holds rk4's
+    pair to 5.6 and 2.8 ms where the run can take 25 ms. The pair places the choice
+    above it, so the third rung doubles the coarse step (recording on every other
+    output time) rather than halving the fine one, and the choice may go to four times
+    that rung (choice.EXTRAPOLATION)."""
+    result, _, _ = runs("a02s", 1e-6)
+    rows = {c["method"]: c for c in result.info["accuracy"]["candidates"]}
+    sample = 0.05 / 9
+    assert [r[0] for r in rows["rk4"]["rungs"]] == pytest.approx(
+        [2 * sample, sample, sample / 2])
+    assert result.info["method"] == "rk4" and result.info["dt"] > 4 * sample
+
+
+def test_a_fixed_step_pair_may_step_a_multiple_of_the_output_interval(runs):
+    """The solar array records every 10 ms and its pilot's piece (0.3 s) holds 30 of
+    those: rk4's pair steps 20 and 10 ms (the coarse one still records 15 times in the
+    piece, enough for the growth) rather than 10 and 5, where dopri5's pilot steps
+    25 ms. At 20 ms dopri5's finest rung judges it, and rk4 stops there: it cannot be
+    the cheapest."""
+    result, _, _ = runs("solar", 1e-6)
+    rows = {c["method"]: c for c in result.info["accuracy"]["candidates"]}
+    assert [r[0] for r in rows["rk4"]["rungs"]] == pytest.approx([0.02])
+    assert rows["rk4"]["status"] == "skipped" and rows["rk4"]["judged_by"]
+
+
+def test_a_repeat_that_fails_leaves_the_first_run_and_says_why(solvers, monkeypatch):
+    """A repeat can fail where the first run did not (A02 over 20 s at 1e-6: dopri5 at
+    rtol 1e-13 underflows its step at the first flat position). The first run is
+    finished work: it stays the result, and its warning says that the repeat failed
+    and why (forced here on Andrews' repeat at 1e-6)."""
+    from fccgen.target_error import run as target_run
+    real = target_run._attempt
+    why = "DOPRI5 step size underflow (forced)"
+
+    def attempt(solver, frame, choice, progress, reactions, twin=None):
+        if "repeated" in choice.reason:
+            raise SimulationError(why)
+        return real(solver, frame, choice, progress, reactions, twin=twin)
+
+    monkeypatch.setattr(target_run, "_attempt", attempt)
+    case = refs.CASES["andrews"]
+    result, texts = run_to(solvers("andrews"), 1e-6, t_end=case.t_end,
+                           output_dt=case.output_dt)
+    acc = result.info["accuracy"]
+    assert acc["repeated"] is None and acc["repeat_failed"]["error"] == why
+    assert acc["method"] == "dopri5" and acc["repeat_failed"]["value"] < acc["value"]
+    assert result.info["error_estimate"] > 1e-6
+    [text] = [t for t in texts if "exceeds the target" in t]
+    assert f"failed ({why})" in text and "the result is the first run" in text
+    assert "would reach" not in text
+    # the first run's own twin is its estimate; nothing of the failed repeat is counted
+    cost = acc["cost"]
+    assert cost["repeat"] == 0 and cost["estimate"] > 0
+    assert cost["whole"] == cost["pilot"] + cost["run"] + cost["estimate"]

@@ -20,7 +20,8 @@ from .pilot import KAPPA, NOMINAL_ORDER, PILOT_FRACTION, Fit, fixed_step
 SAFETY = 0.5
 RTOL_MIN, RTOL_MAX = 1e-13, 1e-3     # the tolerances the choice may take
 CANDIDATES = ("dopri5", "rk4", "ali3p")
-# The coarsest setting the choice may take, as a multiple of the coarsest pilot rung:
+# The coarsest setting the choice may take, as a multiple of the coarsest pilot rung
+# that measured the method's order (Fit.reach):
 # half a rung (dopri5) or two rungs (fixed steps) beyond what the pilot measured.
 # Beyond it a method may leave its asymptotic range (dopri5 at loose tolerances: the
 # error no longer follows the tolerance, and the twin's estimate with it; measured on
@@ -66,7 +67,7 @@ def twin_factor(method: str, value: float, fit: Fit | None) -> float:
     if (fit is None or not fit.rungs or method not in WIDE_TWIN
             or not abs(fit.measured_order / NOMINAL_ORDER[method] - 1) <= ORDER_MATCH):
         return KAPPA[method]
-    bound = KAPPA[method] * fit.rungs[0][0]
+    bound = KAPPA[method] * fit.reach
     classic = twin_share(fit)
     # the check runs both twins over about the pilot's piece: worth it only if the wide
     # twin saves more than that (dopri5 on the solar array: its steps barely follow rtol)
@@ -96,7 +97,7 @@ def twin_share(fit: Fit, factor: float | None = None) -> float:
 def predict(fit: Fit, target: float, t_end: float, output_dt: float) -> dict:
     """The setting a candidate would take and what the fit predicts for it."""
     s = min(fit.setting_for(SAFETY * target, t_end),
-            EXTRAPOLATION[fit.method] * fit.rungs[0][0])
+            EXTRAPOLATION[fit.method] * fit.reach)
     if fit.method == "dopri5":
         s = min(RTOL_MAX, max(RTOL_MIN, s))
     else:

@@ -63,7 +63,8 @@ class Fit:
     method: str
     setting: str                   # "dt" or "rtol"
     t_piece: float
-    rungs: list = field(default_factory=list)   # (setting, evaluations, steps, rejected)
+    # (setting, evaluations, steps, rejected) over the piece, coarsest first
+    rungs: list = field(default_factory=list)
     s0: float = math.nan           # middle rung's setting
     err0: float = math.nan         # its estimated error at the end of the piece
     order: float = math.nan        # error exponent used in predictions
@@ -78,6 +79,7 @@ class Fit:
     roundoff: float = 0.0          # round-off per step (length units)
     judged_by: str = ""            # "rungs" (step doubling) or the reference's label
     finest: object = field(default=None, repr=False)    # the finest rung's result
+    reach_rung: int = 0            # the rung the choice may extrapolate from (its index)
 
     def truncation_at(self, s: float, t_end: float) -> float:
         return (self.err0 * (s / self.s0) ** self.order
@@ -106,8 +108,14 @@ class Fit:
     def as_dict(self) -> dict:
         keys = ("method", "setting", "status", "note", "s0", "err0", "order",
                 "measured_order", "cost0", "steps0", "cost_exponent", "growth", "t_piece",
-                "roundoff", "judged_by")
+                "roundoff", "judged_by", "rungs", "reach_rung")
         return {k: getattr(self, k) for k in keys}
+
+    @property
+    def reach(self) -> float:
+        """The coarsest setting whose rung the choice extrapolates from
+        (choice.EXTRAPOLATION, choice.twin_factor)."""
+        return self.rungs[self.reach_rung][0]
 
     @property
     def finest_error(self) -> float:
@@ -178,10 +186,11 @@ def fixed_step(output_dt: float, h: float) -> float:
 
 
 def fit_rungs(fit: Fit, pilot: Pilot, histories, kappa: float,
-              direct: bool = False) -> None:
+              direct: bool = False, growth_of=None) -> None:
     """Order, error constant, growth and cost law from two error histories: the
     differences of neighbouring rungs (coarse-middle, middle-fine), or with ``direct``
-    the errors of the coarse and the middle rung against a reference."""
+    the errors of the coarse and the middle rung against a reference. growth_of: the
+    history the growth is fitted to (default: the first)."""
     (t, d1), (_, d2) = histories
     e1, e2 = float(np.max(d1)), float(np.max(d2))
     nominal = NOMINAL_ORDER[fit.method]
@@ -198,8 +207,9 @@ def fit_rungs(fit: Fit, pilot: Pilot, histories, kappa: float,
         fit.order = nominal
         if e1 > pilot.noise:         # the coarse rung, judged by the middle one
             rung, e = 0, e1
-        fit.note = ("the pilot's finest rungs agree to the projections' noise: the order "
-                    "was not measured, the method's nominal order is used")
+        fit.note = "; ".join(filter(None, (
+            fit.note, "the pilot's finest rungs agree to the projections' noise: the "
+            "order was not measured, the method's nominal order is used")))
     ratio = kappa ** fit.order
     fit.s0 = fit.rungs[rung][0]
     # error of a rung = its difference from the next finer rung * R / (R - 1), or its
@@ -207,7 +217,7 @@ def fit_rungs(fit: Fit, pilot: Pilot, histories, kappa: float,
     fit.err0 = max(e, pilot.noise) * (1.0 if direct else ratio / (ratio - 1))
     # growth belongs to the problem, not the setting: measured on the coarse pair (or
     # the coarse rung's error), whose difference stands furthest above the noise
-    fit.growth = growth(t, d1, pilot.noise)
+    fit.growth = growth(*(growth_of or (t, d1)), pilot.noise)
     c0, c2 = fit.rungs[0][1], fit.rungs[-1][1]
     fit.cost0, fit.steps0 = fit.rungs[rung][1], fit.rungs[rung][2]
     fit.roundoff = ROUNDOFF_PER_STEP * float(np.finfo(float).eps) * pilot.length_scale

@@ -17,7 +17,7 @@ import warnings
 
 import numpy as np
 
-from ..errors import FccgenError, RunWarning
+from ..errors import FccgenError, RunWarning, SimulationError
 from . import estimate as estimates
 from . import pilot as pilots
 from .choice import (CANDIDATES, RTOL_MAX, RTOL_MIN, SAFETY, Choice, choose, predict,
@@ -46,6 +46,9 @@ DOMINANCE = 1.25
 # share of the run, the check would cost what the wide twin saves: the classic one runs.
 CHECK_SHARE = 0.25
 WIDE_FAILURES = (FccgenError, ArithmeticError, np.linalg.LinAlgError)
+# A repeat that fails (dopri5's step underflows at A02's first flat position at the
+# tightest tolerance) leaves the first run as the result, with a warning that says so.
+REPEAT_FAILURES = (SimulationError, ArithmeticError, np.linalg.LinAlgError)
 
 
 def simulate_to_error(solver, error, error_on=None, *, t_end=None, output_dt=None,
@@ -83,20 +86,27 @@ def simulate_to_error(solver, error, error_on=None, *, t_end=None, output_dt=Non
         progress(f"error target {error:g}: {choice.reason}")
     options = dict(progress=progress, reactions=reactions)
     result, twin, found = _attempt(solver, frame, choice, **options)
-    first = None
+    first = failed = None
     if found.value > error:
         again = _repeat(choice, found, error, output_dt)
         if again is not None:
             if progress is not None:
                 progress(f"error target {error:g}: {again.reason}")
-            first = (choice, found, pilots.evaluations(result.info)
-                     + pilots.evaluations(twin.info) + (found.check or {}).get("cost", 0))
+            spent = (pilots.evaluations(result.info) + pilots.evaluations(twin.info)
+                     + (found.check or {}).get("cost", 0))
             reuse = (choice.value / again.value) ** again.order >= estimates.MIN_RATIO
-            previous, choice = result, again
-            result, twin, found = _attempt(solver, frame, choice,
-                                           twin=(previous, first[0].value) if reuse
-                                           else None, **options)
-    report(result, twin, frame, choice, found, error, first)
+            try:
+                repeated = _attempt(solver, frame, again,
+                                    twin=(result, choice.value) if reuse else None,
+                                    **options)
+            except REPEAT_FAILURES as exc:
+                # the first run is finished work: it stays the result, and says why
+                failed = (again, " ".join(str(exc).split()))
+            else:
+                first = (choice, found, spent)
+                choice = again
+                result, twin, found = repeated
+    report(result, twin, frame, choice, found, error, first, failed)
     return result
 
 
@@ -234,18 +244,19 @@ def measure_candidates(frame, error: float, only, has_events: bool) -> list:
     growth = frame.t_end / frame.t_piece
     tol = min(1e-5, max(1e-10, error / (frame.length_scale * 5 * growth)))
     fits, step, dopri = [], None, None
+    aim = (SAFETY * error, frame.t_end)
     if "dopri5" in names:
-        dopri = measure(frame, "dopri5", tol, aim=(SAFETY * error, frame.t_end))
+        dopri = measure(frame, "dopri5", tol, aim=aim)
         fits.append(dopri)
         if dopri.rungs:
             steps = dopri.rungs[min(1, len(dopri.rungs) - 1)][2]
             step = frame.t_piece / max(steps, 1)
     step = step or frame.output_dt / 8
     if "rk4" in names:
-        fits.append(measure(frame, "rk4", step / 2, reference=dopri,
+        fits.append(measure(frame, "rk4", step / 2, reference=dopri, aim=aim,
                             can_win=None if only else _can_win(frame, dopri, error)))
     if "ali3p" in names or (not only and not has_events and _stiff(fits)):
-        fits.append(measure(frame, "ali3p", 4 * step, reference=dopri))
+        fits.append(measure(frame, "ali3p", 4 * step, reference=dopri, aim=aim))
     share_growth(fits)
     return fits
 
@@ -294,8 +305,9 @@ def _stiff(fits) -> bool:
             and math.log(c2 / c0) / math.log(s0 / s2) < STIFF_COST_EXPONENT)
 
 
-def report(result, twin, frame, choice, found, error: float, first) -> None:
-    """The estimate, the choice and the costs into result.info, and the warnings."""
+def report(result, twin, frame, choice, found, error: float, first, failed=None) -> None:
+    """The estimate, the choice and the costs into result.info, and the warnings;
+    failed: (the repeat's choice, why it failed) when a repeat was tried and failed."""
     info = result.info
     info["error_target"] = error
     info["error_estimate"] = found.value
@@ -321,12 +333,17 @@ def report(result, twin, frame, choice, found, error: float, first) -> None:
         singular_approach=frame.singular,
         repeated=(dict(value=first[0].value, estimate=first[1].value,
                        estimate_time=first[1].time) if first else None),
+        repeat_failed=(dict(value=failed[0].value, error=failed[1]) if failed else None),
         cost=cost)
     texts = list(found.texts)
     if found.value > error:
         text = (f"the estimated error {found.value:.2g} exceeds the target {error:g} "
                 f"(largest at t = {found.time:.6g}); ")
-        if first and not estimates.converged(first[0], choice, first[1], found):
+        if failed:
+            text += (f"a repeat at {failed[0].label} failed ({failed[1]}), so the result "
+                     f"is the first run ({choice.label}) and its estimate; another method "
+                     "(method=) may reach the target")
+        elif first and not estimates.converged(first[0], choice, first[1], found):
             text += (f"it fell only from {first[1].value:.2g} ({first[0].label}) where "
                      f"the order {choice.order:.3g} says about "
                      f"{SAFETY * error:.2g}: the error does not fall with the step here "
