@@ -1,4 +1,4 @@
-"""The sparse path's refinement on ill-conditioned constraints (runtime/_al_refine.pyx):
+"""The sparse path's refinement on ill-conditioned constraints (engine fcc_al_refine.c):
 it converges near the A02 chain's flat position, agrees with the dense path there, and
 a solve that does not converge is redone densely or kept, but never silently: the run
 counts it, warns, and the command line's summary says it."""
@@ -100,7 +100,7 @@ def test_converged_sparse_runs_report_no_unconverged_solve(compiled):
 
 def test_warm_started_acceleration_solves_take_two_steps(compiled):
     """The accelerations start from the last accelerations' multipliers
-    (_al_refine.pyx, "Warm start"): over 0.2 s of A02's RK4 the solves, every step's
+    (fcc_al_refine.c, "Warm start"): over 0.2 s of A02's RK4 the solves, every step's
     velocity projection included, average at most 2.2 solves with A (measured 2.0;
     from zero multipliers the cart of 20 links averaged 3.5). The runs' agreement
     with the dense path is tests/test_sparse_path.py's."""
@@ -126,7 +126,7 @@ def test_direct_acceleration_calls_do_not_depend_on_earlier_calls(compiled):
 
 
 def test_newton_steps_stop_sooner_and_land_where_the_dense_ones_do(compiled):
-    """A Newton step's solve stops at NEWTON_STOP (_al_refine.pyx): two solves with A
+    """A Newton step's solve stops at NEWTON_STOP (fcc_al_refine.c): two solves with A
     where the accelerations' tolerance took three. Positions 1e-4 m off A02's
     constraints in their plane (z stays: the sparse pattern is the plane's) take two
     Newton steps on both paths and land on the same point to 1e-13 m, 14 units in the
@@ -153,7 +153,7 @@ def test_newton_steps_stop_sooner_and_land_where_the_dense_ones_do(compiled):
 
 def test_the_projection_after_a_step_takes_chord_steps(compiled):
     """After an RK4 step the position projection's Newton steps are chord steps with
-    the last stage's M, B and factorisation (runtime/_sparse.pyx, "Chord steps"): over
+    the last stage's M, B and factorisation (engine fcc_sparse_engine.c, "Chord steps"): over
     0.5 s of the four-bar every Newton step is one and none is undone, so a step makes
     four factorisations (the velocity projection's serves the next first stage) and
     max |g| stays within the tolerance. The runs' agreement with the dense path is

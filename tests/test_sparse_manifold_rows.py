@@ -1,5 +1,5 @@
 """Rows dependent only on the constraint manifold on the sparse path
-(runtime/_al_refine.pyx, "Directions beyond the decided rank"): a linkage mobile by its
+(engine fcc_al_refine.c, "Directions beyond the decided rank"): a linkage mobile by its
 geometry (Bricard's loop) has a row that is dependent on the constraints and independent
 a little off them, where an RK stage's positions are. Enforcing it there gave stage
 accelerations wrong by O(1) that passed every residual test: Bricard in its distance
@@ -53,7 +53,7 @@ def test_bricard_on_the_sparse_path_follows_the_dense_path(tmp_path, build_dir, 
     distance encoding ended 0.37 m away with 2.2 J more. Solves that reach the row
     beyond the rank are counted, redone densely and warned about: the line encoding's
     do (2096 of 5011). The distance encoding's acceleration solves, started from the
-    last accelerations' multipliers (_al_refine.pyx, "Warm start"), converge in two
+    last accelerations' multipliers (fcc_al_refine.c, "Warm start"), converge in two
     steps without reaching it: none is redone and nothing is warned."""
     path = tmp_path / f"bricard_{encoding}.yaml"
     path.write_text(bricard.text(encoding))
