@@ -111,3 +111,37 @@ def test_info_says_how_the_setup_decided_and_reuse_follows_the_jacobian(compiled
     moved = solver.with_parameters({"points.B0.at": [0.0, 1.01, 0.0]})
     assert moved.simulate(t_end=0.01, dt=1e-3, reactions=False).info[
         "setup"]["rank_decision"]["reused"] is False
+
+
+def test_components_are_the_connected_parts_of_the_coordinate_graph():
+    """components() against the definition, on random sparse B with empty rows, empty
+    columns and stored zeros: each coordinate in exactly one part, every entry of a
+    row inside its part's columns, rows and columns ascending, no part splittable (a
+    part's columns are reached from its first one through its rows)."""
+    import scipy.sparse as sp
+    rng = np.random.default_rng(3)
+    for trial in range(60):
+        m, n = (int(x) for x in rng.integers(1, 30, 2))
+        B = sp.random(m, n, density=float(rng.uniform(0.02, 0.25)), random_state=trial,
+                      format="csr")
+        if B.nnz:
+            B.data[0] = 0.0                      # a stored zero is no edge
+        parts = rank_sparse.components(B)
+        dense = B.toarray() != 0.0
+        cols = np.concatenate([c for _, c in parts])
+        assert np.array_equal(np.sort(cols), np.arange(n))
+        rows = np.concatenate([r for r, _ in parts])
+        assert np.array_equal(np.sort(rows), np.flatnonzero(dense.any(axis=1)))
+        for r, c in parts:
+            assert np.all(np.diff(r) > 0) and np.all(np.diff(c) > 0)
+            outside = np.setdiff1d(np.arange(n), c)
+            assert not dense[np.ix_(r, outside)].any()
+            reached, frontier = {int(c[0])}, [int(c[0])]
+            while frontier:
+                j = frontier.pop()
+                for i in np.flatnonzero(dense[:, j]):
+                    for k in np.flatnonzero(dense[i]):
+                        if int(k) not in reached:
+                            reached.add(int(k))
+                            frontier.append(int(k))
+            assert reached == set(int(x) for x in c)
