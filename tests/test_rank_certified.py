@@ -145,3 +145,26 @@ def test_components_are_the_connected_parts_of_the_coordinate_graph():
                             reached.add(int(k))
                             frontier.append(int(k))
             assert reached == set(int(x) for x in c)
+
+
+@pytest.mark.parametrize("name", EXAMPLES)
+def test_the_decisions_from_the_dense_and_the_sparse_jacobian_are_equal(compiled, name):
+    """A run's decisions read B sparse above SPLIT_COLUMNS coordinates
+    (CompiledSolver._jacobian_for_decision): the same entries, so the same decision,
+    bit for bit, as from the dense B, at the start and off the constraints, both
+    ways of deciding (all singular values; the rank only, component-wise above
+    SPLIT_COLUMNS)."""
+    solver = compiled(name)
+    for q in _points(solver):
+        dense, sparse = solver.constraint_jacobian(q), solver.constraint_jacobian_sparse(q)
+        assert np.array_equal(sparse.toarray(), dense)
+        # what fccgen.rank.decide takes above SPLIT_COLUMNS: the start decision
+        # (components up to DENSE_COMPONENT by their SVD), the off-constraint test
+        # (rank only, above SPLIT_COLUMNS certified), every component certified
+        for dense_max, rank_only in ((rank_sparse.DENSE_COMPONENT, False),
+                                     (rank_rule.SPLIT_COLUMNS, True), (1, False)):
+            a = rank_sparse.decide_large(dense, solver.n_q, solver.row_groups,
+                                         dense_max, rank_only)
+            b = rank_sparse.decide_large(sparse, solver.n_q, solver.row_groups,
+                                         dense_max, rank_only)
+            assert (a.rank, a.sigma, a.gap, a.how) == (b.rank, b.sigma, b.gap, b.how)
