@@ -111,3 +111,60 @@ def test_info_says_how_the_setup_decided_and_reuse_follows_the_jacobian(compiled
     moved = solver.with_parameters({"points.B0.at": [0.0, 1.01, 0.0]})
     assert moved.simulate(t_end=0.01, dt=1e-3, reactions=False).info[
         "setup"]["rank_decision"]["reused"] is False
+
+
+def test_components_are_the_connected_parts_of_the_coordinate_graph():
+    """components() against the definition, on random sparse B with empty rows, empty
+    columns and stored zeros: each coordinate in exactly one part, every entry of a
+    row inside its part's columns, rows and columns ascending, no part splittable (a
+    part's columns are reached from its first one through its rows)."""
+    import scipy.sparse as sp
+    rng = np.random.default_rng(3)
+    for trial in range(60):
+        m, n = (int(x) for x in rng.integers(1, 30, 2))
+        B = sp.random(m, n, density=float(rng.uniform(0.02, 0.25)), random_state=trial,
+                      format="csr")
+        if B.nnz:
+            B.data[0] = 0.0                      # a stored zero is no edge
+        parts = rank_sparse.components(B)
+        dense = B.toarray() != 0.0
+        cols = np.concatenate([c for _, c in parts])
+        assert np.array_equal(np.sort(cols), np.arange(n))
+        rows = np.concatenate([r for r, _ in parts])
+        assert np.array_equal(np.sort(rows), np.flatnonzero(dense.any(axis=1)))
+        for r, c in parts:
+            assert np.all(np.diff(r) > 0) and np.all(np.diff(c) > 0)
+            outside = np.setdiff1d(np.arange(n), c)
+            assert not dense[np.ix_(r, outside)].any()
+            reached, frontier = {int(c[0])}, [int(c[0])]
+            while frontier:
+                j = frontier.pop()
+                for i in np.flatnonzero(dense[:, j]):
+                    for k in np.flatnonzero(dense[i]):
+                        if int(k) not in reached:
+                            reached.add(int(k))
+                            frontier.append(int(k))
+            assert reached == set(int(x) for x in c)
+
+
+@pytest.mark.parametrize("name", EXAMPLES)
+def test_the_decisions_from_the_dense_and_the_sparse_jacobian_are_equal(compiled, name):
+    """A run's decisions read B sparse above SPLIT_COLUMNS coordinates
+    (CompiledSolver._jacobian_for_decision): the same entries, so the same decision,
+    bit for bit, as from the dense B, at the start and off the constraints, both
+    ways of deciding (all singular values; the rank only, component-wise above
+    SPLIT_COLUMNS)."""
+    solver = compiled(name)
+    for q in _points(solver):
+        dense, sparse = solver.constraint_jacobian(q), solver.constraint_jacobian_sparse(q)
+        assert np.array_equal(sparse.toarray(), dense)
+        # what fccgen.rank.decide takes above SPLIT_COLUMNS: the start decision
+        # (components up to DENSE_COMPONENT by their SVD), the off-constraint test
+        # (rank only, above SPLIT_COLUMNS certified), every component certified
+        for dense_max, rank_only in ((rank_sparse.DENSE_COMPONENT, False),
+                                     (rank_rule.SPLIT_COLUMNS, True), (1, False)):
+            a = rank_sparse.decide_large(dense, solver.n_q, solver.row_groups,
+                                         dense_max, rank_only)
+            b = rank_sparse.decide_large(sparse, solver.n_q, solver.row_groups,
+                                         dense_max, rank_only)
+            assert (a.rank, a.sigma, a.gap, a.how) == (b.rank, b.sigma, b.gap, b.how)

@@ -184,12 +184,24 @@ def components(C) -> list[tuple[np.ndarray, np.ndarray]]:
     pattern = abs(C).astype(bool).astype(float)
     if not n:
         return []
-    _, label = connected_components(pattern.T @ pattern, directed=False)
+    count, label = connected_components(pattern.T @ pattern, directed=False)
     has = np.diff(C.indptr) > 0                        # rows with an entry
     first = C.indices[np.minimum(C.indptr[:-1], max(C.nnz - 1, 0))] if C.nnz else 0
     row_label = np.where(has, label[first] if C.nnz else -1, -1)
-    return [(np.flatnonzero(row_label == c), np.flatnonzero(label == c))
-            for c in np.unique(label)]
+    # each component's rows and columns in ascending order, by one stable sort of the
+    # labels (0 .. count - 1, each used) in place of a scan per component
+    cols = _split_by_label(np.arange(n), label, count)
+    rows = _split_by_label(np.flatnonzero(row_label >= 0), row_label[row_label >= 0],
+                           count)
+    return list(zip(rows, cols))
+
+
+def _split_by_label(index: np.ndarray, label: np.ndarray, count: int) -> list:
+    """index split by its labels 0 .. count - 1: the entries of each label, in the
+    order of index."""
+    order = np.argsort(label, kind="stable")
+    ends = np.cumsum(np.bincount(label, minlength=count))[:-1]
+    return np.split(index[order].astype(np.intp), ends)
 
 
 def gram(C):

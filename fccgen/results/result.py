@@ -230,14 +230,18 @@ def result_from_arrays(plan, t, q, v, body_out, energy, constraint_error, info=N
     q, v: (n_out, n_q); body_out: (n_out, n_bodies, 6); energy, constraint_error: (n_out,).
     """
     cols: dict[str, np.ndarray] = {}
+    # each column a contiguous row of one transposed copy per array (one copy, not
+    # one per column: a short run of a large model named thousands of columns)
+    q_rows, v_rows = np.array(np.asarray(q).T), np.array(np.asarray(v).T)
+    body_rows = np.array(np.asarray(body_out).transpose(1, 2, 0))
     for k, (name, _) in enumerate(plan.triples):
         for c in range(3):
-            cols[f"{name}.{'xyz'[c]}"] = np.array(q[:, 3 * k + c])
+            cols[f"{name}.{'xyz'[c]}"] = q_rows[3 * k + c]
         for c in range(3):
-            cols[f"{name}.v{'xyz'[c]}"] = np.array(v[:, 3 * k + c])
+            cols[f"{name}.v{'xyz'[c]}"] = v_rows[3 * k + c]
     for b, (name, _) in enumerate(plan.bodies):
         for c, col in enumerate(("cx", "cy", "cz", "wx", "wy", "wz")):
-            cols[f"{name}.{col}"] = np.array(body_out[:, b, c])
+            cols[f"{name}.{col}"] = body_rows[b, c]
     cols["energy"] = np.array(energy)
     cols["constraint_error"] = np.array(constraint_error)
     return Result(np.array(t), cols, dict(info or {}), hidden=internal_columns(plan, cols))

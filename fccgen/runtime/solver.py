@@ -163,6 +163,15 @@ class CompiledSolver:
             return self.constraint_jacobian_sparse(q)
         return self.constraint_jacobian(q)
 
+    def _jacobian_for_decision(self, q):
+        """B for the rank decisions (decide_rank, _manifold_redundancy): sparse above
+        SPLIT_COLUMNS coordinates, where fccgen.rank decides a component at a time from
+        a sparse B anyway (the same entries: no dense n_g x n_q array to fill, hash and
+        convert)."""
+        if self.n_q > rank_rule.SPLIT_COLUMNS:
+            return self.constraint_jacobian_sparse(q)
+        return self.constraint_jacobian(q)
+
     def constraint_bias(self, q, v) -> np.ndarray:
         return self._get("constraint_bias", q, v)
 
@@ -234,7 +243,7 @@ class CompiledSolver:
                             position_residual=_amax(self.constraints(q)),
                             newton_iterations=iterations,
                             velocity_change=_amax(v - plan.v_target),
-                            velocity_residual=_amax(self._jacobian_for_rank(q) @ v
+                            velocity_residual=_amax(self._jacobian_for_decision(q) @ v
                                                     + self.constraint_rate(q)))
 
     # -- simulation ---------------------------------------------------------------------
@@ -503,7 +512,7 @@ class CompiledSolver:
         Every run decides at its start; before the first decision the factorisations
         count QR pivots above rank_tol. The same q (parameters, tolerances) takes the
         decision made before (fccgen.runtime.setup_reuse)."""
-        decision = kept_decision(self, q, lambda: self._jacobian_for_rank(q),
+        decision = kept_decision(self, q, lambda: self._jacobian_for_decision(q),
                                  lambda B: rank_rule.decide(B, self.n_q, self.row_groups))
         self._decided_at = np.array(q, dtype=float)
         if self._auto_small:
@@ -573,7 +582,7 @@ class CompiledSolver:
             start = time.process_time()
             rng = np.random.default_rng(OFF_MANIFOLD_SEED)
             off = q + OFF_MANIFOLD * self.length_scale * rng.standard_normal(q.size)
-            B = self._jacobian_for_rank(off)
+            B = self._jacobian_for_decision(off)
             moved, reused = shared_decision(
                 jacobian_key("off", B, self.row_groups, self.n_q),
                 lambda: rank_rule.decide(B, self.n_q, self.row_groups,
