@@ -100,7 +100,9 @@
  * solves from zero: Newton, velocities, event responses); the sensitivities' solves,
  * which carry their own multipliers, keep the factor they find (a raise inside them
  * stopped the latch pendulum's sensitivity run with non-finite values at its latch:
- * tests/test_sensitivity_events.py).
+ * tests/test_sensitivity_events.py). A run whose factorisations serve such solves
+ * makes none with the raised alpha at once (own_lam_seen, from its first such solve):
+ * held after that pendulum's latch, they stopped its sensitivity run the same way.
  * Models with rows beyond the decided rank (below) keep RHO: raising alpha moves x
  * along such a row by t / (1 + t) of a wrong amount (fcc_sparse_blocks.c, RHO). A
  * raised factor that fails its pivot test is replaced by RHO's again.
@@ -404,6 +406,8 @@ int fcc_sp_kkt_solve_from(fcc_engine *e, const double *Q, const double *w,
     const fcc_pattern *P = s->pat;
     int i, status, solves = 0, n = e->n, m = e->m;
     int motion = s->beyond_quotient == 0.0 && (lam_io == NULL || lam_io == s->lam_warm);
+    if (lam_io != NULL && lam_io != s->lam_warm)
+        s->own_lam_seen = 1;              /* no held raise from here on in this run */
     if (Q != NULL)
         memcpy(s->base, Q, (size_t)n * sizeof(double));
     else
@@ -431,7 +435,7 @@ int fcc_sp_kkt_solve_from(fcc_engine *e, const double *Q, const double *w,
         status = refine(e, b, x, 0, &solves, newton ? NEWTON_STOP : AL_STOP, 0);
         s->slow_rate = 1.0;
     }
-    if (motion && s->boost != 1.0 && s->slow_rate > BOOST_STAY)
+    if (motion && s->boost != 1.0 && s->slow_rate > BOOST_STAY && !s->own_lam_seen)
         s->boost_hold = FCC_BOOST_HOLD;   /* still near: the next factors boosted */
     if (lam_io != NULL && status == 1)
         memcpy(lam_io, s->lam, (size_t)m * sizeof(double));

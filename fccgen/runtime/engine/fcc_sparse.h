@@ -104,6 +104,8 @@ typedef struct fcc_sparse {
                                    once (fcc_al_refine.c, "Near a singular
                                    position") */
     double slow_rate;           /* the last refinement's slowest step rate */
+    int own_lam_seen;           /* the run's factors served solves with their own
+                                   multipliers (sensitivities): no boost_hold */
     /* the refinement (fcc_al_refine.c) */
     double *w_n, *r1, *dx, *base, *lz;
     double *lam, *lam_warm, *r2, *bdx, *res, *mu, *cg_p, *cg_sp, *u;

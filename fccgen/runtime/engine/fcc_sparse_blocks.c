@@ -322,7 +322,7 @@ int fcc_sp_factor(fcc_engine *e, const double *q)
      * "Near a singular position"), RHO's when that factor fails. */
     fcc_sparse *s = &e->sp;
     int err = e->err, info = e->err_info, detail = e->err_detail;
-    if (s->boost_hold > 0 && s->beyond_quotient == 0.0) {
+    if (s->boost_hold > 0 && s->beyond_quotient == 0.0 && !s->own_lam_seen) {
         s->boost_hold--;
         s->boost = FCC_AL_BOOST;
         if (factor(e, q) == 0) {
