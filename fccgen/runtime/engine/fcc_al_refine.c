@@ -76,21 +76,33 @@
  * Near a singular position. Those conjugate-gradient steps are as many as the weak
  * directions with distinct t (the A02 chain of 40 loops near its flat position: up to
  * 59 in one solve, 176 in one RK4 step, 7 times the median step). So the first solve
- * of a factorisation that turns slow from zero multipliers (a warm start turning slow
- * starts again from zero first) factors A again with alpha raised FCC_AL_BOOST (1e4,
- * fcc_sp_factor_boosted) and starts again from zero; the rest of that factorisation's
- * solves keep the raised alpha, the next factorisation starts from RHO again. t grows
- * 1e4 times, the weak directions' t / (1 + t) cluster at 1 and the corrections take a
- * few steps (that chain: at most 19 in one solve, 69 in one step, the extra
- * factorisation included in the step's cost). A's condition grows 1e4 times as well
- * (about 1e-5 relative rounding in one solve), which the refinement's true residuals
- * remove, as they remove RHO's: the runs agree with the dense path's to 4e-11 there
- * (2e-12 with RHO: tests/test_sparse_singular_boost.py).
+ * of a factorisation that turns slow (from zero multipliers, or from warm ones)
+ * factors A again with alpha raised FCC_AL_BOOST (1e5, fcc_sp_factor_boosted) and
+ * starts again from zero; the rest of that factorisation's solves keep the raised
+ * alpha. t grows 1e5 times, the weak directions' t / (1 + t) cluster at 1 and the
+ * augmented-Lagrangian steps contract at 1e-4 .. 1e-2 again, the corrections (where
+ * still needed) take a few steps. The chain stays near that position for a few steps,
+ * so the next FCC_BOOST_HOLD factorisations (fcc_sp_factor) are made with the raised
+ * alpha at once, and the count starts again at each raised solve whose steps still
+ * contract slower than BOOST_STAY (1e-5: with RHO those would have been slow, t < 19);
+ * a warm start there that turns slow goes on to the corrections instead of starting
+ * again from zero. Without this, every solve of such a step first ran with RHO, turned
+ * slow, started again from zero and factored again: 69 iterations and 11
+ * factorisations in the chain's slowest step (4 times the median step), against 26
+ * and 5 now, with 10 and 4 in the median step (benchmarks/step_time_spread.py). A's
+ * condition grows 1e5 times as well (about 1e-4 relative rounding in one solve), which
+ * the refinement's true residuals remove, as they remove RHO's: the runs agree with
+ * the dense path's to 5e-12 there (4e-11 with a 1e4 boost started only after a slow
+ * solve, 2e-12 with RHO: tests/test_sparse_singular_boost.py). With 1e4 held the
+ * same way the raised solves still contract at up to 0.7 (49 iterations in the
+ * slowest step); 1e6 takes no fewer than 1e5 (26), with 10 times the rounding.
  * Only the motion's own solves raise alpha (the accelerations, from lam_warm, and the
  * solves from zero: Newton, velocities, event responses); the sensitivities' solves,
  * which carry their own multipliers, keep the factor they find (a raise inside them
  * stopped the latch pendulum's sensitivity run with non-finite values at its latch:
- * tests/test_sensitivity_events.py).
+ * tests/test_sensitivity_events.py). A run whose factorisations serve such solves
+ * makes none with the raised alpha at once (own_lam_seen, from its first such solve):
+ * held after that pendulum's latch, they stopped its sensitivity run the same way.
  * Models with rows beyond the decided rank (below) keep RHO: raising alpha moves x
  * along such a row by t / (1 + t) of a wrong amount (fcc_sparse_blocks.c, RHO). A
  * raised factor that fails its pivot test is replaced by RHO's again.
@@ -115,6 +127,7 @@
 #define SLOW 0.05
 #define CG_TOL 1e-8
 #define REFINE_STOP 1e-14
+#define BOOST_STAY 1e-5            /* "Near a singular position" */
 
 /* One pass over the elements for the true residuals at x: r2 = b - B x (b NULL: zero;
  * stored when r2 is not NULL), then, when pending, the deferred multiplier update
@@ -289,9 +302,13 @@ static int correction(fcc_engine *e, double *rz_stop)
  * step, its right-hand side and the previous step's multiplier update formed in one
  * pass (residual_pass), while those converge fast; once a step shrinks the change by
  * less than SLOW (a nearly singular B: near a singular position), the corrections are
- * conjugate-gradient solves (correction). Returns 1 when it converged, 0 when not, -1
- * when a warm start met that slow step (not continued: the conjugate-gradient bounds
- * are set from a cold start's first residual). At most al_max + refine_max passes. */
+ * conjugate-gradient solves (correction). may_boost 1: a cold start with RHO that
+ * meets that slow step returns -2 (the caller raises alpha); -1: a warm start with a
+ * raised factor goes on to those corrections. Returns 1 when it converged, 0 when
+ * not, -1 when a warm start met that slow step otherwise (not continued: the
+ * conjugate-gradient bounds are set from a cold start's first residual). At most
+ * al_max + refine_max passes; slow_rate receives the slowest rate of its
+ * augmented-Lagrangian steps after the first two (1 once corrections ran). */
 static int refine(fcc_engine *e, const double *b, double *x, int warm, int *solves,
                   double stop, int may_boost)
 {
@@ -300,8 +317,10 @@ static int refine(fcc_engine *e, const double *b, double *x, int warm, int *solv
     double nd = 0.0, nx = 0.0, prev = 0.0, rate, rz_stop = -1.0, size;
     int pending = 0;
     memset(x, 0, (size_t)n * sizeof(double));
+    s->slow_rate = 0.0;
     for (it = 0; it < s->al_max + s->refine_max; it++) {
         if (cg) {
+            s->slow_rate = 1.0;
             residual_pass(e, x, b, pending, 0, s->r1, s->r2);
             pending = 0;
             *solves += correction(e, &rz_stop);
@@ -341,6 +360,8 @@ static int refine(fcc_engine *e, const double *b, double *x, int warm, int *solv
                 return 0;
         } else if (it > 0) {
             rate = nd / prev;
+            if (it > 1 && rate > s->slow_rate)
+                s->slow_rate = rate;
             if (rate < 0.5 && nd * rate / (1.0 - rate) <= stop * size)
                 return 1;
             if (rate > SLOW)
@@ -348,9 +369,9 @@ static int refine(fcc_engine *e, const double *b, double *x, int warm, int *solv
         }
         if (!cg && it + 1 >= s->al_max)
             cg = 1;
-        if (cg && warm)
+        if (cg && warm && !(may_boost < 0 && s->boost != 1.0))
             return -1;
-        if (cg && may_boost)
+        if (cg && may_boost > 0)
             return -2;
         prev = nd;
     }
@@ -384,6 +405,9 @@ int fcc_sp_kkt_solve_from(fcc_engine *e, const double *Q, const double *w,
     fcc_sparse *s = &e->sp;
     const fcc_pattern *P = s->pat;
     int i, status, solves = 0, n = e->n, m = e->m;
+    int motion = s->beyond_quotient == 0.0 && (lam_io == NULL || lam_io == s->lam_warm);
+    if (lam_io != NULL && lam_io != s->lam_warm)
+        s->own_lam_seen = 1;              /* no held raise from here on in this run */
     if (Q != NULL)
         memcpy(s->base, Q, (size_t)n * sizeof(double));
     else
@@ -396,19 +420,23 @@ int fcc_sp_kkt_solve_from(fcc_engine *e, const double *Q, const double *w,
     status = -1;
     if (lam_io != NULL && valid) {
         memcpy(s->lam, lam_io, (size_t)m * sizeof(double));
-        status = refine(e, b, x, 1, &solves, AL_STOP, 0);
+        status = refine(e, b, x, 1, &solves, AL_STOP, motion ? -1 : 0);
+        if (status == -1 && motion && s->boost == 1.0)
+            status = -2;                  /* slow with RHO: the boost at once */
     }
-    if (status < 0) {
+    if (status == -1) {
         memset(s->lam, 0, (size_t)m * sizeof(double));
         status = refine(e, b, x, 0, &solves, newton ? NEWTON_STOP : AL_STOP,
-                        s->boost == 1.0 && s->beyond_quotient == 0.0
-                        && (lam_io == NULL || lam_io == s->lam_warm));
+                        motion && s->boost == 1.0);
     }
     if (status == -2) {                   /* slow with RHO: again with the boost */
         memset(s->lam, 0, (size_t)m * sizeof(double));
         fcc_sp_factor_boosted(e);
         status = refine(e, b, x, 0, &solves, newton ? NEWTON_STOP : AL_STOP, 0);
+        s->slow_rate = 1.0;
     }
+    if (motion && s->boost != 1.0 && s->slow_rate > BOOST_STAY && !s->own_lam_seen)
+        s->boost_hold = FCC_BOOST_HOLD;   /* still near: the next factors boosted */
     if (lam_io != NULL && status == 1)
         memcpy(lam_io, s->lam, (size_t)m * sizeof(double));
     if (status != 1)

@@ -29,7 +29,10 @@ struct fcc_engine;
 #define FCC_RHO 1e7
 /* alpha's factor for the rest of a factorisation's solves once one of them turns slow
  * (fcc_al_refine.c, "Near a singular position"). */
-#define FCC_AL_BOOST 1e4
+#define FCC_AL_BOOST 1e5
+/* Once a solve needed it, the next FCC_BOOST_HOLD factorisations are made with the
+ * boost at once, and the count starts again while their solves stay slow. */
+#define FCC_BOOST_HOLD 8
 /* Directions beyond the decided rank (fcc_al_refine.c). */
 #define FCC_BEYOND_FRACTION 1e-2
 
@@ -96,7 +99,13 @@ typedef struct fcc_sparse {
     double *Ax, *lb, *Lx, *Dinv, *Y;
     double *tperm;              /* n: the permuted right-hand side of a solve */
     long n_factor;
-    long n_boosted;             /* factorisations redone with FCC_AL_BOOST */
+    long n_boosted;             /* factorisations with FCC_AL_BOOST */
+    int boost_hold;             /* factorisations left to make with FCC_AL_BOOST at
+                                   once (fcc_al_refine.c, "Near a singular
+                                   position") */
+    double slow_rate;           /* the last refinement's slowest step rate */
+    int own_lam_seen;           /* the run's factors served solves with their own
+                                   multipliers (sensitivities): no boost_hold */
     /* the refinement (fcc_al_refine.c) */
     double *w_n, *r1, *dx, *base, *lz;
     double *lam, *lam_warm, *r2, *bdx, *res, *mu, *cg_p, *cg_sp, *u;

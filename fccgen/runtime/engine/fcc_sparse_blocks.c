@@ -317,8 +317,24 @@ static int factor(fcc_engine *e, const double *q);
 
 int fcc_sp_factor(fcc_engine *e, const double *q)
 {
-    /* A = M + B^T diag(alpha) B from the blocks (alpha with RHO), and its LDL^T. */
-    e->sp.boost = 1.0;
+    /* A = M + B^T diag(alpha) B from the blocks (alpha with RHO), and its LDL^T; with
+     * alpha raised FCC_AL_BOOST instead while boost_hold counts (fcc_al_refine.c,
+     * "Near a singular position"), RHO's when that factor fails. */
+    fcc_sparse *s = &e->sp;
+    int err = e->err, info = e->err_info, detail = e->err_detail;
+    if (s->boost_hold > 0 && s->beyond_quotient == 0.0 && !s->own_lam_seen) {
+        s->boost_hold--;
+        s->boost = FCC_AL_BOOST;
+        if (factor(e, q) == 0) {
+            s->n_boosted++;
+            return 0;
+        }
+        s->boost_hold = 0;
+        e->err = err;
+        e->err_info = info;
+        e->err_detail = detail;
+    }
+    s->boost = 1.0;
     return factor(e, q);
 }
 

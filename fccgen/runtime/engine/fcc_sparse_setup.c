@@ -120,6 +120,8 @@ void fcc_sparse_reset_stats(fcc_engine *e)
     s->n_factor = s->n_solves = s->n_iterations = s->n_unconverged = 0;
     s->n_beyond_rank = 0;
     s->n_boosted = 0;
+    s->boost_hold = 0;
+    s->own_lam_seen = 0;
     s->v_peak = 0.0;
     s->n_fallback = 0;
     s->n_chord = s->n_chord_undone = 0;
