@@ -130,6 +130,55 @@ void fcc_sens_sweep(fcc_engine *e, fcc_sens *s, const double *q, const double *v
     }
 }
 
+/* The projections' sweep along (sq, 0, dP_j) with zero accelerations and multipliers:
+ * (dg/dp) dP_j into gp, dPhi into phi, dR2 into b, for the elements with rows only
+ * (rhs is not formed: the projections do not read it). The tangent is linear in its
+ * direction, so an element whose sq and dP_j parts are all zero gives zeros: its rows
+ * are set to 0 without calling it (a stiffness's or a mass's key moves one element's
+ * parameters; the position sweep's sq is zero). */
+static void rows_sweep(fcc_engine *e, fcc_sens *s, const double *q, const double *v,
+                       const double *sq, const double *dPj)
+{
+    const fcc_model *md = s->model;
+    const double *params = e->asmb->params;
+    int el, i, nq, ng, row0, np_el, moved;
+    const int *idx;
+    const fcc_dp_class *k;
+    for (el = 0; el < md->n_el; el++) {
+        k = &s->dp->classes[md->cls[el] - md->table->classes];
+        ng = k->n_g;
+        if (ng == 0)
+            continue;
+        nq = k->n_q;
+        idx = md->qidx + md->qptr[el];
+        row0 = md->gptr[el];
+        np_el = md->pptr[el + 1] - md->pptr[el];
+        moved = 0;
+        for (i = 0; i < np_el && !moved; i++)
+            moved = dPj[md->pptr[el] + i] != 0.0;
+        for (i = 0; i < nq; i++) {
+            s->lsq[i] = sq[idx[i]];
+            moved = moved || s->lsq[i] != 0.0;
+        }
+        if (!moved) {
+            for (i = 0; i < ng; i++)
+                s->b[row0 + i] = s->gp[row0 + i] = s->phi[row0 + i] = 0.0;
+            continue;
+        }
+        for (i = 0; i < nq; i++) {
+            s->lq[i] = q[idx[i]];
+            s->lv[i] = v[idx[i]];
+        }
+        k->tangent(s->lq, s->lv, params + md->pptr[el], s->zero, s->zero, s->lsq,
+                   s->zero, dPj + md->pptr[el], s->lout);
+        for (i = 0; i < ng; i++) {
+            s->b[row0 + i] = s->lout[nq + i];
+            s->gp[row0 + i] = -s->lout[nq + ng + i];
+            s->phi[row0 + i] = -s->lout[nq + 2 * ng + i];
+        }
+    }
+}
+
 void fcc_sens_sparse_multipliers(fcc_engine *e, const double *Q, const double *b,
                                  double *x, double *lam, int warm)
 {
@@ -260,16 +309,14 @@ int fcc_sens_project(fcc_engine *e, fcc_sens *s, const double *q, const double *
         sq = row(s, j, SQ);
         sv = row(s, j, SV);
         /* positions: gp = -(dg/dp) dP_j does not depend on the direction's q part */
-        fcc_sens_sweep(e, s, q, v, s->zero, s->zero, s->zero, s->zero,
-                       s->dP + (size_t)j * np_all);
+        rows_sweep(e, s, q, v, s->zero, s->dP + (size_t)j * np_all);
         if (fcc_sens_solve(e, NULL, sq, s->gp, s->y) < 0)
             return -1;
         memcpy(sq, s->y, (size_t)n * sizeof(double));
         if (fcc_sens_rows(s) > 0 && fcc_sens_rows_positions(e, s, j, q, sq) < 0)
             return -1;
         /* speeds: phi = -dPhi[s_q, dP_j] with the projected s_q */
-        fcc_sens_sweep(e, s, q, v, s->zero, s->zero, sq, s->zero,
-                       s->dP + (size_t)j * np_all);
+        rows_sweep(e, s, q, v, sq, s->dP + (size_t)j * np_all);
         if (fcc_sens_solve(e, NULL, sv, s->phi, s->y) < 0)
             return -1;
         memcpy(sv, s->y, (size_t)n * sizeof(double));
