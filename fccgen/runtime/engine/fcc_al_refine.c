@@ -105,7 +105,10 @@
  * held after that pendulum's latch, they stopped its sensitivity run the same way.
  * Models with rows beyond the decided rank (below) keep RHO: raising alpha moves x
  * along such a row by t / (1 + t) of a wrong amount (fcc_sparse_blocks.c, RHO). A
- * raised factor that fails its pivot test is replaced by RHO's again.
+ * raised factor that fails its pivot test is replaced by RHO's again, and so is one
+ * whose solve does not converge (then no raise is held: a driven four-bar, B square,
+ * met that at its table's knots, and each held raise failed again,
+ * tests/test_driver_tables.py).
  *
  * Warm start. Each augmented-Lagrangian step multiplies the multipliers' error by the
  * rate, about 1e-7 (RHO); from zero the first x is off by that rate times lambda, so a
@@ -435,7 +438,18 @@ int fcc_sp_kkt_solve_from(fcc_engine *e, const double *Q, const double *w,
         status = refine(e, b, x, 0, &solves, newton ? NEWTON_STOP : AL_STOP, 0);
         s->slow_rate = 1.0;
     }
-    if (motion && s->boost != 1.0 && s->slow_rate > BOOST_STAY && !s->own_lam_seen)
+    if (status != 1 && motion && s->boost != 1.0) {
+        /* the raised factor's solve did not converge (the raised A too ill-conditioned
+         * for the refinement: a driven four-bar, whose B is square, at its table's
+         * knots): RHO's factor again, from zero, and no held raise */
+        s->slow_rate = 0.0;
+        if (fcc_sp_factor_unboosted(e) == 0) {
+            memset(s->lam, 0, (size_t)m * sizeof(double));
+            status = refine(e, b, x, 0, &solves, newton ? NEWTON_STOP : AL_STOP, 0);
+        }
+    }
+    if (status == 1 && motion && s->boost != 1.0 && s->slow_rate > BOOST_STAY
+            && !s->own_lam_seen)
         s->boost_hold = FCC_BOOST_HOLD;   /* still near: the next factors boosted */
     if (lam_io != NULL && status == 1)
         memcpy(lam_io, s->lam, (size_t)m * sizeof(double));

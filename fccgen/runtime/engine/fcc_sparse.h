@@ -189,6 +189,7 @@ void fcc_sp_gather_dense(struct fcc_engine *e);
 double fcc_sp_scaled_residual(struct fcc_engine *e);
 int fcc_sp_factor(struct fcc_engine *e, const double *q);
 int fcc_sp_factor_boosted(struct fcc_engine *e);
+int fcc_sp_factor_unboosted(struct fcc_engine *e);
 void fcc_sp_solve_a(struct fcc_engine *e, double *x);
 void fcc_sp_solve_a_add(struct fcc_engine *e, const double *y, double *x, double *step,
                         double *size);

@@ -358,6 +358,15 @@ int fcc_sp_factor_boosted(fcc_engine *e)
     return -1;
 }
 
+int fcc_sp_factor_unboosted(fcc_engine *e)
+{
+    /* A again from the blocks held, alpha with RHO (a raised factor whose solve did
+     * not converge: fcc_al_refine.c, "Near a singular position"). 0 when factored. */
+    e->sp.boost = 1.0;
+    e->sp.boost_hold = 0;
+    return factor(e, NULL);
+}
+
 static int factor(fcc_engine *e, const double *q)
 {
     fcc_sparse *s = &e->sp;
