@@ -90,6 +90,18 @@ void fcc_sens_begin_step(fcc_sens *s, double h)
     s->h = h;
 }
 
+/* An element's row outputs of the tangent (lout after its nq coordinates): dR2
+ * into b, -(dg/dp) into gp, -dPhi into phi. */
+static void store_rows(fcc_sens *s, int row0, int nq, int ng)
+{
+    int i;
+    for (i = 0; i < ng; i++) {
+        s->b[row0 + i] = s->lout[nq + i];
+        s->gp[row0 + i] = -s->lout[nq + ng + i];
+        s->phi[row0 + i] = -s->lout[nq + 2 * ng + i];
+    }
+}
+
 /* The tangent kernels of every element along (sq, sv, dP_j) at (q, v) with the
  * accelerations a and multipliers lam: dR1 into rhs, dR2 into b, (dg/dp) dP_j into
  * gp, dPhi into phi. */
@@ -122,11 +134,7 @@ void fcc_sens_sweep(fcc_engine *e, fcc_sens *s, const double *q, const double *v
                    dPj + md->pptr[el], s->lout);
         for (i = 0; i < nq; i++)
             s->rhs[idx[i]] += s->lout[i];
-        for (i = 0; i < ng; i++) {
-            s->b[row0 + i] = s->lout[nq + i];
-            s->gp[row0 + i] = -s->lout[nq + ng + i];
-            s->phi[row0 + i] = -s->lout[nq + 2 * ng + i];
-        }
+        store_rows(s, row0, nq, ng);
     }
 }
 
@@ -171,11 +179,7 @@ static void rows_sweep(fcc_engine *e, fcc_sens *s, const double *q, const double
         }
         k->tangent(s->lq, s->lv, params + md->pptr[el], s->zero, s->zero, s->lsq,
                    s->zero, dPj + md->pptr[el], s->lout);
-        for (i = 0; i < ng; i++) {
-            s->b[row0 + i] = s->lout[nq + i];
-            s->gp[row0 + i] = -s->lout[nq + ng + i];
-            s->phi[row0 + i] = -s->lout[nq + 2 * ng + i];
-        }
+        store_rows(s, row0, nq, ng);
     }
 }
 

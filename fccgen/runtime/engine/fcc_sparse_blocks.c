@@ -315,24 +315,34 @@ double fcc_sp_scaled_residual(fcc_engine *e)
 
 static int factor(fcc_engine *e, const double *q);
 
+static int factor_raised(fcc_engine *e, const double *q)
+{
+    /* A with alpha raised FCC_AL_BOOST (fcc_al_refine.c, "Near a singular position"):
+     * 0 when factored; -1 when that factor fails its pivots, with the engine's error
+     * as before (the caller factors with RHO). */
+    int err = e->err, info = e->err_info, detail = e->err_detail;
+    e->sp.boost = FCC_AL_BOOST;
+    if (factor(e, q) == 0) {
+        e->sp.n_boosted++;
+        return 0;
+    }
+    e->err = err;
+    e->err_info = info;
+    e->err_detail = detail;
+    return -1;
+}
+
 int fcc_sp_factor(fcc_engine *e, const double *q)
 {
     /* A = M + B^T diag(alpha) B from the blocks (alpha with RHO), and its LDL^T; with
-     * alpha raised FCC_AL_BOOST instead while boost_hold counts (fcc_al_refine.c,
-     * "Near a singular position"), RHO's when that factor fails. */
+     * alpha raised FCC_AL_BOOST instead while boost_hold counts, RHO's when that
+     * factor fails. */
     fcc_sparse *s = &e->sp;
-    int err = e->err, info = e->err_info, detail = e->err_detail;
     if (s->boost_hold > 0 && s->beyond_quotient == 0.0 && !s->own_lam_seen) {
         s->boost_hold--;
-        s->boost = FCC_AL_BOOST;
-        if (factor(e, q) == 0) {
-            s->n_boosted++;
+        if (factor_raised(e, q) == 0)
             return 0;
-        }
         s->boost_hold = 0;
-        e->err = err;
-        e->err_info = info;
-        e->err_detail = detail;
     }
     s->boost = 1.0;
     return factor(e, q);
@@ -340,28 +350,18 @@ int fcc_sp_factor(fcc_engine *e, const double *q)
 
 int fcc_sp_factor_boosted(fcc_engine *e)
 {
-    /* A again from the blocks held, alpha with RHO FCC_AL_BOOST (fcc_al_refine.c, "Near
-     * a singular position"). 0 when factored; -1 when that factor fails (its pivots:
-     * the blocks factored with RHO), with A and the engine's error as before. */
-    fcc_sparse *s = &e->sp;
-    int err = e->err, info = e->err_info, detail = e->err_detail;
-    s->boost = FCC_AL_BOOST;
-    if (factor(e, NULL) == 0) {
-        s->n_boosted++;
+    /* A again from the blocks held, alpha raised FCC_AL_BOOST. 0 when factored; -1
+     * when that factor fails (the blocks factored with RHO again). */
+    if (factor_raised(e, NULL) == 0)
         return 0;
-    }
-    e->err = err;
-    e->err_info = info;
-    e->err_detail = detail;
-    s->boost = 1.0;
-    factor(e, NULL);
+    fcc_sp_factor_unboosted(e);
     return -1;
 }
 
 int fcc_sp_factor_unboosted(fcc_engine *e)
 {
-    /* A again from the blocks held, alpha with RHO (a raised factor whose solve did
-     * not converge: fcc_al_refine.c, "Near a singular position"). 0 when factored. */
+    /* A again from the blocks held, alpha with RHO, and no raise held (a raised
+     * factor that failed, or whose solve did not converge). 0 when factored. */
     e->sp.boost = 1.0;
     e->sp.boost_hold = 0;
     return factor(e, NULL);
