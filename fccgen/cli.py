@@ -229,9 +229,12 @@ def _viz_sweep_parsers(sub, common) -> None:
     xp.add_argument("--c", metavar="DIR", dest="c_dir",
                     help="write the C project (Makefile, CMakeLists.txt, API) into DIR")
     xp.add_argument("--fmu", metavar="FILE", help="write an FMU (.fmu) for linux64")
-    xp.add_argument("--sensitivities", action="store_true",
-                    help="the C project carries rk4 sensitivities with respect to its "
-                         "parameter keys (derives the d/dp kernels; docs/export.md)")
+    xp.add_argument("--sensitivities", nargs="?", const=True, default=False,
+                    metavar="KEY,KEY",
+                    help="rk4 sensitivities with respect to the parameter keys (derives "
+                         "the d/dp kernels; docs/export.md): the C project carries every "
+                         "key's (chosen at run time); the FMU outputs d(COLUMN)/d(KEY) "
+                         "for the keys named (all that have one without a list)")
 
     se = sub.add_parser("sensitivity", help="one rk4 (or dopri5) run with the derivatives "
                         "of every column with respect to parameter keys "

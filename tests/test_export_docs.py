@@ -152,3 +152,18 @@ def test_the_sensitivities_section_works_as_written(folder):
     dx, dt_latch = (float(x) for x in done.stdout.split())
     assert np.isfinite(dx)
     assert dt_latch == pytest.approx(float(events[1][column]), rel=1e-12)
+
+
+def test_the_fmu_sensitivities_section_works_as_written(folder):
+    """The FMU's d(events.last.time)/d(key) at the end, as the section's Python lines
+    print it, is the root latch's d(time)/d(key) of the C project's event log (the same
+    engine: 1e-12)."""
+    pytest.importorskip("fmpy")
+    done = run_python(blocks("python")[4], folder, check=False)
+    assert done.returncode == 0, done.stderr
+    events = [line.split(",") for line in
+              (folder / "solar_array_sens" / "sa_events.csv").read_text().splitlines()]
+    column = events[0].index("d(time)/d(loads[0].stiffness)")
+    assert events[-1][1] == "root_latch"
+    want = float(events[-1][column])
+    assert float(done.stdout.split()[-1]) == pytest.approx(want, rel=1e-12)

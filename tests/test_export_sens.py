@@ -20,7 +20,8 @@
   derivative of a sum of larger terms, measured 1e-10); compared to 1e-9.
 * The selftest replays every key's sensitivities and fails on a wrong golden value.
 * Refusals with a sentence: an unknown key, a project exported without
-  sensitivities, a model with bounces, --sensitivities with --fmu.
+  sensitivities, a model with bounces (the FMU's sensitivities:
+  test_export_fmu_sens.py).
 """
 from __future__ import annotations
 
@@ -158,7 +159,7 @@ def test_models_and_targets_without_sensitivities_are_refused(build_dir, tmp_pat
         export_c(EXAMPLES / "pendulum_limit.yaml", tmp_path / "pl", build_dir,
                  sensitivities=True)
     assert not (tmp_path / "pl").exists()
-    code = main(["export", str(EXAMPLES / "double_pendulum.yaml"), "--fmu",
+    code = main(["export", str(EXAMPLES / "pendulum_limit.yaml"), "--fmu",
                  str(tmp_path / "x.fmu"), "--sensitivities", "--build-dir", str(build_dir),
                  "-q"])
     assert code != 0 and not (tmp_path / "x.fmu").exists()

@@ -6,15 +6,19 @@ def run_export(args, progress) -> int:
     from .c_project import ExportError, export_c
     if not args.c_dir and not args.fmu:
         raise ExportError("say what to write: --c DIR (a C project) or --fmu FILE.fmu")
-    if getattr(args, "sensitivities", False) and not args.c_dir:
-        raise ExportError("--sensitivities goes with --c DIR: the FMU carries none "
-                          "(docs/export.md, \"Sensitivities\")")
+    sensitivities = getattr(args, "sensitivities", False)
+    if isinstance(sensitivities, str) and args.c_dir:
+        raise ExportError("--sensitivities KEY,KEY chooses the FMU's outputs; the C "
+                          "project carries every key's sensitivity and its program "
+                          "chooses them at run time: give --c DIR with --sensitivities "
+                          "alone (docs/export.md, \"Sensitivities\")")
     if args.c_dir:
         out = export_c(args.model, args.c_dir, args.build_dir, progress=progress,
-                       sensitivities=getattr(args, "sensitivities", False))
+                       sensitivities=bool(sensitivities))
         print(f"C project written to {out}: cd there and run make")
     if args.fmu:
         from .fmu import export_fmu
-        out = export_fmu(args.model, args.fmu, args.build_dir, progress=progress)
+        out = export_fmu(args.model, args.fmu, args.build_dir, progress=progress,
+                         sensitivities=sensitivities)
         print(f"FMU written to {out}")
     return 0

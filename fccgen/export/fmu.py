@@ -6,8 +6,9 @@ The FMU is the C project of :mod:`fccgen.export.c_project` plus an FMI 2.0 layer
 function declarations written from the FMI 2.0 standard) and ``modelDescription.xml``.
 Its variables: the outputs are the export's result columns (those of fccgen simulate
 but the joint reactions and driver forces), the parameters the with_parameters keys
-the export can set, the inputs the model file's ``inputs:``, and for a model with
-events the event outputs of :mod:`fccgen.export.fmu_events`. The shared library is
+the export can set, the inputs the model file's ``inputs:``, for a model with
+events the event outputs of :mod:`fccgen.export.fmu_events`, and for an FMU exported
+with sensitivities the outputs ``d(COLUMN)/d(KEY)`` of :mod:`fccgen.export.fmu_sens`. The shared library is
 built with the system C compiler in a subprocess (cwd: a fresh folder; the compiler's
 output is shown when it fails) and cached by the hash of its sources.
 """
@@ -28,6 +29,7 @@ from ..errors import BuildError
 from ..runtime._events import ACTIONS
 from .c_project import ExportError, c_project_files, environment
 from .fmu_events import DECLARED, EVENT_OUTPUTS, clash, enumeration_items
+from .fmu_sens import chosen_keys, per_key_rows, sensitivity_outputs
 
 # what a variable name of the FMU may be: the result columns and parameter keys are
 # item names (identifiers) joined by dots, with [k] components
@@ -48,9 +50,10 @@ def xml_name(name: str) -> str:
 
 
 def model_description(ctx: dict, columns, keys, inputs, t_end, output_dt,
-                      event_names=()) -> str:
-    """modelDescription.xml: outputs, parameters, inputs, then the event outputs (a
-    model with events: fmu_events), in value-reference order."""
+                      event_names=(), sens_outputs=()) -> str:
+    """modelDescription.xml: outputs, parameters, inputs, the event outputs (a model
+    with events: fmu_events), then the sensitivities' outputs (fmu_sens), in
+    value-reference order."""
     variables = []
     for k, name in enumerate(columns):
         variables.append(dict(name=xml_name(name), vr=k, causality="output",
@@ -71,6 +74,12 @@ def model_description(ctx: dict, columns, keys, inputs, t_end, output_dt,
                                   causality="output", variability="discrete", initial=None,
                                   start=None, type=v.type, declared=DECLARED.get(v.field),
                                   description=xml_attribute(v.description)))
+    for out in sens_outputs:
+        xml_name(out.column)            # both parts checked (never mended)
+        xml_name(out.key)
+        variables.append(dict(name=xml_attribute(out.name), vr=len(variables),
+                              causality="output", variability="continuous", initial=None,
+                              start=None, description=xml_attribute(out.description)))
     for v in variables:
         v.setdefault("type", "Real")
         v.setdefault("declared", None)
@@ -120,12 +129,17 @@ def build_library(name: str, files: dict, cache_root: Path) -> Path:
     return target
 
 
-def export_fmu(model_path, fmu_path, build_dir="generated", *, progress=None) -> Path:
-    """Write the FMU of the model to fmu_path (.fmu); returns its path."""
+def export_fmu(model_path, fmu_path, build_dir="generated", *, progress=None,
+               sensitivities=None) -> Path:
+    """Write the FMU of the model to fmu_path (.fmu); returns its path.
+    sensitivities: None (without), True (every key that has one) or the keys whose
+    sensitivities the FMU outputs (docs/export.md, "Sensitivities in the FMU")."""
     fmu_path = Path(fmu_path)
     if fmu_path.suffix != ".fmu":
         raise ExportError(f"{fmu_path}: an FMU file name ends in .fmu")
-    project = c_project_files(model_path, build_dir, progress=progress)
+    project = c_project_files(model_path, build_dir, progress=progress,
+                              sensitivities=bool(sensitivities))
+    sens_keys = chosen_keys(model_path, project, sensitivities)
     name, files = project.name, dict(project.files)
     events = project.event_names or []
     taken = clash(events, [*project.columns, *(k for k, _, _ in project.keys),
@@ -134,9 +148,12 @@ def export_fmu(model_path, fmu_path, build_dir="generated", *, progress=None) ->
         raise ExportError(f"{model_path}: the FMU's event output {taken} is already a "
                           "variable of the model (rename the item that makes it)")
     env = environment()
+    sens_rows = per_key_rows(project.columns, bool(events))
+    sens_outputs = sensitivity_outputs(project.columns, sens_keys, bool(events))
     ctx = dict(n=name, version=__version__, has_events=bool(events),
                event_outputs=[v.field for v in EVENT_OUTPUTS],
-               event_integer=[v.type != "Real" for v in EVENT_OUTPUTS], actions=list(ACTIONS))
+               event_integer=[v.type != "Real" for v in EVENT_OUTPUTS], actions=list(ACTIONS),
+               sens_keys=sens_keys, sens_rows=sens_rows)
     files["fccgen_fmi2.h"] = env.get_template("fmi2.h.jinja").render(ctx)
     guid = guid_of({**files, f"{name}_fmu.c": env.get_template("fmu.c.jinja").render(
         {**ctx, "guid": ""})})
@@ -144,7 +161,7 @@ def export_fmu(model_path, fmu_path, build_dir="generated", *, progress=None) ->
     files[f"{name}_fmu.c"] = env.get_template("fmu.c.jinja").render(ctx)
     library = build_library(name, files, Path(build_dir) / "fmu")
     description = model_description(ctx, project.columns, project.keys, project.inputs,
-                                     project.t_end, project.output_dt, events)
+                                     project.t_end, project.output_dt, events, sens_outputs)
     fmu_path.parent.mkdir(parents=True, exist_ok=True)
     tmp = fmu_path.with_name(fmu_path.name + ".partial")
     with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as z:
