@@ -14,8 +14,9 @@ from conftest import EXAMPLES
 from fccgen.errors import ModelError
 from fccgen.export import export_c
 from fccgen.export.c_data import c_strings
-from fccgen.export.fmu import export_fmu, xml_name
+from fccgen.export.fmu import export_fmu, sens_variable_name, xml_name
 from fccgen.export.fmu_events import clash, enumeration_items
+from fccgen.export.fmu_sens import SensOutput
 
 ATTACKS = ["a*/b", 'a"b', "a\nb", "$(touch pwned)", "../up", "a'b", "a<b>&c", "a\\b"]
 CC = shutil.which("cc") or shutil.which("gcc")
@@ -41,6 +42,15 @@ def test_an_fmu_variable_name_is_checked_never_mended(name):
     with pytest.raises(ValueError):
         xml_name(name)
     assert xml_name("bodies.arm.inertia[2]") == "bodies.arm.inertia[2]"
+
+
+@pytest.mark.parametrize("name", ATTACKS)
+def test_a_sensitivity_output_name_is_made_of_checked_names_only(name):
+    for column, key in ((name, "bodies.arm.mass"), ("P.x", name)):
+        with pytest.raises(ValueError, match="FMU variable name"):
+            sens_variable_name(SensOutput(column, key, 0))
+    assert sens_variable_name(SensOutput("P.x", "loads[0].stiffness", 3)) == \
+        "d(P.x)/d(loads[0].stiffness)"
 
 
 @pytest.mark.parametrize("name", ATTACKS + ["(none)"])

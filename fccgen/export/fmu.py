@@ -49,6 +49,14 @@ def xml_name(name: str) -> str:
     return xml_attribute(name)
 
 
+def sens_variable_name(out) -> str:
+    """An FMU sensitivity output's name, d(COLUMN)/d(KEY) (fmu_sens), with both parts
+    checked against VARIABLE_NAME (never mended), XML-escaped."""
+    xml_name(out.column)
+    xml_name(out.key)
+    return xml_attribute(out.name)
+
+
 def model_description(ctx: dict, columns, keys, inputs, t_end, output_dt,
                       event_names=(), sens_outputs=()) -> str:
     """modelDescription.xml: outputs, parameters, inputs, the event outputs (a model
@@ -75,9 +83,7 @@ def model_description(ctx: dict, columns, keys, inputs, t_end, output_dt,
                                   start=None, type=v.type, declared=DECLARED.get(v.field),
                                   description=xml_attribute(v.description)))
     for out in sens_outputs:
-        xml_name(out.column)            # both parts checked (never mended)
-        xml_name(out.key)
-        variables.append(dict(name=xml_attribute(out.name), vr=len(variables),
+        variables.append(dict(name=sens_variable_name(out), vr=len(variables),
                               causality="output", variability="continuous", initial=None,
                               start=None, description=xml_attribute(out.description)))
     for v in variables:
