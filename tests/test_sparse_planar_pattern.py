@@ -93,3 +93,68 @@ def test_a_single_call_off_the_plane_is_answered_on_the_full_pattern(tmp_path, b
     a = sparse.accelerations(q, v)
     assert sparse._engine.nonzeros[1] > smaller
     assert np.max(np.abs(a - dense.accelerations(q, v))) <= 1e-10 * np.max(np.abs(a))
+
+
+def _masks_by_definition(el, samples):
+    """planar_masks' definition, element by element: an entry (a, b) of a coupling
+    element's block is in the pattern when M_ab != 0 or B_ra B_rb != 0 for some row
+    r at some sample (NaN counts as nonzero); an M or B entry zero at every sample is
+    guarded by GUARD_TOL times its block's largest finite-or-infinite |entry|."""
+    from fccgen.runtime.sparse_setup import GUARD_TOL
+    n = len(el.nq)
+    masks, zero_m, zero_b = [], np.ones(el.mptr[-1], bool), np.ones(el.bptr[-1], bool)
+    scale_m, scale_b = np.zeros(n), np.zeros(n)
+    for e in range(n):
+        nq, ng = el.nq[e], el.ng[e]
+        if not (el.has_m[e] or ng > 0):
+            masks.append(np.zeros(0, bool))       # couples nothing: no block
+            continue
+        block = np.zeros((nq, nq), bool)
+        for mblk, bblk in samples:
+            m = mblk[el.mptr[e]:el.mptr[e + 1]]
+            if m.size:
+                block |= (m != 0).reshape(nq, nq)
+                zero_m[el.mptr[e]:el.mptr[e + 1]] &= m == 0
+                scale_m[e] = max([scale_m[e], *(abs(x) for x in m if x != 0 and x == x)])
+            b = bblk[el.bptr[e]:el.bptr[e + 1]].reshape(ng, nq)
+            for r in range(ng):
+                block |= np.outer(b[r] != 0, b[r] != 0)
+            zero_b[el.bptr[e]:el.bptr[e + 1]] &= (b == 0).ravel()
+            scale_b[e] = max([scale_b[e], *(abs(x) for x in b.ravel() if x != 0 and x == x)])
+        masks.append(block.ravel())
+    ptr = np.concatenate([[0], np.cumsum([m.size for m in masks])])
+    tol_m = GUARD_TOL * np.repeat(scale_m, np.diff(el.mptr))
+    tol_b = GUARD_TOL * np.repeat(scale_b, np.diff(el.bptr))
+    return (ptr, np.concatenate(masks), np.flatnonzero(zero_m),
+            tol_m[np.flatnonzero(zero_m)], np.flatnonzero(zero_b), tol_b[np.flatnonzero(zero_b)])
+
+
+def test_the_masks_are_those_of_their_definition_on_mixed_elements():
+    """planar_masks takes the elements of one block shape together; on 60 random
+    elements of five shapes (with and without mass blocks, rows or both, one coupling
+    nothing), blocks with zeros, NaN and infinities, at three samples, it returns
+    exactly the masks and guards of the element-by-element definition."""
+    from types import SimpleNamespace
+
+    from fccgen.runtime.sparse_setup import planar_masks
+    rng = np.random.default_rng(7)
+    kinds = [(3, 1, True), (6, 0, True), (2, 2, False), (6, 3, True), (4, 0, False)]
+    picks = rng.integers(0, len(kinds), 60)
+    nq = np.array([kinds[k][0] for k in picks])
+    ng = np.array([kinds[k][1] for k in picks])
+    has_m = np.array([kinds[k][2] for k in picks])
+    mptr = np.concatenate([[0], np.cumsum(nq ** 2 * has_m)])
+    bptr = np.concatenate([[0], np.cumsum(nq * ng)])
+    el = SimpleNamespace(nq=nq, ng=ng, has_m=has_m, mptr=mptr, bptr=bptr)
+
+    def block(size):
+        x = rng.normal(size=size) * (rng.random(size) < 0.5)
+        x[rng.random(size) < 0.03] = np.nan
+        x[rng.random(size) < 0.02] = np.inf
+        return x
+    samples = [(block(mptr[-1]), block(bptr[-1])) for _ in range(3)]
+    got = planar_masks(el, samples)
+    want = _masks_by_definition(el, samples)
+    for name, g, w in zip(("ptr", "mask", "zero_m", "tol_m", "zero_b", "tol_b"), got, want):
+        assert np.array_equal(g, w), name
+    assert 0 < len(got[2]) < mptr[-1] and 0 < len(got[4]) < bptr[-1]

@@ -194,11 +194,13 @@ def view_entries(el, pinned, fixed, n, m):
     return in_m, in_b
 
 
-def _largest(values, current: float) -> float:
-    """max(current, the largest finite-or-infinite |value|), NaN ignored."""
-    a = np.abs(values)
-    a = a[~np.isnan(a)]
-    return max(current, float(a.max())) if a.size else current
+def _largest_by_row(a: np.ndarray, nz: np.ndarray) -> np.ndarray:
+    """Per row of ``a`` (k x w), the largest |entry| where ``nz``, NaN ignored (0 for a
+    row with none)."""
+    if a.shape[1] == 0:
+        return np.zeros(a.shape[0])
+    a = np.abs(a)
+    return np.where(nz & ~np.isnan(a), a, 0.0).max(axis=1)
 
 
 def planar_masks(el, samples, view=None):
@@ -210,40 +212,53 @@ def planar_masks(el, samples, view=None):
     view: (in_m, in_b) of view_entries when the solve has a view (entries on a pinned
     coordinate or in a fixed row need no guard: the solve never reads them).
 
+    The elements of one block shape (n_q, rows, whether a mass block) are taken
+    together, one array operation per shape and sample.
+
     Returns (mask_ptr, mask, zero_m, tol_m, zero_b, tol_b); mask is each coupling
     element's full n_q x n_q block, row-major."""
     nq_all = np.asarray(el.nq, dtype=np.intp)
-    couples = np.asarray(el.has_m, dtype=bool) | (np.asarray(el.ng) > 0)
+    ng_all = np.asarray(el.ng, dtype=np.intp)
+    mptr = np.asarray(el.mptr, dtype=np.intp)
+    bptr = np.asarray(el.bptr, dtype=np.intp)
+    couples = np.asarray(el.has_m, dtype=bool) | (ng_all > 0)
     ptr = np.concatenate([[0], np.cumsum(nq_all ** 2 * couples)]).astype(np.intp)
     mask = np.zeros(ptr[-1], dtype=bool)
-    zero_m = np.ones(el.mptr[-1], dtype=bool)
-    zero_b = np.ones(el.bptr[-1], dtype=bool)
+    zero_m = np.ones(mptr[-1], dtype=bool)
+    zero_b = np.ones(bptr[-1], dtype=bool)
     scale_m = np.zeros(len(nq_all))
     scale_b = np.zeros(len(nq_all))
-    for mblk, bblk in samples:
-        for e in range(len(nq_all)):
-            if ptr[e + 1] == ptr[e]:
-                continue
-            nq, ng = int(nq_all[e]), int(el.ng[e])
-            block = mask[ptr[e]:ptr[e + 1]]
-            if el.mptr[e + 1] > el.mptr[e]:
-                mb = mblk[el.mptr[e]:el.mptr[e + 1]]
+    has_mblk = mptr[1:] > mptr[:-1]
+    shapes = np.stack([nq_all, ng_all, has_mblk.astype(np.intp)], axis=1)
+    for shape in np.unique(shapes[couples], axis=0):
+        nq, ng, hm = (int(x) for x in shape)
+        members = np.flatnonzero(couples & np.all(shapes == shape, axis=1))
+        at_mask = ptr[members][:, None] + np.arange(nq * nq)
+        at_m = mptr[members][:, None] + np.arange(nq * nq) if hm else None
+        at_b = bptr[members][:, None] + np.arange(ng * nq)
+        for mblk, bblk in samples:
+            block = np.zeros((len(members), nq * nq), dtype=bool)
+            if hm:
+                mb = np.asarray(mblk)[at_m]
                 nz = mb != 0.0
                 block |= nz
-                zero_m[el.mptr[e]:el.mptr[e + 1]] &= ~nz
-                scale_m[e] = _largest(mb[nz], scale_m[e])
-            bb = bblk[el.bptr[e]:el.bptr[e + 1]].reshape(ng, nq)
+                zero_m[at_m] &= ~nz
+                scale_m[members] = np.maximum(scale_m[members], _largest_by_row(mb, nz))
+            bb = np.asarray(bblk)[at_b]
             nzb = bb != 0.0
-            zero_b[el.bptr[e]:el.bptr[e + 1]] &= ~nzb.ravel()
-            scale_b[e] = _largest(bb[nzb], scale_b[e])
-            block |= (nzb[:, :, None] & nzb[:, None, :]).any(axis=0).ravel()
+            zero_b[at_b] &= ~nzb
+            scale_b[members] = np.maximum(scale_b[members], _largest_by_row(bb, nzb))
+            rows = nzb.reshape(len(members), ng, nq)
+            block |= (rows[:, :, :, None] & rows[:, :, None, :]).any(axis=1).reshape(
+                len(members), nq * nq)
+            mask[at_mask] |= block
     if view is not None:
         zero_m &= view[0]
         zero_b &= view[1]
     offs_m = np.flatnonzero(zero_m)
     offs_b = np.flatnonzero(zero_b)
-    tol_m = GUARD_TOL * np.repeat(scale_m, np.diff(el.mptr))[offs_m]
-    tol_b = GUARD_TOL * np.repeat(scale_b, np.diff(el.bptr))[offs_b]
+    tol_m = GUARD_TOL * np.repeat(scale_m, np.diff(mptr))[offs_m]
+    tol_b = GUARD_TOL * np.repeat(scale_b, np.diff(bptr))[offs_b]
     return ptr, mask, offs_m, tol_m, offs_b, tol_b
 
 
