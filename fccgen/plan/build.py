@@ -13,7 +13,8 @@ from ..model.types import (Angle, Attached, BodyPoint, Distance, DriverRow, Forc
                            TorsionSpring, Where)
 from .cables import (cable_columns, cable_elements, point_force_element,
                      slope_normal_element)
-from .classes import END_FOLDABLE, FOLDABLE, INPUT_KINDS, ElementClass, input_parameter
+from .classes import (END_FOLDABLE, FOLDABLE, INPUT_KINDS, ElementClass, element_class,
+                      input_parameter)
 from ..model.geometry import body_frame_numbers, body_rotation, point_coefficients
 from .joint_loads import joint_load_element
 
@@ -149,7 +150,7 @@ class _Builder:
         foldable = FOLDABLE[kind] | {n for n in scalars if n.split(".")[-1] in END_FOLDABLE
                                      and "." in n}
         zeros = frozenset(n for n, v in scalars.items() if n in foldable and v == 0.0)
-        cls = ElementClass(kind, tuple(ends), tuple(fixed), zeros, function, inputs)
+        cls = element_class(kind, tuple(ends), tuple(fixed), zeros, function, inputs)
         params = np.array([scalars[n] for n in cls.scalar_names] + fixed_vals, float)
         return Element(cls, label, tuple(slots), params, where)
 

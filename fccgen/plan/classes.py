@@ -22,7 +22,7 @@ from __future__ import annotations
 import hashlib
 import json
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cached_property, lru_cache
 
 from .cable_kinds import CABLE_KINDS, TIMED_POINT_KINDS
 
@@ -304,3 +304,14 @@ class ElementClass:
             text = short_text(text)                # a load's named tables: the same
             parts.append(f"f(t) = {text}")
         return "; ".join(parts)
+
+
+@lru_cache(maxsize=4096)
+def element_class(kind: str, ends: tuple, fixed: tuple, zeros: frozenset,
+                  function: str = "", inputs: tuple = ()) -> ElementClass:
+    """The ElementClass of these fields, one instance per distinct class in a process.
+    It is immutable, so a plan's elements can share it: its checks and derived names
+    (scalar_names, triple_names, key, ...) are worked out once, not per element and
+    per with_parameters call."""
+    return ElementClass(kind, ends, fixed, zeros, function, inputs)
+
