@@ -71,10 +71,16 @@ def set_parameters(model, values: dict):
     """A copy of ``model`` with the given numbers set and checked (ModelError when a
     key names nothing settable or a value breaks a rule of the model file). A body's
     inertia is checked once all its components are set, so that several components
-    moved together are judged as the tensor they make."""
-    model = copy.deepcopy(model)
+    moved together are judged as the tensor they make.
+
+    The copy shares every part that no key sets with ``model`` (_Writable): each
+    setter replaces values, never writes into them, and the parts of a model refer to
+    one another by name only, so a shallow copy of each part a key sets is enough."""
+    writable = _Writable(model)
+    model = writable.model
     inertias = {}
     for key, value in values.items():
+        writable.own(str(key))
         touched = _set_one(model, str(key), value)
         if touched is not None:
             inertias.setdefault(id(touched[0]), (touched[0], []))[1].append(touched[1:])
@@ -87,6 +93,52 @@ def set_parameters(model, values: dict):
         for body in model.bodies.values():       # only a point or a vector moves them
             _check_body_geometry(model, body)
     return model
+
+
+class _Writable:
+    """A shallow copy of a model whose parts become its own (shallow copies, with the
+    table that holds them) as keys are about to set them: copy on write."""
+    TABLES = ("points", "vectors", "bodies", "cables", "constraints", "loads")
+
+    def __init__(self, model):
+        self.model = copy.copy(model)
+        self._owned: set[int] = set()
+
+    def own(self, key: str) -> None:
+        """Make the part ``key`` sets the copy's own (unknown keys: _set_one says)."""
+        tokens = split_key(key)
+        if len(tokens) > 1 and isinstance(tokens[-1], int):
+            tokens.pop()
+        try:
+            obj, _, _ = _target(self.model, tokens, key)
+        except ModelError:
+            return
+        m = self.model
+        if obj is m or id(obj) in self._owned:
+            return
+        if obj is m.simulate:
+            m.simulate = self._mine(copy.copy(obj))
+            return
+        if obj is m.initial.point_velocities:
+            m.initial = copy.copy(m.initial)
+            m.initial.point_velocities = self._mine(dict(obj))
+            return
+        for name in self.TABLES:
+            table = getattr(m, name, None) or ()
+            where = (table.items() if isinstance(table, dict) else enumerate(table))
+            at = next((k for k, item in where if item is obj), None)
+            if at is not None:
+                if id(table) not in self._owned:
+                    table = self._mine(dict(table) if isinstance(table, dict)
+                                       else list(table))
+                    setattr(m, name, table)
+                table[at] = self._mine(copy.copy(obj))
+                return
+        raise AssertionError(f"{key}: set_parameters found no owner of the part it sets")
+
+    def _mine(self, obj):
+        self._owned.add(id(obj))
+        return obj
 
 
 def _named(table: dict, name, what: str, key: str, source: str):
