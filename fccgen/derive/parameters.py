@@ -59,15 +59,25 @@ def _matrix(derived: DerivedClass, name: str, rows: int, cols: int) -> sympy.Mat
 
 
 def tangent_jacobian(derived: DerivedClass) -> tuple[TangentInputs, sympy.Matrix]:
-    """The tangent kernel's matrix J: its outputs (see tangent_kernel) are
-    J [dq; dv; dp], J of n_q + 3 n_g rows and 2 n_q + n_p columns.
+    """The directional derivatives the forward sensitivities need, as one matrix.
 
-    The outputs are linear in the direction (dq, dv, dp), so J depends only on
-    (q, v, p, a, lam): evaluated once, it serves every direction at one state.
+    With R1 = f - h - M a - B^T lam (n_q) and R2 = -bias - B a (n_g), the residuals of
+    M a + B^T lam = f - h, B a = -bias, and Phi = B v + dg/dt (n_g) the velocity
+    constraint, the tangent kernel's outputs for the direction (dq, dv, dp) are
+
+        [ dR1[dq, dv, dp] (n_q);  dR2[dq, dv, dp] (n_g);
+          (dg/dp) dp (n_g);       dPhi[dq, dp] (n_g) ]  =  J [dq; dv; dp]
+
+    with J of n_q + 3 n_g rows and 2 n_q + n_p columns:
 
         J = [ dR/dq     dR/dv   dR/dp ]      R = [R1; R2]
             [ 0         0       dg/dp ]
             [ dPhi/dq   0       dPhi/dp ]
+
+    The sensitivity s of a run then has M s_a + B^T s_lam = dR1, B s_a = dR2 (the
+    accelerations' derivative) and the linearised projections B s_q = -(dg/dp) dp,
+    B s_v = -dPhi[s_q, dp]. The outputs are linear in the direction, and J depends
+    only on (q, v, p, a, lam): evaluated once, it serves every direction at one state.
     """
     cls = derived.cls
     n, ng, npar = cls.n_q, cls.n_g, cls.n_p
@@ -95,22 +105,3 @@ def tangent_jacobian(derived: DerivedClass) -> tuple[TangentInputs, sympy.Matrix
         J = J.col_join(sympy.zeros(ng, 2 * n).row_join(jac(g, p)))
         J = J.col_join(jac(phi, q).row_join(sympy.zeros(ng, n)).row_join(jac(phi, p)))
     return inp, J
-
-
-def tangent_kernel(derived: DerivedClass) -> tuple[TangentInputs, sympy.Matrix]:
-    """The directional derivatives the forward sensitivities need, in one kernel.
-
-    With R1 = f - h - M a - B^T lam (n_q) and R2 = -bias - B a (n_g), the residuals of
-    M a + B^T lam = f - h, B a = -bias, and Phi = B v + dg/dt (n_g) the velocity
-    constraint, the outputs are, for the direction (dq, dv, dp):
-
-        [ dR1[dq, dv, dp] (n_q);  dR2[dq, dv, dp] (n_g);
-          (dg/dp) dp (n_g);       dPhi[dq, dp] (n_g) ]
-
-    The sensitivity s of a run then has M s_a + B^T s_lam = dR1, B s_a = dR2 (the
-    accelerations' derivative) and the linearised projections B s_q = -(dg/dp) dp,
-    B s_v = -dPhi[s_q, dp]. They are tangent_jacobian's J times the direction.
-    """
-    inp, J = tangent_jacobian(derived)
-    d = sympy.Matrix(J.cols, 1, list(inp.dq) + list(inp.dv) + list(inp.dp))
-    return inp, J * d
