@@ -58,19 +58,26 @@ def _matrix(derived: DerivedClass, name: str, rows: int, cols: int) -> sympy.Mat
     return sympy.zeros(rows, cols) if k is None else sympy.Matrix(rows, cols, list(k))
 
 
-def tangent_kernel(derived: DerivedClass) -> tuple[TangentInputs, sympy.Matrix]:
-    """The directional derivatives the forward sensitivities need, in one kernel.
+def tangent_jacobian(derived: DerivedClass) -> tuple[TangentInputs, sympy.Matrix]:
+    """The directional derivatives the forward sensitivities need, as one matrix.
 
     With R1 = f - h - M a - B^T lam (n_q) and R2 = -bias - B a (n_g), the residuals of
     M a + B^T lam = f - h, B a = -bias, and Phi = B v + dg/dt (n_g) the velocity
-    constraint, the outputs are, for the direction (dq, dv, dp):
+    constraint, the tangent kernel's outputs for the direction (dq, dv, dp) are
 
         [ dR1[dq, dv, dp] (n_q);  dR2[dq, dv, dp] (n_g);
-          (dg/dp) dp (n_g);       dPhi[dq, dp] (n_g) ]
+          (dg/dp) dp (n_g);       dPhi[dq, dp] (n_g) ]  =  J [dq; dv; dp]
+
+    with J of n_q + 3 n_g rows and 2 n_q + n_p columns:
+
+        J = [ dR/dq     dR/dv   dR/dp ]      R = [R1; R2]
+            [ 0         0       dg/dp ]
+            [ dPhi/dq   0       dPhi/dp ]
 
     The sensitivity s of a run then has M s_a + B^T s_lam = dR1, B s_a = dR2 (the
     accelerations' derivative) and the linearised projections B s_q = -(dg/dp) dp,
-    B s_v = -dPhi[s_q, dp].
+    B s_v = -dPhi[s_q, dp]. The outputs are linear in the direction, and J depends
+    only on (q, v, p, a, lam): evaluated once, it serves every direction at one state.
     """
     cls = derived.cls
     n, ng, npar = cls.n_q, cls.n_g, cls.n_p
@@ -88,20 +95,13 @@ def tangent_kernel(derived: DerivedClass) -> tuple[TangentInputs, sympy.Matrix]:
     v = sympy.Matrix(n, 1, list(derived.v))
     R = (f - h - M * a - B.T * lam).col_join(-bias - B * a) if ng else f - h - M * a
     phi = B * v + rate
+    q, vv, p = (sympy.Matrix(len(x), 1, list(x)) for x in (derived.q, derived.v, derived.p))
 
-    def directional(expr: sympy.Matrix, pairs) -> sympy.Matrix:
-        out = sympy.zeros(expr.rows, 1)
-        for x, dx in pairs:
-            out += expr.diff(x) * dx
-        return out
+    def jac(expr: sympy.Matrix, x: sympy.Matrix) -> sympy.Matrix:
+        return expr.jacobian(x) if x.rows else sympy.zeros(expr.rows, 0)
 
-    state = list(zip(derived.q, inp.dq)) + list(zip(derived.v, inp.dv))
-    params = list(zip(derived.p, inp.dp))
-    parts = [directional(R, state + params)]
+    J = jac(R, q).row_join(jac(R, vv)).row_join(jac(R, p))
     if ng:
-        parts += [directional(g, params), directional(phi, list(zip(derived.q, inp.dq))
-                                                     + params)]
-    out = parts[0]
-    for extra in parts[1:]:
-        out = out.col_join(extra)
-    return inp, out
+        J = J.col_join(sympy.zeros(ng, 2 * n).row_join(jac(g, p)))
+        J = J.col_join(jac(phi, q).row_join(sympy.zeros(ng, n)).row_join(jac(phi, p)))
+    return inp, J

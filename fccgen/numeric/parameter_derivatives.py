@@ -51,7 +51,7 @@ def _residuals(cls, q, v, p, a, lam) -> np.ndarray:
 
 
 def tangent(cls, q, v, p, a, lam, dq, dv, dp, step: float = 2e-4) -> np.ndarray:
-    """The tangent kernel (fccgen.derive.parameters.tangent_kernel) of the NumPy
+    """The tangent kernel (fccgen.derive.parameters.tangent_jacobian) of the NumPy
     kernels: five-point differences along the direction, the velocity constraint's
     and g's rows along (dq, dp) and dp alone as that kernel defines them."""
     q, v, p = (np.asarray(x, float) for x in (q, v, p))

@@ -8,12 +8,10 @@ from dataclasses import dataclass
 import sympy
 
 from ..derive.parameters import (PARAMETER_KERNELS, dp_name, parameter_derivatives,
-                                 tangent_kernel)
+                                 tangent_jacobian)
 from ..plan.kernels import KERNELS, KernelSpec
 from .c99 import KernelPrinter, slot_map
 from .kernel import PrintedKernel, print_kernel
-
-TANGENT_ARGUMENTS = ("q", "v", "p", "a", "lam", "dq", "dv", "dp")
 
 _BASE = {k.name: k for k in KERNELS}
 
@@ -35,37 +33,68 @@ def print_parameter_kernels(derived) -> dict[str, PrintedKernel | None]:
 
 @dataclass(frozen=True)
 class PrintedTangent:
-    """The printed tangent kernel of a class (fccgen.derive.parameters.tangent_kernel):
-    arguments TANGENT_ARGUMENTS, out[n_q + 3 n_g]."""
+    """The printed tangent kernel of a class (fccgen.derive.parameters), in two parts:
+    ``prepare`` (arguments PREPARE_ARGUMENTS) evaluates the nonzero entries of the
+    tangent's matrix J that are not numbers into w[n_w], once per state; ``apply``
+    (arguments APPLY_ARGUMENTS) forms out[n_q + 3 n_g] = J [dq; dv; dp] from them, once
+    per direction."""
     function: str
-    unused: tuple[str, ...]
+    prepare_unused: tuple[str, ...]
     temporaries: tuple[tuple[str, str], ...]
+    weights: tuple[str, ...]                 # w[k] = weights[k]
+    apply_unused: tuple[str, ...]
     outputs: tuple[str, ...]
     n_ops: int
 
+    @property
+    def n_w(self) -> int:
+        return len(self.weights)
+
+
+PREPARE_ARGUMENTS = ("q", "v", "p", "a", "lam")
+APPLY_ARGUMENTS = ("dq", "dv", "dp")
+
 
 def print_tangent(derived) -> PrintedTangent:
-    """CSE over the tangent kernel's outputs together, then print them."""
-    inp, matrix = tangent_kernel(derived)
-    exprs = list(matrix)
+    """CSE over the entries of the tangent's matrix J together (the direction-independent
+    part, printed once per state), then the products with the direction."""
+    inp, J = tangent_jacobian(derived)
     arrays = {"q": derived.q, "v": derived.v, "p": derived.p, "a": inp.a,
               "lam": inp.lam, "dq": inp.dq, "dv": inp.dv, "dp": inp.dp}
     slots = slot_map(derived.q, derived.v, derived.p)
     for name in ("a", "lam", "dq", "dv", "dp"):
         slots.update({x: f"{name}[{k}]" for k, x in enumerate(arrays[name])})
-    used = set().union(*(e.free_symbols for e in exprs)) if exprs else set()
+    entries = [(r, c, J[r, c]) for r in range(J.rows) for c in range(J.cols)
+               if J[r, c] != 0]
+    used = set().union(*(e.free_symbols for _, _, e in entries)) if entries else set()
     stray = used - set(slots)
     if stray:
         raise ValueError(f"{derived.cls.name}.tangent uses symbols that are not inputs: "
                          f"{sorted(map(str, stray))}")
-    unused = tuple(a for a in TANGENT_ARGUMENTS if not used & set(arrays[a]))
-    temps, reduced = sympy.cse(exprs, symbols=sympy.numbered_symbols("x", exclude=used))
+    stored = [e for _, _, e in entries if not e.is_Number]
+    temps, reduced = sympy.cse(stored, symbols=sympy.numbered_symbols("x", exclude=used))
+    weights: dict[sympy.Expr, sympy.Symbol] = {}      # equal entries share a slot
+    for e in reduced:
+        weights.setdefault(e, sympy.Symbol(f"w_{len(weights)}"))
+    slots.update({w: f"w[{k}]" for k, w in enumerate(weights.values())})
+    direction = list(inp.dq) + list(inp.dv) + list(inp.dp)
+    rows = [sympy.S.Zero] * J.rows
+    entry = iter(reduced)
+    for r, c, e in entries:
+        rows[r] += (e if e.is_Number else weights[next(entry)]) * direction[c]
     printer = KernelPrinter(slots)
+    in_prepare = used.union(*(e.free_symbols for _, e in temps))
+    in_apply = set().union(*(e.free_symbols for e in rows))
     n_ops = (sum(sympy.count_ops(e) for _, e in temps)
-             + sum(sympy.count_ops(e) for e in reduced))
-    return PrintedTangent(f"{derived.cls.name}_tangent", unused,
-                          tuple((str(x), printer.doprint(e)) for x, e in temps),
-                          tuple(printer.doprint(e) for e in reduced), int(n_ops))
+             + sum(sympy.count_ops(e) for e in weights)
+             + sum(sympy.count_ops(e) for e in rows))
+    return PrintedTangent(
+        f"{derived.cls.name}_tangent",
+        tuple(a for a in PREPARE_ARGUMENTS if not in_prepare & set(arrays[a])),
+        tuple((str(x), printer.doprint(e)) for x, e in temps),
+        tuple(printer.doprint(e) for e in weights),
+        tuple(a for a in APPLY_ARGUMENTS if not in_apply & set(arrays[a])),
+        tuple(printer.doprint(e) for e in rows), int(n_ops))
 
 
 class PrintedDp:

@@ -11,7 +11,7 @@
 #ifndef FCC_DP_TABLE_H
 #define FCC_DP_TABLE_H
 
-#define FCC_DP_ABI_VERSION 2
+#define FCC_DP_ABI_VERSION 3
 #define FCC_DP_CAPSULE_NAME "fccgen.dp_table"
 
 enum { FCC_DP_MASS, FCC_DP_H, FCC_DP_F, FCC_DP_G, FCC_DP_B, FCC_DP_BIAS, FCC_DP_N };
@@ -28,11 +28,23 @@ typedef void (*fcc_dp_tangent)(const double *q, const double *v, const double *p
                                const double *a, const double *lam, const double *dq,
                                const double *dv, const double *dp, double *out);
 
+/* The tangent in two parts. Its outputs are linear in the direction: out = J [dq; dv; dp]
+ * with J depending on (q, v, p, a, lam) only. prepare evaluates J's entries (n_w
+ * numbers) into w once per state; apply forms out from w along one direction, as
+ * often as there are directions at that state. tangent is prepare, then apply. */
+typedef void (*fcc_dp_prepare)(const double *q, const double *v, const double *p,
+                               const double *a, const double *lam, double *w);
+typedef void (*fcc_dp_apply)(const double *w, const double *dq, const double *dv,
+                             const double *dp, double *out);
+
 typedef struct {
     const char *name;                     /* the element class's name */
     int n_q, n_p, n_g;
     fcc_dp_kernel k[FCC_DP_N];            /* indexed by FCC_DP_MASS ... FCC_DP_BIAS */
     fcc_dp_tangent tangent;               /* never NULL */
+    int n_w;                              /* numbers prepare writes */
+    fcc_dp_prepare prepare;               /* never NULL */
+    fcc_dp_apply apply;                   /* never NULL */
 } fcc_dp_class;
 
 typedef struct {

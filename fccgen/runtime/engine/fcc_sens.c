@@ -25,7 +25,8 @@ int fcc_sens_init(fcc_sens *s, const fcc_model *model, const fcc_dp_table *dp, i
         return FCC_ERR_ARGUMENT;
     for (c = 0; c < dp->n_classes; c++)
         if (strcmp(dp->classes[c].name, model->table->classes[c].name) != 0
-            || dp->classes[c].tangent == NULL)
+            || dp->classes[c].tangent == NULL || dp->classes[c].prepare == NULL
+            || dp->classes[c].apply == NULL || dp->classes[c].n_w < 0)
             return FCC_ERR_ARGUMENT;
     s->dp = dp;
     s->model = model;
@@ -37,8 +38,19 @@ int fcc_sens_init(fcc_sens *s, const fcc_model *model, const fcc_dp_table *dp, i
             + 5 * (size_t)L + (size_t)(G + 1) + (size_t)(L + 3 * G + 1)
             + (size_t)np * (size_t)(m + 1);
     s->S = calloc(total, sizeof(double));
-    if (s->S == NULL)
+    s->woff = calloc((size_t)model->n_el + 1, sizeof(size_t));
+    if (s->S == NULL || s->woff == NULL) {
+        fcc_sens_free(s);
         return FCC_ERR_MEMORY;
+    }
+    for (c = 0; c < model->n_el; c++)
+        s->woff[c + 1] = s->woff[c]
+            + (size_t)dp->classes[model->cls[c] - model->table->classes].n_w;
+    s->W = calloc(s->woff[model->n_el] + 1, sizeof(double));
+    if (s->W == NULL) {
+        fcc_sens_free(s);
+        return FCC_ERR_MEMORY;
+    }
     s->r = s->S + (size_t)np * N_ROWS * (size_t)n;
     s->rhs = s->r + n;
     s->y = s->rhs + n;
@@ -62,8 +74,12 @@ void fcc_sens_free(fcc_sens *s)
 {
     free(s->S);
     free(s->E);
+    free(s->W);
+    free(s->woff);
     s->S = NULL;
     s->E = NULL;
+    s->W = NULL;
+    s->woff = NULL;
 }
 
 double *fcc_sens_sq(const fcc_sens *s, int j)
@@ -138,17 +154,72 @@ void fcc_sens_sweep(fcc_engine *e, fcc_sens *s, const double *q, const double *v
     }
 }
 
+/* Prepare the tangents of the elements (with rows only: rows_only) at (q, v, a, lam)
+ * into W (a, lam NULL: zeros). */
+static void prepare(fcc_engine *e, fcc_sens *s, const double *q, const double *v,
+                    const double *a, const double *lam, int rows_only)
+{
+    const fcc_model *md = s->model;
+    const double *params = e->asmb->params;
+    int el, i, nq, ng, row0;
+    const int *idx;
+    const fcc_dp_class *k;
+    for (el = 0; el < md->n_el; el++) {
+        k = &s->dp->classes[md->cls[el] - md->table->classes];
+        nq = k->n_q;
+        ng = k->n_g;
+        if (rows_only && ng == 0)
+            continue;
+        idx = md->qidx + md->qptr[el];
+        row0 = md->gptr[el];
+        for (i = 0; i < nq; i++) {
+            s->lq[i] = q[idx[i]];
+            s->lv[i] = v[idx[i]];
+            s->la[i] = a != NULL ? a[idx[i]] : 0.0;
+        }
+        for (i = 0; i < ng; i++)
+            s->llam[i] = lam != NULL ? lam[row0 + i] : 0.0;
+        k->prepare(s->lq, s->lv, params + md->pptr[el], s->la, s->llam,
+                   s->W + s->woff[el]);
+    }
+}
+
+/* fcc_sens_sweep with the tangents prepared at the stage (fcc_sens_stage_begin):
+ * along (sq, sv, dP_j), one apply per element. */
+static void prepared_sweep(fcc_sens *s, const double *sq, const double *sv,
+                           const double *dPj)
+{
+    const fcc_model *md = s->model;
+    int el, i, nq, ng;
+    const int *idx;
+    const fcc_dp_class *k;
+    memset(s->rhs, 0, (size_t)s->n * sizeof(double));
+    for (el = 0; el < md->n_el; el++) {
+        k = &s->dp->classes[md->cls[el] - md->table->classes];
+        nq = k->n_q;
+        ng = k->n_g;
+        idx = md->qidx + md->qptr[el];
+        for (i = 0; i < nq; i++) {
+            s->lsq[i] = sq[idx[i]];
+            s->lsv[i] = sv[idx[i]];
+        }
+        k->apply(s->W + s->woff[el], s->lsq, s->lsv, dPj + md->pptr[el], s->lout);
+        for (i = 0; i < nq; i++)
+            s->rhs[idx[i]] += s->lout[i];
+        store_rows(s, md->gptr[el], nq, ng);
+    }
+}
+
 /* The projections' sweep along (sq, 0, dP_j) with zero accelerations and multipliers:
  * (dg/dp) dP_j into gp, dPhi into phi, dR2 into b, for the elements with rows only
  * (rhs is not formed: the projections do not read it). The tangent is linear in its
  * direction, so an element whose sq and dP_j parts are all zero gives zeros: its rows
  * are set to 0 without calling it (a stiffness's or a mass's key moves one element's
- * parameters; the position sweep's sq is zero). */
-static void rows_sweep(fcc_engine *e, fcc_sens *s, const double *q, const double *v,
-                       const double *sq, const double *dPj)
+ * parameters; the position sweep's sq is zero). The elements' tangents are prepared
+ * at the projected (q, v) with zero accelerations and multipliers (fcc_sens_project). */
+static void rows_sweep(fcc_sens *s, const double *sq, const double *dPj)
 {
     const fcc_model *md = s->model;
-    const double *params = e->asmb->params;
     int el, i, nq, ng, row0, np_el, moved;
     const int *idx;
     const fcc_dp_class *k;
@@ -173,12 +244,7 @@ static void rows_sweep(fcc_engine *e, fcc_sens *s, const double *q, const double
                 s->b[row0 + i] = s->gp[row0 + i] = s->phi[row0 + i] = 0.0;
             continue;
         }
-        for (i = 0; i < nq; i++) {
-            s->lq[i] = q[idx[i]];
-            s->lv[i] = v[idx[i]];
-        }
-        k->tangent(s->lq, s->lv, params + md->pptr[el], s->zero, s->zero, s->lsq,
-                   s->zero, dPj + md->pptr[el], s->lout);
+        k->apply(s->W + s->woff[el], s->lsq, s->zero, dPj + md->pptr[el], s->lout);
         store_rows(s, row0, nq, ng);
     }
 }
@@ -240,11 +306,13 @@ static int bad(fcc_engine *e, const double *x, int n)
     return fcc_fail(e, FCC_ERR_NONFINITE_RESULT, 0, 0);
 }
 
-void fcc_sens_stage_begin(fcc_engine *e, fcc_sens *s, const double *a)
+void fcc_sens_stage_begin(fcc_engine *e, fcc_sens *s, const double *q, const double *v,
+                          const double *a)
 {
     if (fcc_sens_rows(s) > 0)                  /* the stage's rows' multipliers */
         fcc_sens_keep_mu(s);
     multipliers(e, s, a);
+    prepare(e, s, q, v, a, s->lam, 0);
 }
 
 int fcc_sens_stage_acc(fcc_engine *e, fcc_sens *s, int j, const double *q,
@@ -252,7 +320,7 @@ int fcc_sens_stage_acc(fcc_engine *e, fcc_sens *s, int j, const double *q,
                        const double *sv, double *sa)
 {
     int rows = fcc_sens_rows(s);
-    fcc_sens_sweep(e, s, q, v, a, s->lam, sq, sv, s->dP + (size_t)j * s->model->n_p);
+    prepared_sweep(s, sq, sv, s->dP + (size_t)j * s->model->n_p);
     if (rows > 0)
         fcc_sens_rows_rhs(s, q, sq);
     if (fcc_sens_solve_from(e, s->rhs, s->b, sa,
@@ -270,7 +338,7 @@ int fcc_sens_rk4_stage(fcc_engine *e, fcc_sens *s, int k, const double *q,
     int i, j, n = s->n;
     double h = s->h, h2 = 0.5 * h, h6 = h / 6.0;
     double *sq, *sv, *sqs, *sa;
-    fcc_sens_stage_begin(e, s, a);
+    fcc_sens_stage_begin(e, s, q, v, a);
     for (j = 0; j < s->np; j++) {
         sa = row(s, j, SA1 + k - 1);
         if (fcc_sens_stage_acc(e, s, j, q, v, a, row(s, j, stage_q[k - 1]),
@@ -309,18 +377,19 @@ int fcc_sens_project(fcc_engine *e, fcc_sens *s, const double *q, const double *
 {
     int j, n = s->n, np_all = s->model->n_p;
     double *sq, *sv;
+    prepare(e, s, q, v, NULL, NULL, 1);
     for (j = 0; j < s->np; j++) {
         sq = row(s, j, SQ);
         sv = row(s, j, SV);
         /* positions: gp = -(dg/dp) dP_j does not depend on the direction's q part */
-        rows_sweep(e, s, q, v, s->zero, s->dP + (size_t)j * np_all);
+        rows_sweep(s, s->zero, s->dP + (size_t)j * np_all);
         if (fcc_sens_solve(e, NULL, sq, s->gp, s->y) < 0)
             return -1;
         memcpy(sq, s->y, (size_t)n * sizeof(double));
         if (fcc_sens_rows(s) > 0 && fcc_sens_rows_positions(e, s, j, q, sq) < 0)
             return -1;
         /* speeds: phi = -dPhi[s_q, dP_j] with the projected s_q */
-        rows_sweep(e, s, q, v, sq, s->dP + (size_t)j * np_all);
+        rows_sweep(s, sq, s->dP + (size_t)j * np_all);
         if (fcc_sens_solve(e, NULL, sv, s->phi, s->y) < 0)
             return -1;
         memcpy(sv, s->y, (size_t)n * sizeof(double));

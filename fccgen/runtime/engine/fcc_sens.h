@@ -37,6 +37,8 @@ typedef struct fcc_sens {
     double *S;                     /* per p_j, 10 n: sq sv sqs sv2 sv3 sv4 sa1..sa4 */
     double *lam, *r, *rhs, *b, *gp, *phi, *y, *zero;   /* work */
     double *lq, *lv, *la, *lsq, *lsv, *llam, *lout;    /* an element's */
+    double *W;                     /* the elements' prepared tangents (fcc_dp_prepare) */
+    size_t *woff;                  /* n_el + 1: element el's at W + woff[el] */
     double *warm;                  /* np x (m + 1): the sparse path's last multipliers of
                                       p_j's stage solve, [m]: 1 when they converged */
     double h;                      /* the step being taken */
@@ -74,9 +76,11 @@ void fcc_sens_begin_step(fcc_sens *s, double h);
 int fcc_sens_rk4_stage(fcc_engine *e, fcc_sens *s, int k, const double *q,
                        const double *v, const double *a);
 /* Any method's stage at (q, v) with accelerations a (f, h, M, B and the factorisation
- * assembled there, locked rows constrained): begin once (the stage's multipliers),
- * then s_a of parameter j along the stage's (sq, sv) into sa. */
-void fcc_sens_stage_begin(fcc_engine *e, fcc_sens *s, const double *a);
+ * assembled there, locked rows constrained): begin once (the stage's multipliers, and
+ * the elements' tangents prepared at (q, v, a, lam)), then s_a of parameter j along
+ * the stage's (sq, sv) into sa, with the same q, v and a. */
+void fcc_sens_stage_begin(fcc_engine *e, fcc_sens *s, const double *q, const double *v,
+                          const double *a);
 int fcc_sens_stage_acc(fcc_engine *e, fcc_sens *s, int j, const double *q,
                        const double *v, const double *a, const double *sq,
                        const double *sv, double *sa);

@@ -48,7 +48,7 @@ int fcc_sens_dp5_stage(fcc_engine *e, fcc_sens_dp5 *d, int k, double h,
     fcc_sens *s = d->s;
     int i, j, l, n = s->n;
     double *arg, *kk, acc;
-    fcc_sens_stage_begin(e, s, a);
+    fcc_sens_stage_begin(e, s, q, v, a);
     for (j = 0; j < s->np; j++) {
         arg = block(d, k == 7 ? d->y1 : d->yt, j);
         state(d, j, arg, 0);
