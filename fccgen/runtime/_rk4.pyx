@@ -60,8 +60,8 @@ cdef int pause_holding_inputs(void *ctx) noexcept nogil:
 
 def simulate_rk4(Engine engine, q0, v0, double t_end, double dt, long n_steps,
                  long output_every, bint project, progress=None,
-                 double progress_interval=0.5, events=None, work=None, inputs=None, sens=None,
-                 bint interpolant=True):
+                 double progress_interval=0.5, events=None, work=None, inputs=None,
+                 sens=None, bint interpolant=True):
     """Classical RK4 from (q0, v0) (used as given) over n_steps steps of dt, the last
     one shortened to end at t_end; after each step, if project, position then velocity
     projection. Records t = 0, every output_every steps and t_end.
@@ -106,8 +106,8 @@ def simulate_baumgarte(Engine engine, q0, v0, double t_end, double dt, long n_st
 
 def _simulate(Engine engine, q0, v0, double t_end, double dt, long n_steps,
               long output_every, bint project, bint baumgarte, double alpha, double beta,
-              progress, double progress_interval, events=None, work=None, inputs=None, sens=None,
-              bint interpolant=True):
+              progress, double progress_interval, events=None, work=None, inputs=None,
+              sens=None, bint interpolant=True):
     """The shared driver of simulate_rk4 and simulate_baumgarte."""
     if engine.c.running:
         raise RuntimeError("this engine is already running a simulation")

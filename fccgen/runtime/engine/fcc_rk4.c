@@ -171,8 +171,10 @@ static int locate(fcc_engine *e, fcc_rk4 *r, int k, double t0, double h,
             return -1;
         fc = ev->s1[2 * ne + k];
         fcc_ev_bracket_update(ev, k, &br, c, fc);
-        if (have && fcc_ev_bracket_open(ev, &br, 1.0))
-            have = fcc_ev_guess(ev, k, ip, &br, fc - fcc_ev_interp_value(ev, k, ip, c), &g);
+        if (have && fcc_ev_bracket_open(ev, &br, 1.0)) {   /* the offset at c */
+            fc -= fcc_ev_interp_value(ev, k, ip, c);
+            have = fcc_ev_guess(ev, k, ip, &br, fc, &g);
+        }
     }
     *tau = br.b;
     return 0;

@@ -52,8 +52,8 @@ typedef struct fcc_rk4 {
  * state in the engine's stage arrays, the divergence bounds from the initial state
  * (fcc_divergence_bounds), the events reset by the caller (fcc_events_reset) and
  * watched here. The settings are project, baumgarte, alpha, beta, n_steps, every, dt,
- * t_end, out, ev, saved, dense, pause, pause_ctx, pw and w_out (zero the struct first: NULL
- * pointers are "none"). Events without event functions (ne = 0) only re-base the
+ * t_end, out, ev, saved, dense, pause, pause_ctx, pw and w_out (zero the struct first:
+ * NULL pointers are "none"). Events without event functions (ne = 0) only re-base the
  * angle references after every step (springs count turns); with event functions they
  * need project. Returns 0 or -1 (the engine's error record). */
 int fcc_rk4_start(fcc_rk4 *r, fcc_engine *e, const double *q0, const double *v0);
