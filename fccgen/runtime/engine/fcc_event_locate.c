@@ -164,13 +164,18 @@ int fcc_ev_guess(fcc_events *ev, int k, const fcc_interp *ip, const fcc_bracket 
     /* The crossing of s_k + d on the interpolant inside the real bracket br (d: the
      * interpolant's offset from the real integration at the last trial), by the same
      * Illinois iteration to a thousandth of the guided trials' offset (at most 60
-     * kernel evaluations). 0: s_k + d does not cross there (no guess). */
+     * kernel evaluations). A start just after an event counts as before the crossing,
+     * as in fcc_ev_bracket (the function leaves its zero there). 0: s_k + d does not
+     * cross there (no guess). */
     fcc_bracket in;
     double c, eps = 0.25 * ev->spec->tol / ip->scale;
     in.a = br->a;
     in.b = br->b;
-    in.fa = fcc_ev_interp_value(ev, k, ip, in.a) + d;
     in.fb = fcc_ev_interp_value(ev, k, ip, in.b) + d;
+    if (in.a == 0.0 && fabs(ev->s0[k]) < 1e-200)
+        in.fa = -in.fb;
+    else
+        in.fa = fcc_ev_interp_value(ev, k, ip, in.a) + d;
     in.side = 0;
     in.it = 0;
     if (!fcc_ev_crosses(ev, k, in.fa, in.fb))
