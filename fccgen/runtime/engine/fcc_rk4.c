@@ -209,10 +209,10 @@ static const fcc_interp *interpolant(fcc_engine *e, fcc_rk4 *r, double t0, doubl
     return ip;
 }
 
-/* The state at the located time is the last trial's (no need to integrate to it
- * again): it was, no sensitivities run (trials carry none) and no watch solved
- * accelerations after it (a resting bounce's release function: that solve leaves the
- * factorisation the projection takes at another point). */
+/* r->q, r->v hold the state at the located time best, so it need not be integrated
+ * again: the last trial was at best, no sensitivities run (trials carry none), and no
+ * watch solved accelerations after it (a resting bounce's release function: that
+ * solve leaves the factorisation the projection takes at another point). */
 static int at_last_trial(fcc_rk4 *r, double best)
 {
     fcc_events *ev = r->ev;
