@@ -451,6 +451,7 @@ cdef extern from "fcc_rk4.h":
         fcc_records out
         fcc_events *ev
         double *saved
+        double *dense
         fcc_pause_fn pause
         void *pause_ctx
         long k, n_out, n_rhs, newton_total

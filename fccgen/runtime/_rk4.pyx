@@ -60,7 +60,8 @@ cdef int pause_holding_inputs(void *ctx) noexcept nogil:
 
 def simulate_rk4(Engine engine, q0, v0, double t_end, double dt, long n_steps,
                  long output_every, bint project, progress=None,
-                 double progress_interval=0.5, events=None, work=None, inputs=None, sens=None):
+                 double progress_interval=0.5, events=None, work=None, inputs=None,
+                 sens=None, bint interpolant=True):
     """Classical RK4 from (q0, v0) (used as given) over n_steps steps of dt, the last
     one shortened to end at t_end; after each step, if project, position then velocity
     projection. Records t = 0, every output_every steps and t_end.
@@ -79,9 +80,14 @@ def simulate_rk4(Engine engine, q0, v0, double t_end, double dt, long n_steps,
 
     sens: a _sens.Sensitivities (None: none) whose ``records`` the run fills, one per
     record (needs project, no events and the dense path).
+
+    interpolant: an event's location places its trials (re-integrated partial steps)
+    by the step's Hermite interpolant; False: by the Illinois iteration alone, twice
+    the partial steps (the reference the tests compare the located times with).
     """
     return _simulate(engine, q0, v0, t_end, dt, n_steps, output_every, project, False,
-                     0.0, 0.0, progress, progress_interval, events, work, inputs, sens)
+                     0.0, 0.0, progress, progress_interval, events, work, inputs, sens,
+                     interpolant)
 
 
 def simulate_baumgarte(Engine engine, q0, v0, double t_end, double dt, long n_steps,
@@ -100,7 +106,8 @@ def simulate_baumgarte(Engine engine, q0, v0, double t_end, double dt, long n_st
 
 def _simulate(Engine engine, q0, v0, double t_end, double dt, long n_steps,
               long output_every, bint project, bint baumgarte, double alpha, double beta,
-              progress, double progress_interval, events=None, work=None, inputs=None, sens=None):
+              progress, double progress_interval, events=None, work=None, inputs=None,
+              sens=None, bint interpolant=True):
     """The shared driver of simulate_rk4 and simulate_baumgarte."""
     if engine.c.running:
         raise RuntimeError("this engine is already running a simulation")
@@ -128,6 +135,7 @@ def _simulate(Engine engine, q0, v0, double t_end, double dt, long n_steps,
     if work is not None:                # the work at the records (array "work")
         arrays["work"] = work_out
     saved = np.zeros(2 * n)             # an event's step start
+    dense = np.zeros(6 * n)             # the step's interpolant (event location)
     cdef double deadline = 0.0
     cdef fcc_rk4 r
     memset(&r, 0, sizeof(r))
@@ -138,6 +146,7 @@ def _simulate(Engine engine, q0, v0, double t_end, double dt, long n_steps,
     r.out.body, r.out.energy = array_data(arrays["body"]), array_data(arrays["energy"])
     r.out.cerr = array_data(arrays["constraint_error"])
     r.saved = array_data(saved)
+    r.dense = array_data(dense) if interpolant else NULL
     r.pause, r.pause_ctx = past_deadline, &deadline
     cdef held_inputs held
     cdef int i

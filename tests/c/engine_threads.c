@@ -72,6 +72,7 @@ static void set_up(instance *in)
     in->r.out.cerr = calloc((size_t)n_rec, sizeof(double));
     in->r.ev = NULL;
     in->r.saved = NULL;
+    in->r.dense = NULL;
     in->r.pause = NULL;
     in->r.pause_ctx = NULL;
 }

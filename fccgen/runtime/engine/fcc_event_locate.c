@@ -1,7 +1,9 @@
 /* Watching and locating events: the event functions' values, which of them crossed
  * zero in a step, and the Illinois iteration (modified regula falsi) that locates a
- * crossing within the location tolerance (at most 200 trials). The integrators
- * (fcc_rk4.c, fcc_dopri5.c) drive these with their own states at the trial times. */
+ * crossing within the location tolerance (at most 200 trials), with its trials placed
+ * by a step's interpolant where the integrator has one to spare (fcc_interp). The
+ * integrators (fcc_rk4.c, fcc_dopri5.c) drive these with their own states at the
+ * trial times. */
 #include <math.h>
 
 #include <string.h>
@@ -113,6 +115,95 @@ void fcc_ev_bracket_update(fcc_events *ev, int k, fcc_bracket *br, double c, dou
             br->fb *= 0.5;
         br->side = 1;
     }
+}
+
+/* Trials placed by a step's interpolant (fcc_interp). A re-integrated partial step
+ * costs a whole step's acceleration evaluations; the interpolant costs event kernels
+ * only. It says where the crossing is to about its own error (the step's local error,
+ * orders below the location tolerance on a resolved step), so the real trials go just
+ * before and just past that guess and the bracket closes in two of them instead of
+ * the Illinois iteration's five to eight. The answer is still the real integration's
+ * bracket, closed to the tolerance: the interpolant only chooses where to look, and
+ * where it cannot (no crossing on it, or a guess outside the bracket, or too many
+ * guided trials) the Illinois trial is taken. */
+
+void fcc_ev_interp_state(const fcc_interp *ip, double tau)
+{
+    /* Positions: quintic Hermite in (q, v, a) at both ends; velocities: cubic Hermite
+     * in (v, a). th = tau / h in [0, 1]. */
+    int i;
+    double h = ip->h, th = tau / h, t2 = th * th, t3 = t2 * th, t4 = t3 * th,
+           t5 = t4 * th;
+    double p0 = 1.0 - 10.0 * t3 + 15.0 * t4 - 6.0 * t5,
+           p1 = h * (th - 6.0 * t3 + 8.0 * t4 - 3.0 * t5),
+           p2 = 0.5 * h * h * (t2 - 3.0 * t3 + 3.0 * t4 - t5),
+           p3 = 10.0 * t3 - 15.0 * t4 + 6.0 * t5,
+           p4 = h * (-4.0 * t3 + 7.0 * t4 - 3.0 * t5),
+           p5 = 0.5 * h * h * (t3 - 2.0 * t4 + t5);
+    double c0 = 1.0 - 3.0 * t2 + 2.0 * t3, c1 = h * (th - 2.0 * t2 + t3),
+           c2 = 3.0 * t2 - 2.0 * t3, c3 = h * (t3 - t2);
+    for (i = 0; i < ip->n; i++) {
+        ip->q[i] = p0 * ip->q0[i] + p1 * ip->v0[i] + p2 * ip->a0[i]
+                 + p3 * ip->q1[i] + p4 * ip->v1[i] + p5 * ip->a1[i];
+        ip->v[i] = c0 * ip->v0[i] + c1 * ip->a0[i] + c2 * ip->v1[i] + c3 * ip->a1[i];
+    }
+}
+
+double fcc_ev_interp_value(fcc_events *ev, int k, const fcc_interp *ip, double tau)
+{
+    /* Event function k (k < ne) on the interpolant at t0 + tau. */
+    double *out = ev->s1 + 2 * ev->spec->ne;          /* work */
+    fcc_ev_interp_state(ip, tau);
+    fcc_ev_values(ev, ip->q, ip->v, ip->t0 + tau, out);
+    return out[k];
+}
+
+int fcc_ev_guess(fcc_events *ev, int k, const fcc_interp *ip, const fcc_bracket *br,
+                 double d, double *g)
+{
+    /* The crossing of s_k + d on the interpolant inside the real bracket br (d: the
+     * interpolant's offset from the real integration at the last trial), by the same
+     * Illinois iteration to a thousandth of the guided trials' offset (at most 60
+     * kernel evaluations). A start just after an event counts as before the crossing,
+     * as in fcc_ev_bracket (the function leaves its zero there). 0: s_k + d does not
+     * cross there (no guess). */
+    fcc_bracket in;
+    double c, eps = 0.25 * ev->spec->tol / ip->scale;
+    in.a = br->a;
+    in.b = br->b;
+    in.fb = fcc_ev_interp_value(ev, k, ip, in.b) + d;
+    if (in.a == 0.0 && fabs(ev->s0[k]) < 1e-200)
+        in.fa = -in.fb;
+    else
+        in.fa = fcc_ev_interp_value(ev, k, ip, in.a) + d;
+    in.side = 0;
+    in.it = 0;
+    if (!fcc_ev_crosses(ev, k, in.fa, in.fb))
+        return 0;
+    while (in.b - in.a > 1e-3 * eps && in.it < 60) {
+        c = fcc_ev_bracket_trial(&in);
+        fcc_ev_bracket_update(ev, k, &in, c, fcc_ev_interp_value(ev, k, ip, c) + d);
+    }
+    *g = 0.5 * (in.a + in.b);
+    return 1;
+}
+
+double fcc_ev_guided_trial(fcc_events *ev, fcc_bracket *br, double g, double scale)
+{
+    /* The next real trial beside the guess g: a quarter of the tolerance past it when
+     * that closes the bracket against its start a, a quarter before it when that closes
+     * it against its end b, else a quarter before it (the next guess, corrected by that
+     * trial, then goes past it and closes). The Illinois trial where that is not inside
+     * the bracket. */
+    double tol = ev->spec->tol / scale, eps = 0.25 * tol, c;
+    if (g + eps - br->a <= tol)
+        c = g + eps;
+    else
+        c = g - eps;
+    if (!(br->a < c && c < br->b))
+        return fcc_ev_bracket_trial(br);
+    br->it++;
+    return c;
 }
 
 /* A lock, or a bounce that came to rest, whose rows hold (its function hovers at

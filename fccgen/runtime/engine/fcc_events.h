@@ -104,6 +104,18 @@ typedef struct fcc_bracket {
     int it;
 } fcc_bracket;
 
+/* A step's Hermite interpolant from t0 to t0 + h (fcc_event_locate.c): positions
+ * quintic in (q, v, a) at both ends, velocities cubic in (v, a); a1 may be an
+ * approximation (RK4's last stage). Trials are placed by it (fcc_ev_guess,
+ * fcc_ev_guided_trial); the located time is always the real integration's. */
+typedef struct fcc_interp {
+    int n;
+    double t0, h;
+    double scale;             /* the bracket's unit in seconds */
+    const double *q0, *v0, *a0, *q1, *v1, *a1;
+    double *q, *v;            /* work: the interpolated state */
+} fcc_interp;
+
 /* The spec of a table's events: per event direction, action, rows, restitution; the
  * angle quantities' rows; copied. */
 int fcc_event_spec_init(fcc_event_spec *c, const fcc_event_table *tab, int nang,
@@ -138,6 +150,14 @@ void fcc_ev_bracket(fcc_events *ev, int k, fcc_bracket *br, double b);
 int fcc_ev_bracket_open(fcc_events *ev, fcc_bracket *br, double scale);
 double fcc_ev_bracket_trial(fcc_bracket *br);
 void fcc_ev_bracket_update(fcc_events *ev, int k, fcc_bracket *br, double c, double fc);
+/* The interpolant's state at t0 + tau into ip->q, ip->v; event function k (< ne) on it;
+ * its crossing of s_k + d inside br (1 and *g, or 0: none there); the real trial beside
+ * the guess g that closes br soonest (or the Illinois trial). */
+void fcc_ev_interp_state(const fcc_interp *ip, double tau);
+double fcc_ev_interp_value(fcc_events *ev, int k, const fcc_interp *ip, double tau);
+int fcc_ev_guess(fcc_events *ev, int k, const fcc_interp *ip, const fcc_bracket *br,
+                 double d, double *g);
+double fcc_ev_guided_trial(fcc_events *ev, fcc_bracket *br, double g, double scale);
 void fcc_ev_refresh(fcc_events *ev, const double *q);
 /* The angle references' copies into the element parameters (after a change of p). */
 void fcc_ev_mirror(fcc_events *ev);

@@ -6,7 +6,8 @@
  * projection is the one the next step's first stage needs (same M and B), so it is
  * reused. Events: after each step the watched values are compared with the step's
  * start; the first that crossed is located by re-integrating partial steps from the
- * saved start (Illinois), acted on, and the rest of the step integrated again.
+ * saved start (Illinois, its trials placed by the step's Hermite interpolant), acted
+ * on, and the rest of the step integrated again.
  */
 #include <math.h>
 #include <string.h>
@@ -140,29 +141,88 @@ static int state_at(fcc_engine *e, fcc_rk4 *r, double t0, double tau)
 /* Illinois (modified regula falsi, fcc_ev_bracket) on tau -> s_k(state(t0 + tau))
  * over [0, h], where s_k crosses between the saved start (ev->s0) and the step's end
  * (ev->s1): the bracket [a, b] always holds the crossing; stops when b - a <= tol.
- * *tau: b, the earliest time found past the crossing. */
-static int locate(fcc_engine *e, fcc_rk4 *r, int k, double t0, double h, double *tau)
+ * With the step's interpolant ip (NULL: none) the trials of an event function go
+ * beside its crossing on the interpolant, offset by the last trial's difference
+ * (fcc_ev_guess, fcc_ev_guided_trial): two partial steps where Illinois takes five
+ * to eight; at most 8 such, then Illinois. *tau: b, the earliest time found past the
+ * crossing; r->trial_tau: the time of the state left in r->q, r->v. */
+static int locate(fcc_engine *e, fcc_rk4 *r, int k, double t0, double h,
+                  const fcc_interp *ip, double *tau)
 {
     fcc_events *ev = r->ev;
-    int ne = ev->spec->ne;
+    int ne = ev->spec->ne, guided = 0;
     fcc_bracket br;
     fcc_sens *sens = r->sens;             /* trials carry no sensitivities */
-    double c;
-    int rc;
+    double c, fc, g = 0.0;
+    int rc, have = 0;
     fcc_ev_bracket(ev, k, &br, h);
+    if (ip != NULL && k < ne)
+        have = fcc_ev_guess(ev, k, ip, &br, 0.0, &g);
     while (fcc_ev_bracket_open(ev, &br, 1.0)) {
-        c = fcc_ev_bracket_trial(&br);
+        have = have && guided++ < 8;
+        c = have ? fcc_ev_guided_trial(ev, &br, g, 1.0) : fcc_ev_bracket_trial(&br);
         r->sens = NULL;
         rc = state_at(e, r, t0, c);
         r->sens = sens;
+        r->trial_tau = c;
         if (rc < 0)
             return -1;
         if (fcc_ev_watch(e, ev, r->q, r->v, t0 + c, ev->s1 + 2 * ne) < 0)  /* work */
             return -1;
-        fcc_ev_bracket_update(ev, k, &br, c, ev->s1[2 * ne + k]);
+        fc = ev->s1[2 * ne + k];
+        fcc_ev_bracket_update(ev, k, &br, c, fc);
+        if (have && fcc_ev_bracket_open(ev, &br, 1.0)) {   /* the offset at c */
+            fc -= fcc_ev_interp_value(ev, k, ip, c);
+            have = fcc_ev_guess(ev, k, ip, &br, fc, &g);
+        }
     }
     *tau = br.b;
     return 0;
+}
+
+/* The interpolant of the step just taken from the saved start to t0 + h (r->q, r->v
+ * at its end, r->a1 and r->a4 its first and last stages' accelerations), copied into
+ * r->dense, or NULL when the run gave no room for it. */
+static const fcc_interp *interpolant(fcc_engine *e, fcc_rk4 *r, double t0, double h,
+                                     fcc_interp *ip)
+{
+    int n = e->n;
+    double *d = r->dense;
+    if (d == NULL)
+        return NULL;
+    memcpy(d, r->q, (size_t)n * sizeof(double));
+    memcpy(d + n, r->v, (size_t)n * sizeof(double));
+    memcpy(d + 2 * n, r->a1, (size_t)n * sizeof(double));
+    memcpy(d + 3 * n, r->a4, (size_t)n * sizeof(double));
+    ip->n = n;
+    ip->t0 = t0;
+    ip->h = h;
+    ip->scale = 1.0;
+    ip->q0 = r->saved;
+    ip->v0 = r->saved + n;
+    ip->q1 = d;
+    ip->v1 = d + n;
+    ip->a0 = d + 2 * n;
+    ip->a1 = d + 3 * n;
+    ip->q = d + 4 * n;
+    ip->v = d + 5 * n;
+    return ip;
+}
+
+/* r->q, r->v hold the state at the located time best, so it need not be integrated
+ * again: the last trial was at best, no sensitivities run (trials carry none), and no
+ * watch solved accelerations after it (a resting bounce's release function: that
+ * solve leaves the factorisation the projection takes at another point). */
+static int at_last_trial(fcc_rk4 *r, double best)
+{
+    fcc_events *ev = r->ev;
+    int k;
+    if (r->sens != NULL || r->trial_tau != best)
+        return 0;
+    for (k = 0; k < ev->spec->ne; k++)
+        if (fcc_ev_rests(ev, k) && ev->rel_sign[k] != 0.0)
+            return 0;
+    return 1;
 }
 
 /* Act on event k (-1 - k: rest it, the Zeno guard) at the located state, with the
@@ -189,6 +249,8 @@ static int events(fcc_engine *e, fcc_rk4 *r, double t0, double h)
     int ne = ev->spec->ne, max_per_step = ev->spec->max_per_step;
     int k, j, first, rc, count = 0, loops = 0;
     double tau, best;
+    fcc_interp interp;
+    const fcc_interp *ip;
     for (;;) {
         if (fcc_ev_watch(e, ev, r->q, r->v, t0 + h, ev->s1) < 0)
             return -1;
@@ -201,17 +263,21 @@ static int events(fcc_engine *e, fcc_rk4 *r, double t0, double h)
         best = h;
         first = k;
         fcc_ev_mark_crossed(ev);
+        ip = interpolant(e, r, t0, h, &interp);
+        r->trial_tau = -1.0;
         for (j = k; j < 2 * ne; j++) {           /* the earliest of those that crossed */
             if (j > k && !fcc_ev_watched(ev, j, ev->s0, ev->s1))   /* a held lock */
                 continue;
-            if (locate(e, r, j, t0, h, &tau) < 0)
+            if (locate(e, r, j, t0, h, ip, &tau) < 0)
                 return -1;
             if (tau < best || j == k) {
                 best = tau;
                 first = j;
             }
         }
-        if (state_at(e, r, t0, best) < 0 || after_step(e, r) < 0)
+        if (!at_last_trial(r, best) && state_at(e, r, t0, best) < 0)
+            return -1;
+        if (after_step(e, r) < 0)
             return -1;
         e->err_t = t0 + best;
         fcc_ev_keep_start(ev, first);

@@ -19,6 +19,9 @@ typedef struct fcc_rk4 {
     fcc_records out;          /* room for 1 + n_steps / every (+ 1) records */
     fcc_events *ev;           /* events (NULL: none) */
     double *saved;            /* 2 n: the step start an event is located from */
+    double *dense;            /* 6 n: the step's interpolant that places the location's
+                                 trials (NULL: Illinois alone, twice the partial
+                                 steps) */
     fcc_pause_fn pause;
     void *pause_ctx;
     /* state and statistics */
@@ -32,6 +35,7 @@ typedef struct fcc_rk4 {
     double q_bound, v_bound;  /* max |q| and max |v| past these: the run diverged */
     double *q, *v, *qs, *v2, *v3, *v4, *a1, *a2, *a3, *a4;   /* in the engine */
     double t0;                /* time at the start of the step (stage times) */
+    double trial_tau;         /* the partial step whose state r->q, r->v hold (events) */
     int stopped;              /* a stop event ended the run at t_stop */
     double t_stop;
     /* the work of the forces without potential (settings: pw NULL, none; w_out, W at
@@ -48,8 +52,8 @@ typedef struct fcc_rk4 {
  * state in the engine's stage arrays, the divergence bounds from the initial state
  * (fcc_divergence_bounds), the events reset by the caller (fcc_events_reset) and
  * watched here. The settings are project, baumgarte, alpha, beta, n_steps, every, dt,
- * t_end, out, ev, saved, pause, pause_ctx, pw and w_out (zero the struct first: NULL
- * pointers are "none"). Events without event functions (ne = 0) only re-base the
+ * t_end, out, ev, saved, dense, pause, pause_ctx, pw and w_out (zero the struct first:
+ * NULL pointers are "none"). Events without event functions (ne = 0) only re-base the
  * angle references after every step (springs count turns); with event functions they
  * need project. Returns 0 or -1 (the engine's error record). */
 int fcc_rk4_start(fcc_rk4 *r, fcc_engine *e, const double *q0, const double *v0);
