@@ -78,8 +78,8 @@
 static void dense_fallback(fcc_engine *e, const double *Q, const double *w,
                            const double *b, double *x)
 {
-    if (e->n > e->sp.dense_fallback_max || e->lapack == NULL)
-        return;
+    if (e->n > e->sp.dense_fallback_max || e->lapack == NULL || e->sp.sw_live)
+        return;         /* (the dense solve has no switchable rows: kept, counted) */
     fcc_sp_gather_dense(e);
     if (fcc_dense_factor(&e->sol, e->asmb->M, e->asmb->B) == 0) {
         fcc_dense_apply(&e->sol, Q, w, b, x);
@@ -110,6 +110,20 @@ int fcc_sp_solve_kkt_from(fcc_engine *e, const double *Q, double *x, double *lam
     return 0;
 }
 
+/* The accelerations' solve (rhs, nb) with the held switchable rows' targets
+ * -(dG/dt) v (fcc_sparse_fold.c) when some are folded into the factor. */
+static void solve_with_targets(fcc_engine *e, const double *q, const double *v,
+                               double *a)
+{
+    fcc_sparse *s = &e->sp;
+    if (s->sw_live && s->sw_fill != NULL) {
+        s->sw_fill(s->sw_ctx, e, q, v);
+        s->sw_b = s->sw_tgt;
+    }
+    fcc_sp_solve_kkt(e, e->rhs, NULL, e->nb, a, 1, 0);
+    s->sw_b = NULL;
+}
+
 int fcc_sp_accelerations(fcc_engine *e, const double *q, const double *v, double *a,
                          int reuse)
 {
@@ -127,7 +141,7 @@ int fcc_sp_accelerations(fcc_engine *e, const double *q, const double *v, double
         e->rhs[i] = as->f[i] - as->h[i];
     for (i = 0; i < e->m; i++)
         e->nb[i] = -as->c[i];
-    fcc_sp_solve_kkt(e, e->rhs, NULL, e->nb, a, 1, 0);
+    solve_with_targets(e, q, v, a);
     return fcc_check_result(e, q, v, a, flags);
 }
 
@@ -159,7 +173,7 @@ int fcc_sp_baumgarte(fcc_engine *e, const double *q, const double *v, double *a,
     for (i = 0; i < e->n; i++)
         e->rhs[i] = as->f[i] - as->h[i];
     baumgarte_targets(e, v, alpha, beta, e->nb);
-    fcc_sp_solve_kkt(e, e->rhs, NULL, e->nb, a, 1, 0);
+    solve_with_targets(e, q, v, a);
     return fcc_check_result(e, q, v, a, flags);
 }
 
