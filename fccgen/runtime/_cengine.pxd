@@ -218,6 +218,12 @@ cdef extern from "fcc_engine.h":
         int *ent_b
         int *ent_pos
         int n_sw
+        int *sw_ptr
+        int *sw_idx
+        int *sw_ent_ptr
+        int *sw_ent_a
+        int *sw_ent_b
+        int *sw_ent_pos
 
     ctypedef struct fcc_sparse:
         const fcc_pattern *pat

@@ -288,7 +288,8 @@ cdef class SparseEngine(Engine):
         """The pattern's constants as the set-up gave them: {"view": the arguments of
         fcc_pattern_set_view (None without pinned coordinates), "guards": those of
         fcc_pattern_set_guards, "structure": those of fcc_pattern_set_structure (None
-        before set_structure)}, each a dict of fresh arrays; what another instance of
+        before set_structure), "switchable": those of fcc_pattern_set_switchable (None
+        without switchable rows)}, each a dict of fresh arrays; what another instance of
         the engine (a program that holds the C engine alone) is built from."""
         cdef int n_el = self.asm.n_el
         cdef const fcc_pattern *P = &self.pat
@@ -314,7 +315,16 @@ cdef class SparseEngine(Engine):
                              ent_a=ints(P.ent_a, P.ent_ptr[n_el]),
                              ent_b=ints(P.ent_b, P.ent_ptr[n_el]),
                              ent_pos=ints(P.ent_pos, P.ent_ptr[n_el]))
-        return dict(view=view, guards=guards, structure=structure)
+        switchable = None
+        if P.n_sw > 0:
+            switchable = dict(sw_ptr=ints(P.sw_ptr, P.n_sw + 1),
+                              sw_idx=ints(P.sw_idx, P.sw_ptr[P.n_sw]),
+                              sw_ent_ptr=ints(P.sw_ent_ptr, P.n_sw + 1),
+                              sw_ent_a=ints(P.sw_ent_a, P.sw_ent_ptr[P.n_sw]),
+                              sw_ent_b=ints(P.sw_ent_b, P.sw_ent_ptr[P.n_sw]),
+                              sw_ent_pos=ints(P.sw_ent_pos, P.sw_ent_ptr[P.n_sw]))
+        return dict(view=view, guards=guards, structure=structure,
+                    switchable=switchable)
 
     @property
     def pattern_tripped(self):
