@@ -23,6 +23,12 @@
  * stopping test is on the residual, with a bound set from the first step's (see the
  * constants). Redundant rows need no rank decision.
  *
+ * With switchable rows folded into the factor (fcc_sparse_fold.c) a step whose change
+ * is itself at most AL_STOP of the floor also ends the steps: a structure that its
+ * held rows lock to 0 DOF has accelerations and speeds of rounding size, and the rate
+ * of two steps of noise says nothing (it read as slow, and boosted the factor at every
+ * stage of the latched boom of 12 units: 4e-18 of the floor after a warm start).
+ *
  * Augmented-Lagrangian steps stop when the estimated remaining change,
  * |dx| rate / (1 - rate), is at most AL_STOP |x| (|x| or the floor x_floor under it,
  * whichever is larger: the velocity projection's, fcc_sparse_engine.c; 0 for the
@@ -379,6 +385,8 @@ static int refine(fcc_engine *e, const double *b, double *x, int warm, int *solv
                 s->slow_rate = rate;
             if (rate < 0.5 && nd * rate / (1.0 - rate) <= stop * size)
                 return 1;
+            if (s->sw_live && s->x_floor > 0.0 && nd <= stop * size)
+                return 1;                      /* rounding of the floor's scale */
             if (rate > SLOW)
                 cg = 1;
         }

@@ -376,9 +376,9 @@ int fcc_ev_correct(fcc_engine *e, fcc_events *ev, double *q, double *v)
     int m, i, k = 0;
     if (ev->n_used == 0)
         return 0;
-    i = fcc_ev_fold_correct(e, ev, q, v);
+    i = fcc_ev_fold_correct(e, ev, q);
     if (i != 0)
-        return i < 0 ? -1 : 0;                /* folded: two solves (fold.c) */
+        return i < 0 ? -1 : 0;                /* folded: one solve (fold.c) */
     m = fcc_ev_responses(e, ev, q);
     c->tab->quantity_values(q, NULL, 0.0, ev->p, ev->r);
     for (i = 0; i < c->nr; i++) {

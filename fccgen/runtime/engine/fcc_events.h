@@ -179,7 +179,7 @@ int fcc_events_fold(fcc_events *ev, fcc_engine *e, int on);
 /* The folded rows' shares of fcc_ev_constrain and fcc_ev_correct (1: done folded; 0:
  * not folded now, the Schur complement instead; -1: failed). */
 int fcc_ev_fold_constrain(fcc_engine *e, fcc_events *ev);
-int fcc_ev_fold_correct(fcc_engine *e, fcc_events *ev, double *q, double *v);
+int fcc_ev_fold_correct(fcc_engine *e, fcc_events *ev, double *q);
 double fcc_ev_leaving(fcc_events *ev, int k, const double *q, const double *v,
                       double t);
 

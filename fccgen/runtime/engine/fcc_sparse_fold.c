@@ -6,7 +6,7 @@
  * make_engine's switchable rows): its pairs of coordinates are entries of A from the
  * start, and its fill is in the symbolic factorisation. Each row is then one more row
  * of the augmented-Lagrangian refinement (fcc_al_refine.c), numbered m + j, with its
- * weight alpha_{m+j} = RHO m_ref / ||G_j||^2 while it is held and zero while it is free
+ * weight alpha_{m+j} = RHO SW_BOOST m_ref / ||G_j||^2 while it is held, zero while free
  * (its values are zero then: a free row adds nothing to A, its residual is zero and
  * its multiplier stays zero). A switch changes values and weights only: the next
  * factorisation is numeric, with no new analysis, and no solve is added per row. The
@@ -24,6 +24,15 @@
 #include <string.h>
 
 #include "fcc_engine.h"
+
+/* The held rows' weight over the engine rows' RHO: a lock's row is weak in the
+ * refinement (t = alpha sigma^2 / m about 2.5 on the boom of 12 units, whose one
+ * degree of freedom moves all its bars: a rate of 0.28 per step, every solve slow and
+ * boosted), so it is weighted as a boosted factor weights every row
+ * (fcc_al_refine.c, "Near a singular position"): the rate falls to about 4e-6, and
+ * A's condition grows along that row as a boost's does, which the refinement's true
+ * residuals remove. */
+#define SW_BOOST FCC_AL_BOOST
 
 static void *zalloc(size_t n, size_t size)
 {
@@ -100,7 +109,7 @@ void fcc_sp_sw_fill(fcc_engine *e, const double *q)
 
 void fcc_sp_sw_penalties(fcc_engine *e)
 {
-    /* alpha_{m+j} = RHO boost mref / ||G_j||^2, zero for a free (zero) row. */
+    /* alpha_{m+j} = RHO SW_BOOST mref / ||G_j||^2, zero for a free (zero) row. */
     fcc_sparse *s = &e->sp;
     int j, row;
     double sk;
@@ -108,7 +117,7 @@ void fcc_sp_sw_penalties(fcc_engine *e)
     for (j = 0; j < s->ms - e->m; j++) {
         row = e->m + j;
         sk = s->rnorm[row];
-        s->alpha[row] = sk > 0.0 ? FCC_RHO * s->boost * s->mref / (sk * sk) : 0.0;
+        s->alpha[row] = sk > 0.0 ? FCC_RHO * SW_BOOST * s->mref / (sk * sk) : 0.0;
         if (sk > 0.0)
             s->sw_live = 1;
     }
