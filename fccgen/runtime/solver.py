@@ -256,9 +256,14 @@ class CompiledSolver:
         full_pattern."""
         at = (pattern_samples(self.plan.q0, self.plan.v_target, self.length_scale)
               if sparse and not full_pattern else None)
+        # the locked rows folded into the factorisation (engine/fcc_sparse_fold.c) on
+        # the path taken by choice or size (paths.use_sparse); a small model that
+        # "auto" moves to the sparse path after its rank decision keeps the Schur
+        # complement, whose rounding its finite-difference checks were measured with
+        fold = sparse and use_sparse(self.linear_solver, self.n_q)
         return make_engine(self._asm, self.rank_tol, self.position_tol, self.max_newton,
                            sparse, at=at,
-                           switchable=self._switchable_patterns if sparse else None)
+                           switchable=self._switchable_patterns if fold else None)
 
     @functools.cached_property
     def _switchable_patterns(self):
