@@ -83,6 +83,10 @@ def engine_constants(solver) -> str:
         out.append(c_array("double", key.upper() + "_TOL", guards[key + "_tol"]))
     for key, values in pat["structure"].items():
         out.append(c_array("int", c_identifier(key).upper(), values))
+    switchable = pat.get("switchable")          # the locked rows folded into A
+    out.append(define("N_SW", 0 if switchable is None else len(switchable["sw_ptr"]) - 1))
+    for key, values in (switchable or {}).items():
+        out.append(c_array("int", c_identifier(key).upper(), values))
     for name, value in (("RANK_TOL", engine.rank_tol),
                         ("POSITION_TOL", engine.position_tol),
                         ("GROW_TOL", rank_rule.GROW_TOL),

@@ -217,6 +217,13 @@ cdef extern from "fcc_engine.h":
         int *ent_a
         int *ent_b
         int *ent_pos
+        int n_sw
+        int *sw_ptr
+        int *sw_idx
+        int *sw_ent_ptr
+        int *sw_ent_a
+        int *sw_ent_b
+        int *sw_ent_pos
 
     ctypedef struct fcc_sparse:
         const fcc_pattern *pat
@@ -230,6 +237,8 @@ cdef extern from "fcc_engine.h":
         int warm_valid
         long n_solves, n_iterations, n_unconverged, n_beyond_rank
         double beyond_quotient
+        int ms
+        int sw_live
         int most_iterations
         int cg_max, refine_max, al_max
         int n_track
@@ -299,6 +308,10 @@ cdef extern from "fcc_engine.h":
     int fcc_pattern_set_structure(fcc_pattern *P, const int *perm, const int *Ap,
                                   const int *Ai, const int *ent_ptr, const int *ent_a,
                                   const int *ent_b, const int *ent_pos) nogil
+    int fcc_pattern_set_switchable(fcc_pattern *P, int n_sw, const int *sw_ptr,
+                                   const int *sw_idx, const int *sw_ent_ptr,
+                                   const int *sw_ent_a, const int *sw_ent_b,
+                                   const int *sw_ent_pos) nogil
     int fcc_sparse_init(fcc_engine *e, const fcc_pattern *P) nogil
     int fcc_sparse_resize(fcc_engine *e) nogil
     void fcc_sparse_free(fcc_engine *e) nogil
@@ -360,6 +373,8 @@ cdef extern from "fcc_events.h":
         int nm
         double max_turn
         int max_turn_j
+        int fold
+        long n_fold_off
 
     ctypedef struct fcc_bracket:
         double a, b
@@ -378,6 +393,7 @@ cdef extern from "fcc_events.h":
     int fcc_events_rank_work(fcc_events *ev, const fcc_lapack *lapack, int m) nogil
     int fcc_events_sparse_work(fcc_events *ev, int m) nogil
     void fcc_events_reset(fcc_events *ev) nogil
+    int fcc_events_fold(fcc_events *ev, fcc_engine *e, int on) nogil
     int fcc_events_mirror(fcc_events *ev, fcc_assembly *a, int n, const int *slots,
                           const int *angles) nogil
     void fcc_events_restore(fcc_events *ev) nogil

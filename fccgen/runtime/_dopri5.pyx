@@ -110,7 +110,7 @@ def simulate_dopri5(Engine engine, q0, v0, double t_end, double output_dt, doubl
     r.n_out = r.accepted = r.rejected = r.n_rhs = r.newton_total = 0
     r.max_cerr = 0.0
     if events is not None:
-        events.reset(qv, engine)
+        events.reset(qv, engine, fold=sens is None)
     cdef int status
     try:
         with nogil:
@@ -140,6 +140,8 @@ def simulate_dopri5(Engine engine, q0, v0, double t_end, double output_dt, doubl
         raise
     finally:
         fcc_run_finish(&engine.c)
+        if events is not None:
+            events.unfold(engine)
     stats = dict(steps=r.accepted, rejected_steps=r.rejected, rhs_evaluations=r.n_rhs,
                  newton_iterations=r.newton_total, projection_failures=r.failures,
                  max_constraint_error=r.max_cerr, last_step=r.h)

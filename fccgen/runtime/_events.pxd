@@ -9,6 +9,7 @@ cdef class EventSet:
     cdef object module
     cdef readonly object names
     cdef object mirrored          # the Assembler whose parameters hold the copies
+    cdef bint was_folded          # the last run folded its rows (to its end)
 
 
 cdef fcc_events *ev_state(object events) except? NULL

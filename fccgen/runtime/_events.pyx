@@ -18,7 +18,7 @@ from ._cengine cimport (FCC_ACT_BOUNCE, FCC_ACT_LOCK, FCC_ACT_LOG, FCC_ACT_RELEA
                         FCC_NOTE_UNCERTAIN, FCC_OK, fcc_event_spec_free,
                         fcc_event_spec_init, fcc_event_table, fcc_events_free,
                         fcc_events_init, fcc_events_mirror, fcc_events_rank_work,
-                        fcc_events_sparse_work,
+                        fcc_events_sparse_work, fcc_events_fold,
                         fcc_events_reset, fcc_events_restore, fcc_ev_refresh,
                         fcc_ev_values)
 from ._assemble cimport Assembler
@@ -138,12 +138,15 @@ cdef class EventSet:
     def n_events(self):
         return self.spec.ne
 
-    def reset(self, q, Engine engine=None):
+    def reset(self, q, Engine engine=None, bint fold=False):
         """Start a run at q: angle references 0 (the start's angles are 0 by
         definition) and their copies in the element parameters, no rows active or
         resting, an empty log. ``engine``: the run's
         engine, for the rank decision at switches (fcc_ev_decide; None: every active
-        row is used). The sparse path decides without the dense rank work."""
+        row is used). The sparse path decides without the dense rank work. ``fold``:
+        the run folds the used rows into the sparse engine's factorisation when its
+        pattern holds them (engine/fcc_events_fold.c; :meth:`unfold` after the run),
+        else they are a Schur complement."""
         if engine is not None and engine.c.sparse and self.c.mz != engine.c.m:
             if fcc_events_sparse_work(&self.c, engine.c.m) != FCC_OK:
                 raise MemoryError("cannot allocate the warm starts of the events")
@@ -156,6 +159,24 @@ cdef class EventSet:
             if rc != FCC_OK:
                 raise ValueError("the events' rank decision needs the dense path's "
                                  "LAPACK table")
+        if engine is not None:
+            fcc_events_fold(&self.c, &engine.c, fold)
+
+    def unfold(self, Engine engine):
+        """Take the run's rows out of the engine's solves (after a run)."""
+        self.was_folded = bool(self.c.fold)
+        fcc_events_fold(&self.c, &engine.c, 0)
+
+    @property
+    def folded(self):
+        """Whether the last run folded its rows (and kept them folded to its end)."""
+        return self.was_folded
+
+    @property
+    def fold_left(self):
+        """Runs that left the fold for the Schur complement (a row read a
+        coordinate outside its pattern)."""
+        return self.c.n_fold_off
 
     @property
     def tol(self):

@@ -193,7 +193,7 @@ def _simulate(Engine engine, q0, v0, double t_end, double dt, long n_steps,
     if r.sens != NULL and r.ev != NULL:
         sens_events(sens, r.ev, r.ev.spec.cap_log)
     if events is not None:
-        events.reset(qv, engine)
+        events.reset(qv, engine, fold=sens is None)
     cdef int status
     try:
         with nogil:
@@ -217,6 +217,8 @@ def _simulate(Engine engine, q0, v0, double t_end, double dt, long n_steps,
         raise
     finally:
         fcc_run_finish(&engine.c)
+        if events is not None:
+            events.unfold(engine)
     stats = dict(steps=r.k, rhs_evaluations=r.n_rhs, rejected_steps=0,
                  newton_iterations=r.newton_total, max_newton_iterations=r.newton_max,
                  projection_failures=r.failures, max_constraint_error=r.max_cerr)

@@ -25,6 +25,7 @@ from ._cengine cimport (FCC_AL_MAX, FCC_CG_MAX, FCC_ERR_ARGUMENT, FCC_OK, FCC_RE
                         FCC_TRACK_MAX, fcc_engine, fcc_model, fcc_pattern,
                         fcc_pattern_free, fcc_pattern_init, fcc_pattern_set_guards,
                         fcc_pattern_set_structure, fcc_pattern_set_view,
+                        fcc_pattern_set_switchable,
                         fcc_solve_constrained, fcc_sp_assemble_mb, fcc_sp_factor,
                         fcc_sp_solve_a, fcc_sparse_free, fcc_sparse_init,
                         fcc_sparse_resize, fcc_sparse_set_beyond_rank,
@@ -220,6 +221,31 @@ cdef class SparseEngine(Engine):
         if rc != FCC_OK or fcc_sparse_resize(&self.c) != FCC_OK:
             raise MemoryError("cannot allocate the sparse solve's factorisation")
 
+    def set_switchable(self, sw_ptr, sw_idx, emap_ptr, emap):
+        """Take the switchable rows folded into A (after set_structure, whose pattern
+        holds their pairs; engine/fcc_sparse_fold.c): per row the free coordinates it
+        reads (sw_ptr, sw_idx) and its scatter map (emap_ptr, emap: per local pair, the
+        value's index in A or -1)."""
+        if not self.pat.ready:
+            raise RuntimeError("set the structure first")
+        cdef int[::1] ptr = _ints(sw_ptr), idx = _ints(sw_idx)
+        cdef int n_sw = ptr.shape[0] - 1
+        sizes = np.diff(np.asarray(ptr))
+        cdef int[::1] ep, ea, eb, pos
+        ep, ea, eb, pos = sparse_setup.structure_entries(_ints(emap_ptr), emap, sizes,
+                                                         self.pat.nnz_a)
+        rc = fcc_pattern_set_switchable(&self.pat, n_sw, &ptr[0], _ip(idx), &ep[0],
+                                        _ip(ea), _ip(eb), _ip(pos))
+        if rc == FCC_ERR_ARGUMENT:
+            raise ValueError("the switchable rows do not match the pattern of A")
+        if rc != FCC_OK or fcc_sparse_resize(&self.c) != FCC_OK:
+            raise MemoryError("cannot allocate the switchable rows")
+
+    @property
+    def switchable_rows(self):
+        """How many switchable rows the pattern of A holds (0: none folded)."""
+        return self.pat.n_sw
+
     def solve_elements(self):
         """(q_ptr, q_idx, couples) of the solve's view (set_pinned): each element's
         free coordinates, and whether it adds a block to A (a mass matrix or kept
@@ -262,7 +288,8 @@ cdef class SparseEngine(Engine):
         """The pattern's constants as the set-up gave them: {"view": the arguments of
         fcc_pattern_set_view (None without pinned coordinates), "guards": those of
         fcc_pattern_set_guards, "structure": those of fcc_pattern_set_structure (None
-        before set_structure)}, each a dict of fresh arrays; what another instance of
+        before set_structure), "switchable": those of fcc_pattern_set_switchable (None
+        without switchable rows)}, each a dict of fresh arrays; what another instance of
         the engine (a program that holds the C engine alone) is built from."""
         cdef int n_el = self.asm.n_el
         cdef const fcc_pattern *P = &self.pat
@@ -288,7 +315,16 @@ cdef class SparseEngine(Engine):
                              ent_a=ints(P.ent_a, P.ent_ptr[n_el]),
                              ent_b=ints(P.ent_b, P.ent_ptr[n_el]),
                              ent_pos=ints(P.ent_pos, P.ent_ptr[n_el]))
-        return dict(view=view, guards=guards, structure=structure)
+        switchable = None
+        if P.n_sw > 0:
+            switchable = dict(sw_ptr=ints(P.sw_ptr, P.n_sw + 1),
+                              sw_idx=ints(P.sw_idx, P.sw_ptr[P.n_sw]),
+                              sw_ent_ptr=ints(P.sw_ent_ptr, P.n_sw + 1),
+                              sw_ent_a=ints(P.sw_ent_a, P.sw_ent_ptr[P.n_sw]),
+                              sw_ent_b=ints(P.sw_ent_b, P.sw_ent_ptr[P.n_sw]),
+                              sw_ent_pos=ints(P.sw_ent_pos, P.sw_ent_ptr[P.n_sw]))
+        return dict(view=view, guards=guards, structure=structure,
+                    switchable=switchable)
 
     @property
     def pattern_tripped(self):

@@ -104,12 +104,15 @@ def reduced_mass_spread(M: np.ndarray, B_scaled: np.ndarray, rank: int) -> float
 
 
 def make_engine(asm, rank_tol, position_tol, max_newton, sparse: bool,
-                order: str = "minimum_degree", at=None):
+                order: str = "minimum_degree", at=None, switchable=None):
     """An Engine (dense) or a SparseEngine with its structure analysed and set: the
     pattern of A with every element block full, or (at: coordinate vectors,
     pattern_samples) with the entries the blocks hold there
     (SparseBlocks.planar_pattern: a model written and moving in a plane), guarded by
-    a check at every assembly."""
+    a check at every assembly. switchable: per joint quantity of the model's events the
+    coordinates its gradient reads (switchable_patterns), put into the pattern of A so
+    that runs fold the locked rows into the factorisation (engine/fcc_sparse_fold.c);
+    None: the locked rows go through a Schur complement."""
     if not sparse:
         return Engine(asm, rank_tol, position_tol, max_newton)
     engine = SparseEngine(asm, rank_tol, position_tol, max_newton)
@@ -117,9 +120,65 @@ def make_engine(asm, rank_tol, position_tol, max_newton, sparse: bool,
     if at is not None and np.all(np.isfinite(at)):
         engine.set_pinned(at)
         masks = engine.planar_pattern(at)
-    st = kept_structure(asm.n_q, engine.solve_elements(), order, masks)
-    engine.set_structure(st.perm, st.Ap, st.Ai, st.emap_ptr, st.emap)
+    elements = engine.solve_elements()
+    rows = None
+    if switchable is not None and any(len(r) for r in switchable):
+        elements, masks, rows = _with_rows(elements, masks, switchable,
+                                           engine.pinned_coordinates[0], asm.n_q)
+    st = kept_structure(asm.n_q, elements, order, masks)
+    n_el = asm.n_el
+    cut = int(st.emap_ptr[n_el])
+    engine.set_structure(st.perm, st.Ap, st.Ai, st.emap_ptr[:n_el + 1], st.emap[:cut])
+    if rows is not None:
+        engine.set_switchable(rows[0], rows[1], st.emap_ptr[n_el:] - cut, st.emap[cut:])
     return engine
+
+
+def _with_rows(elements, masks, switchable, pinned, n: int):
+    """The solve's elements (and planar masks) with one more element per switchable
+    row, on its free coordinates (its pairs then enter the order and the pattern of
+    A); and (sw_ptr, sw_idx) of those rows."""
+    q_ptr, q_idx, couples = (np.asarray(a) for a in elements)
+    is_pinned = np.zeros(n, dtype=bool)
+    is_pinned[np.asarray(pinned, dtype=np.intp)] = True
+    rows = [np.array([i for i in sorted(set(int(x) for x in r)) if not is_pinned[i]],
+                     dtype=np.intc) for r in switchable]
+    sizes = np.array([len(r) for r in rows], dtype=np.intp)
+    sw_ptr = np.concatenate([[0], np.cumsum(sizes)]).astype(np.intc)
+    sw_idx = (np.concatenate(rows) if len(rows) else np.zeros(0)).astype(np.intc)
+    ext = (np.concatenate([q_ptr, q_ptr[-1] + sw_ptr[1:]]).astype(np.intc),
+           np.concatenate([q_idx, sw_idx]).astype(np.intc),
+           np.concatenate([couples, sizes > 0]))
+    if masks is not None:
+        ptr, mask = masks
+        ptr = np.asarray(ptr, dtype=np.intp)
+        ext_masks = (np.concatenate([ptr, ptr[-1] + np.cumsum(sizes ** 2)]),
+                     np.concatenate([np.asarray(mask, dtype=bool),
+                                     np.ones(int(np.sum(sizes ** 2)), dtype=bool)]))
+    else:
+        ext_masks = None
+    return ext, ext_masks, (sw_ptr, sw_idx)
+
+
+SWITCHABLE_SAMPLES = 3          # random positions the rows' patterns are read at
+
+
+def switchable_patterns(events, q0, scale: float, rows) -> list:
+    """Per joint quantity of the event set, the coordinates its gradient is nonzero on
+    at q0 and at SWITCHABLE_SAMPLES positions about it (every coordinate moved by
+    PATTERN_SPREAD * scale at random: a structurally nonzero entry is nonzero there),
+    for the quantities in rows (those an event switches); empty for the others. The
+    run checks these at every fill (engine/fcc_events_fold.c)."""
+    q0 = np.asarray(q0, dtype=float)
+    rng = np.random.default_rng(20261128)
+    nz = None
+    for k in range(SWITCHABLE_SAMPLES + 1):
+        q = q0 if k == 0 else q0 + PATTERN_SPREAD * scale * rng.standard_normal(q0.size)
+        g = events.quantity_kernels(q, np.zeros_like(q))[1]
+        nz = (g != 0.0) if nz is None else nz | (g != 0.0)
+    wanted = set(int(r) for r in rows if r >= 0)
+    return [np.flatnonzero(nz[j]) if j in wanted else np.zeros(0, dtype=np.intp)
+            for j in range(nz.shape[0])]
 
 
 _STRUCTURES: dict = {}          # sparsity.structure's answers, by its inputs' bytes

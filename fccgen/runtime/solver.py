@@ -256,8 +256,31 @@ class CompiledSolver:
         full_pattern."""
         at = (pattern_samples(self.plan.q0, self.plan.v_target, self.length_scale)
               if sparse and not full_pattern else None)
+        # the locked rows folded into the factorisation (engine/fcc_sparse_fold.c) on
+        # the path taken by choice or size (paths.use_sparse); a small model that
+        # "auto" moves to the sparse path after its rank decision keeps the Schur
+        # complement, whose rounding its finite-difference checks were measured with
+        fold = sparse and use_sparse(self.linear_solver, self.n_q)
         return make_engine(self._asm, self.rank_tol, self.position_tol, self.max_newton,
-                           sparse, at=at)
+                           sparse, at=at,
+                           switchable=self._switchable_patterns if fold else None)
+
+    @functools.cached_property
+    def _switchable_patterns(self):
+        """Per joint quantity of the model's events, the coordinates its gradient reads
+        when an event switches it (paths.switchable_patterns; None: no events). The
+        sparse path folds them into its factorisation's pattern."""
+        if not self.plan.model.events or self.events_module is None:
+            return None
+        from ._events import EventSet
+        from .paths import switchable_patterns
+        st = self._event_settings
+        probe = EventSet(self.events_module, self.n_q, st.directions, st.actions,
+                         st.rows, st.rows2, st.restitution, st.angle_rows,
+                         constants=st.constants)
+        probe.reset(self.plan.q0)
+        return switchable_patterns(probe, self.plan.q0, self.length_scale,
+                                   list(st.rows) + list(st.rows2))
 
     def _full_pattern(self) -> None:
         """The sparse engine again, on the full pattern of A (every element block
@@ -413,10 +436,16 @@ class CompiledSolver:
         finally:
             if events is not None:
                 log, turn, dropped = events.log(), events.largest_turn, events.dropped
+                folded = (events.folded, events.fold_left)
                 events.restore()          # direct kernel calls: references as planned
         result.info["setup"] = self.setup_store.report()
         if report is not None:
             report.finish(result.t[-1])          # the run's end: 100%
+        if events is not None and self.sparse:
+            # the locked rows folded into the factorisation (engine/fcc_events_fold.c),
+            # else a Schur complement; fold_left: it fell back (a row's pattern)
+            result.info["event_rows_folded"] = bool(folded[0])
+            result.info["event_fold_left"] = int(folded[1])
         if events is not None:
             turn_check(result, self.plan, self.events_module, events,
                        turn if m.name in REBASING else None)

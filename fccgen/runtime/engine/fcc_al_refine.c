@@ -23,6 +23,12 @@
  * stopping test is on the residual, with a bound set from the first step's (see the
  * constants). Redundant rows need no rank decision.
  *
+ * With switchable rows folded into the factor (fcc_sparse_fold.c) a step whose change
+ * is itself at most AL_STOP of the floor also ends the steps: a structure that its
+ * held rows lock to 0 DOF has accelerations and speeds of rounding size, and the rate
+ * of two steps of noise says nothing (it read as slow, and boosted the factor at every
+ * stage of the latched boom of 12 units: 4e-18 of the floor after a warm start).
+ *
  * Augmented-Lagrangian steps stop when the estimated remaining change,
  * |dx| rate / (1 - rate), is at most AL_STOP |x| (|x| or the floor x_floor under it,
  * whichever is larger: the velocity projection's, fcc_sparse_engine.c; 0 for the
@@ -188,6 +194,8 @@ static void residual_pass(fcc_engine *e, const double *x, const double *b, int p
             y[idx[a]] -= acc;
         }
     }
+    if (s->ms > e->m)
+        fcc_sp_sw_residual(e, x, pending, penalised, y, r2);
 }
 
 void fcc_sp_first_pass(fcc_engine *e, const double *b, int warm, double *y)
@@ -204,6 +212,8 @@ void fcc_sp_first_pass(fcc_engine *e, const double *b, int warm, double *y)
     double *zl = s->lz;
     double acc, z;
     memcpy(y, s->base, (size_t)e->n * sizeof(double));
+    if (s->ms > e->m)
+        fcc_sp_sw_first(e, warm, y);
     if (b == NULL && !warm)
         return;
     for (el = 0; el < e->model->n_el; el++) {
@@ -241,13 +251,17 @@ void fcc_sp_first_pass(fcc_engine *e, const double *b, int warm, double *y)
 static int correction(fcc_engine *e, double *rz_stop)
 {
     fcc_sparse *s = &e->sp;
-    int i, n = e->n, m = e->m;
+    int i, n = e->n, m = s->ms, sw = s->ms > e->m;   /* the rows, switchable ones too */
     double rz, rz_new, psp, pap, step;
     s->beyond_hit = 0;
     memcpy(s->dx, s->r1, (size_t)n * sizeof(double));
     fcc_sp_mult_bt(e, s->r2, s->alpha, s->dx);
+    if (sw)
+        fcc_sp_sw_mult_t(e, s->r2, s->alpha, s->dx);
     fcc_sp_solve_a(e, s->dx);
     fcc_sp_mult_b(e, s->dx, s->res);
+    if (sw)
+        fcc_sp_sw_mult(e, s->dx, s->res);
     rz = 0.0;
     for (i = 0; i < m; i++) {
         s->res[i] -= s->r2[i];
@@ -261,8 +275,12 @@ static int correction(fcc_engine *e, double *rz_stop)
     while (s->cg_steps < s->cg_max && rz > *rz_stop) {
         memset(s->u, 0, (size_t)n * sizeof(double));
         fcc_sp_mult_bt(e, s->cg_p, NULL, s->u);
+        if (sw)
+            fcc_sp_sw_mult_t(e, s->cg_p, NULL, s->u);
         fcc_sp_solve_a(e, s->u);
         fcc_sp_mult_b(e, s->u, s->cg_sp);
+        if (sw)
+            fcc_sp_sw_mult(e, s->u, s->cg_sp);
         s->cg_steps++;
         psp = 0.0;
         for (i = 0; i < m; i++)
@@ -316,7 +334,7 @@ static int refine(fcc_engine *e, const double *b, double *x, int warm, int *solv
                   double stop, int may_boost)
 {
     fcc_sparse *s = &e->sp;
-    int i, it, n = e->n, m = e->m, cg = 0;
+    int i, it, n = e->n, m = e->sp.ms, cg = 0;
     double nd = 0.0, nx = 0.0, prev = 0.0, rate, rz_stop = -1.0, size;
     int pending = 0;
     memset(x, 0, (size_t)n * sizeof(double));
@@ -367,6 +385,8 @@ static int refine(fcc_engine *e, const double *b, double *x, int warm, int *solv
                 s->slow_rate = rate;
             if (rate < 0.5 && nd * rate / (1.0 - rate) <= stop * size)
                 return 1;
+            if (s->sw_live && s->x_floor > 0.0 && nd <= stop * size)
+                return 1;                      /* rounding of the floor's scale */
             if (rate > SLOW)
                 cg = 1;
         }
@@ -407,7 +427,7 @@ int fcc_sp_kkt_solve_from(fcc_engine *e, const double *Q, const double *w,
      * NULL: from zero, nothing kept). Returns whether the refinement converged. */
     fcc_sparse *s = &e->sp;
     const fcc_pattern *P = s->pat;
-    int i, status, solves = 0, n = e->n, m = e->m;
+    int i, status, solves = 0, n = e->n, m = e->m, ms = s->ms;
     int motion = s->beyond_quotient == 0.0 && (lam_io == NULL || lam_io == s->lam_warm);
     if (lam_io != NULL && lam_io != s->lam_warm)
         s->own_lam_seen = 1;              /* no held raise from here on in this run */
@@ -422,18 +442,21 @@ int fcc_sp_kkt_solve_from(fcc_engine *e, const double *Q, const double *w,
     s->n_solves++;
     status = -1;
     if (lam_io != NULL && valid) {
-        memcpy(s->lam, lam_io, (size_t)m * sizeof(double));
+        /* lam_warm holds the switchable rows' multipliers too; a caller's m only */
+        memcpy(s->lam, lam_io, (size_t)(lam_io == s->lam_warm ? ms : m) * sizeof(double));
+        if (lam_io != s->lam_warm && ms > m)
+            memset(s->lam + m, 0, (size_t)(ms - m) * sizeof(double));
         status = refine(e, b, x, 1, &solves, AL_STOP, motion ? -1 : 0);
         if (status == -1 && motion && s->boost == 1.0)
             status = -2;                  /* slow with RHO: the boost at once */
     }
     if (status == -1) {
-        memset(s->lam, 0, (size_t)m * sizeof(double));
+        memset(s->lam, 0, (size_t)ms * sizeof(double));
         status = refine(e, b, x, 0, &solves, newton ? NEWTON_STOP : AL_STOP,
                         motion && s->boost == 1.0);
     }
     if (status == -2) {                   /* slow with RHO: again with the boost */
-        memset(s->lam, 0, (size_t)m * sizeof(double));
+        memset(s->lam, 0, (size_t)ms * sizeof(double));
         fcc_sp_factor_boosted(e);
         status = refine(e, b, x, 0, &solves, newton ? NEWTON_STOP : AL_STOP, 0);
         s->slow_rate = 1.0;
@@ -444,7 +467,7 @@ int fcc_sp_kkt_solve_from(fcc_engine *e, const double *Q, const double *w,
          * knots): RHO's factor again, from zero, and no held raise */
         s->slow_rate = 0.0;
         if (fcc_sp_factor_unboosted(e) == 0) {
-            memset(s->lam, 0, (size_t)m * sizeof(double));
+            memset(s->lam, 0, (size_t)ms * sizeof(double));
             status = refine(e, b, x, 0, &solves, newton ? NEWTON_STOP : AL_STOP, 0);
         }
     }
@@ -452,7 +475,7 @@ int fcc_sp_kkt_solve_from(fcc_engine *e, const double *Q, const double *w,
             && !s->own_lam_seen)
         s->boost_hold = FCC_BOOST_HOLD;   /* still near: the next factors boosted */
     if (lam_io != NULL && status == 1)
-        memcpy(lam_io, s->lam, (size_t)m * sizeof(double));
+        memcpy(lam_io, s->lam, (size_t)(lam_io == s->lam_warm ? ms : m) * sizeof(double));
     if (status != 1)
         s->n_unconverged++;
     s->n_iterations += solves;

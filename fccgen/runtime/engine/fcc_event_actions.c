@@ -343,7 +343,22 @@ static void rest_sign(fcc_events *ev, int k, const double *q, const double *v, d
     ev->rel_sign[k] = d * (cz > 0.0 ? 1.0 : -1.0);
 }
 
+static int apply(fcc_engine *e, fcc_events *ev, int k, double *q, double *v, double t);
+
 int fcc_ev_apply(fcc_engine *e, fcc_events *ev, int k, double *q, double *v, double t)
+{
+    /* apply, with the folded rows out of the factor (fcc_events_fold.c: the impacts
+     * and the rank decision need the engine's own responses); the next stage factors
+     * with the rows folded again. */
+    int rc, live = ev->fold_live;
+    ev->fold_live = 0;
+    rc = apply(e, ev, k, q, v, t);
+    ev->fold_live = live;
+    e->factor_valid = 0;
+    return rc;
+}
+
+static int apply(fcc_engine *e, fcc_events *ev, int k, double *q, double *v, double t)
 {
     /* Act on event k at the located state (q, v, t), in place, and log it. A bounce
      * with |s'| < v_rest, or k < 0 (the Zeno guard: -1 - k is the event), rests;

@@ -13,7 +13,9 @@
  * (the solve x = argmin x^T M x / 2 - G_j x subject to B x = 0), the accelerations of
  * the augmented system are a + Z mu with (G Z) mu = -(G a + (dG/dt) v): the Schur
  * complement of the added rows, exact for any number of them. Switching is a flag per
- * row: nothing is regenerated or recompiled.
+ * row: nothing is regenerated or recompiled. On the sparse path, when the set-up put
+ * the rows into the factorisation's pattern, a run folds them into the factor instead
+ * (fcc_events_fold.c): no response per row.
  */
 #include <math.h>
 #include <string.h>
@@ -353,8 +355,8 @@ int fcc_ev_constrain(fcc_engine *e, fcc_events *ev, const double *q, const doubl
      * must be the one at q, as fcc_accelerations leaves it). */
     const fcc_event_spec *c = ev->spec;
     int m, i, k = 0;
-    if (ev->n_used == 0)
-        return 0;
+    if (ev->n_used == 0 || fcc_ev_fold_constrain(e, ev))
+        return 0;                             /* folded: the solve held them */
     m = fcc_ev_responses(e, ev, q);
     c->tab->quantity_bias(q, v, t, ev->p, ev->rb);
     for (i = 0; i < c->nr; i++) {
@@ -374,6 +376,9 @@ int fcc_ev_correct(fcc_engine *e, fcc_events *ev, double *q, double *v)
     int m, i, k = 0;
     if (ev->n_used == 0)
         return 0;
+    i = fcc_ev_fold_correct(e, ev, q);
+    if (i != 0)
+        return i < 0 ? -1 : 0;                /* folded: one solve (fold.c) */
     m = fcc_ev_responses(e, ev, q);
     c->tab->quantity_values(q, NULL, 0.0, ev->p, ev->r);
     for (i = 0; i < c->nr; i++) {

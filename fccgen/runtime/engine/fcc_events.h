@@ -94,6 +94,11 @@ typedef struct fcc_events {
     double *mkeep;            /* ... their values outside runs (3 nm) */
     double max_turn;          /* the largest re-basing |angle - theta_r| of the run */
     int max_turn_j;           /* ... its angle (parameter triple), -1: none yet */
+    /* the used rows folded into the sparse factorisation (fcc_events_fold.c) */
+    int fold;                 /* the run folds them (fcc_events_fold) */
+    int fold_live;            /* ... and they go into the factor now (not in actions) */
+    long n_fold_off;          /* runs that left the fold for the Schur complement: a
+                                 row read a coordinate outside its pattern */
 } fcc_events;
 
 /* Illinois (modified regula falsi) on one watched value. */
@@ -187,6 +192,14 @@ int fcc_ev_constrain(fcc_engine *e, fcc_events *ev, const double *q, const doubl
                      double t, double *a);
 int fcc_ev_correct(fcc_engine *e, fcc_events *ev, double *q, double *v);
 int fcc_ev_apply(fcc_engine *e, fcc_events *ev, int k, double *q, double *v, double t);
+/* Fold the used rows into the sparse engine's factorisation for the runs from here
+ * (on: if e is sparse and its pattern holds the nr switchable rows; off: the Schur
+ * complement). Returns whether they are folded. (fcc_events_fold.c) */
+int fcc_events_fold(fcc_events *ev, fcc_engine *e, int on);
+/* The folded rows' shares of fcc_ev_constrain and fcc_ev_correct (1: done folded; 0:
+ * not folded now, the Schur complement instead; -1: failed). */
+int fcc_ev_fold_constrain(fcc_engine *e, fcc_events *ev);
+int fcc_ev_fold_correct(fcc_engine *e, fcc_events *ev, double *q);
 double fcc_ev_leaving(fcc_events *ev, int k, const double *q, const double *v,
                       double t);
 

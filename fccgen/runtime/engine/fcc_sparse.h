@@ -81,6 +81,15 @@ typedef struct fcc_pattern {
     int *ent_pos;               /* and its place in Ax */
     int lb_size;                /* the largest nq x ng of an element on the view */
     int *Lp, *Li, *Rp, *Rj, *Rpos;   /* the pattern of L (fcc_ldl_rows) */
+    /* Switchable rows folded into A (fcc_pattern_set_switchable; fcc_sparse_fold.c):
+     * rows m .. m + n_sw - 1 of the solve, each on the free coordinates it reads,
+     * with its entries of A (their pairs in the pattern from the set-up on). 0: none,
+     * the events' rows go through a Schur complement (fcc_events.c). */
+    int n_sw;
+    int *sw_ptr;                /* per row: start in sw_idx (n_sw + 1) */
+    int *sw_idx;                /* the coordinates it reads */
+    int *sw_ent_ptr;            /* per row: start of its entries of A (n_sw + 1) */
+    int *sw_ent_a, *sw_ent_b, *sw_ent_pos;   /* local pair, place in Ax */
 } fcc_pattern;
 
 typedef struct fcc_sparse {
@@ -129,6 +138,16 @@ typedef struct fcc_sparse {
     long n_svd;
     long n_fallback, n_chord, n_chord_undone;
     int dense_fallback_max;
+    /* the switchable rows folded into A (fcc_sparse_fold.c) */
+    int ms;                     /* the solve's rows: m + the pattern's n_sw */
+    double *sw_val;             /* per row its values on sw_idx (zero while free) */
+    double *sw_tgt;             /* n_sw: their targets in the accelerations */
+    const double *sw_b;         /* the targets of the solve under way (NULL: zero) */
+    int sw_live;                /* some row is folded into the factor held */
+    /* Fills sw_val and rnorm[m + j] at q (v NULL: at every assembly of B), or the
+     * targets sw_tgt at (q, v) (the accelerations); NULL: no row folded. */
+    void (*sw_fill)(void *ctx, struct fcc_engine *e, const double *q, const double *v);
+    void *sw_ctx;
     /* Called (rarely: once per rank increase) to start the watch again from the null
      * space of B (fcc_sparse_set_watch); NULL: the watch stops there. */
     void (*restart_watch)(void *ctx, struct fcc_engine *e);
@@ -160,6 +179,15 @@ int fcc_pattern_set_guards(fcc_pattern *P, int n_zero_m, const int *zero_m,
 int fcc_pattern_set_structure(fcc_pattern *P, const int *perm, const int *Ap,
                               const int *Ai, const int *ent_ptr, const int *ent_a,
                               const int *ent_b, const int *ent_pos);
+
+/* The switchable rows folded into A (after fcc_pattern_set_structure, whose pattern
+ * must hold their pairs): per row its coordinates (sw_ptr over n_sw rows, sw_idx) and
+ * its entries of A (sw_ent_ptr; sw_ent_a, sw_ent_b local pair; sw_ent_pos place in
+ * Ax). FCC_ERR_ARGUMENT when a coordinate or place is out of range. */
+int fcc_pattern_set_switchable(fcc_pattern *P, int n_sw, const int *sw_ptr,
+                               const int *sw_idx, const int *sw_ent_ptr,
+                               const int *sw_ent_a, const int *sw_ent_b,
+                               const int *sw_ent_pos);
 
 /* -- the instance's work (set-up) ------------------------------------------------ */
 /* Take the sparse path with the pattern P (kept by pointer: it must outlive e). */
@@ -193,6 +221,16 @@ int fcc_sp_factor_unboosted(struct fcc_engine *e);
 void fcc_sp_solve_a(struct fcc_engine *e, double *x);
 void fcc_sp_solve_a_add(struct fcc_engine *e, const double *y, double *x, double *step,
                         double *size);
+/* the switchable rows (fcc_sparse_fold.c) */
+void fcc_sp_sw_fill(struct fcc_engine *e, const double *q);
+void fcc_sp_sw_penalties(struct fcc_engine *e);
+void fcc_sp_sw_factor(struct fcc_engine *e);
+void fcc_sp_sw_mult(struct fcc_engine *e, const double *x, double *y);
+void fcc_sp_sw_mult_t(struct fcc_engine *e, const double *z, const double *s,
+                      double *y);
+void fcc_sp_sw_residual(struct fcc_engine *e, const double *x, int pending,
+                        int penalised, double *y, double *r2);
+void fcc_sp_sw_first(struct fcc_engine *e, int warm, double *y);
 int fcc_sp_nonfinite_input(struct fcc_engine *e, const double *q, const double *v,
                            int flags);
 

@@ -129,6 +129,7 @@ void fcc_sp_assemble_blocks(fcc_engine *e, const double *q, const double *v, int
                 s->tripped = 1;
     }
     if (flags & FCC_ASM_B) {
+        fcc_sp_sw_fill(e, q);                 /* the switchable rows (fold.c) */
         for (i = 0; i < P->n_zero_b; i++)
             if (!(fabs(s->Bblk[P->zero_b[i]]) <= P->zero_b_tol[i]))
                 s->tripped = 1;
@@ -292,6 +293,7 @@ static void penalties(fcc_engine *e)
             s->alpha[row] = sk > 0.0 ? FCC_RHO * s->boost * s->mref / (sk * sk) : 0.0;
         }
     }
+    fcc_sp_sw_penalties(e);
 }
 
 double fcc_sp_scaled_residual(fcc_engine *e)
@@ -403,6 +405,7 @@ static int factor(fcc_engine *e, const double *q)
             s->Ax[P->ent_pos[t]] += val;
         }
     }
+    fcc_sp_sw_factor(e);                    /* the held switchable rows */
     for (a = 0; a < P->n_pinned; a++)       /* pinned: a unit diagonal, nothing else */
         s->Ax[P->pin_diag[a]] = 1.0;
     s->n_factor++;

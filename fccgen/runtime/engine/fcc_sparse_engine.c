@@ -78,8 +78,8 @@
 static void dense_fallback(fcc_engine *e, const double *Q, const double *w,
                            const double *b, double *x)
 {
-    if (e->n > e->sp.dense_fallback_max || e->lapack == NULL)
-        return;
+    if (e->n > e->sp.dense_fallback_max || e->lapack == NULL || e->sp.sw_live)
+        return;         /* (the dense solve has no switchable rows: kept, counted) */
     fcc_sp_gather_dense(e);
     if (fcc_dense_factor(&e->sol, e->asmb->M, e->asmb->B) == 0) {
         fcc_dense_apply(&e->sol, Q, w, b, x);
@@ -110,6 +110,33 @@ int fcc_sp_solve_kkt_from(fcc_engine *e, const double *Q, double *x, double *lam
     return 0;
 }
 
+/* The accelerations' solve (rhs, nb) with the held switchable rows' targets
+ * -(dG/dt) v (fcc_sparse_fold.c) when some are folded into the factor, and then the
+ * floor max |f - h| / m_ref under |a| in the refinement's stop tests: a structure
+ * locked to 0 DOF has accelerations of rounding size (its rows hold what the loads
+ * would move), against which a relative test only meets noise and turns every solve
+ * slow (the boosted factor again at each stage: the latched boom of 12 units, 2x its
+ * free step); the loads' acceleration scale is what the rounding is relative to, as
+ * the Schur complement's accelerations (the engine's own, then the rows' share) are. */
+static void solve_with_targets(fcc_engine *e, const double *q, const double *v,
+                               double *a)
+{
+    fcc_sparse *s = &e->sp;
+    int i;
+    double big = 0.0;
+    if (s->sw_live && s->sw_fill != NULL) {
+        s->sw_fill(s->sw_ctx, e, q, v);
+        s->sw_b = s->sw_tgt;
+        for (i = 0; i < e->n; i++)
+            if (fabs(e->rhs[i]) > big)
+                big = fabs(e->rhs[i]);
+        s->x_floor = big / s->mref;
+    }
+    fcc_sp_solve_kkt(e, e->rhs, NULL, e->nb, a, 1, 0);
+    s->sw_b = NULL;
+    s->x_floor = 0.0;
+}
+
 int fcc_sp_accelerations(fcc_engine *e, const double *q, const double *v, double *a,
                          int reuse)
 {
@@ -127,7 +154,7 @@ int fcc_sp_accelerations(fcc_engine *e, const double *q, const double *v, double
         e->rhs[i] = as->f[i] - as->h[i];
     for (i = 0; i < e->m; i++)
         e->nb[i] = -as->c[i];
-    fcc_sp_solve_kkt(e, e->rhs, NULL, e->nb, a, 1, 0);
+    solve_with_targets(e, q, v, a);
     return fcc_check_result(e, q, v, a, flags);
 }
 
@@ -159,7 +186,7 @@ int fcc_sp_baumgarte(fcc_engine *e, const double *q, const double *v, double *a,
     for (i = 0; i < e->n; i++)
         e->rhs[i] = as->f[i] - as->h[i];
     baumgarte_targets(e, v, alpha, beta, e->nb);
-    fcc_sp_solve_kkt(e, e->rhs, NULL, e->nb, a, 1, 0);
+    solve_with_targets(e, q, v, a);
     return fcc_check_result(e, q, v, a, flags);
 }
 

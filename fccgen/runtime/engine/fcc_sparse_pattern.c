@@ -96,6 +96,11 @@ static void free_structure(fcc_pattern *P)
     FCC_FREE(P->ent_a); FCC_FREE(P->ent_b); FCC_FREE(P->ent_pos); FCC_FREE(P->Lp);
     FCC_FREE(P->Li); FCC_FREE(P->Rp); FCC_FREE(P->Rj); FCC_FREE(P->Rpos);
     FCC_FREE(P->pin_diag);
+    FCC_FREE(P->sw_ptr); FCC_FREE(P->sw_idx); FCC_FREE(P->sw_ent_ptr);
+    FCC_FREE(P->sw_ent_a); FCC_FREE(P->sw_ent_b); FCC_FREE(P->sw_ent_pos);
+    P->sw_ptr = P->sw_idx = P->sw_ent_ptr = P->sw_ent_a = P->sw_ent_b = NULL;
+    P->sw_ent_pos = NULL;
+    P->n_sw = 0;
     P->perm = P->Ap = P->Ai = P->ent_ptr = P->ent_a = P->ent_b = P->ent_pos = NULL;
     P->Lp = P->Li = P->Rp = P->Rj = P->Rpos = P->pin_diag = NULL;
     P->ready = 0;

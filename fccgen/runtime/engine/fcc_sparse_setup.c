@@ -14,6 +14,11 @@ static void *zalloc(size_t n, size_t size)
 /* Free what depends on the pattern (the compact blocks, A and its factor). */
 static void free_resized(fcc_sparse *s)
 {
+    FCC_FREE(s->alpha); FCC_FREE(s->rnorm); FCC_FREE(s->lam); FCC_FREE(s->lam_warm);
+    FCC_FREE(s->r2); FCC_FREE(s->bdx); FCC_FREE(s->res); FCC_FREE(s->mu);
+    FCC_FREE(s->cg_p); FCC_FREE(s->cg_sp); FCC_FREE(s->sw_val); FCC_FREE(s->sw_tgt);
+    s->alpha = s->rnorm = s->lam = s->lam_warm = s->r2 = s->bdx = s->res = NULL;
+    s->mu = s->cg_p = s->cg_sp = s->sw_val = s->sw_tgt = NULL;
     if (s->Mc != s->Mblk)
         FCC_FREE(s->Mc);
     if (s->Bc != s->Bblk)
@@ -34,17 +39,7 @@ int fcc_sparse_init(fcc_engine *e, const fcc_pattern *P)
     s->Mblk = zalloc((size_t)P->mptr[m->n_el], sizeof(double));
     s->Bblk = zalloc((size_t)P->bptr[m->n_el], sizeof(double));
     s->lq = zalloc((size_t)m->local_size, sizeof(double));
-    s->alpha = zalloc(ng, sizeof(double));
-    s->rnorm = zalloc(ng, sizeof(double));
     s->tperm = zalloc(n, sizeof(double));
-    s->lam = zalloc(ng, sizeof(double));
-    s->lam_warm = zalloc(ng, sizeof(double));
-    s->r2 = zalloc(ng, sizeof(double));
-    s->bdx = zalloc(ng, sizeof(double));
-    s->res = zalloc(ng, sizeof(double));
-    s->mu = zalloc(ng, sizeof(double));
-    s->cg_p = zalloc(ng, sizeof(double));
-    s->cg_sp = zalloc(ng, sizeof(double));
     s->u = zalloc(n, sizeof(double));
     s->w_n = zalloc(n, sizeof(double));
     s->r1 = zalloc(n, sizeof(double));
@@ -62,9 +57,7 @@ int fcc_sparse_init(fcc_engine *e, const fcc_pattern *P)
     s->al_max = FCC_AL_MAX;
     s->boost = 1.0;
     s->dense_fallback_max = FCC_DENSE_FALLBACK_MAX;
-    if (!s->Mblk || !s->Bblk || !s->lq || !s->alpha || !s->rnorm || !s->tperm
-            || !s->lam || !s->lam_warm || !s->r2 || !s->bdx || !s->res || !s->mu
-            || !s->cg_p || !s->cg_sp || !s->u || !s->w_n || !s->r1 || !s->dx
+    if (!s->Mblk || !s->Bblk || !s->lq || !s->tperm || !s->u || !s->w_n || !s->r1 || !s->dx
             || !s->base || !s->lz || !s->track || !s->bn || !s->xw || !s->rs || !s->mv
             || !s->qsave) {
         fcc_sparse_free(e);
@@ -78,10 +71,30 @@ int fcc_sparse_resize(fcc_engine *e)
     fcc_sparse *s = &e->sp;
     const fcc_pattern *P = s->pat;
     int i;
+    size_t ms = (size_t)e->m + (size_t)P->n_sw;
     free_resized(s);
+    /* the solve's rows: the engine's, then the switchable rows (fcc_sparse_fold.c) */
+    s->ms = (int)ms;
+    s->sw_live = 0;
+    s->sw_b = NULL;
+    s->warm_valid = 0;
+    s->alpha = zalloc(ms, sizeof(double));
+    s->rnorm = zalloc(ms, sizeof(double));
+    s->lam = zalloc(ms, sizeof(double));
+    s->lam_warm = zalloc(ms, sizeof(double));
+    s->r2 = zalloc(ms, sizeof(double));
+    s->bdx = zalloc(ms, sizeof(double));
+    s->res = zalloc(ms, sizeof(double));
+    s->mu = zalloc(ms, sizeof(double));
+    s->cg_p = zalloc(ms, sizeof(double));
+    s->cg_sp = zalloc(ms, sizeof(double));
+    s->sw_val = zalloc(P->n_sw > 0 ? (size_t)P->sw_ptr[P->n_sw] : 0, sizeof(double));
+    s->sw_tgt = zalloc((size_t)P->n_sw, sizeof(double));
     s->Mc = P->compact ? zalloc((size_t)P->total_mc, sizeof(double)) : s->Mblk;
     s->Bc = P->compact ? zalloc((size_t)P->total_bc, sizeof(double)) : s->Bblk;
-    if (s->Mc == NULL || s->Bc == NULL)
+    if (s->Mc == NULL || s->Bc == NULL || !s->alpha || !s->rnorm || !s->lam
+            || !s->lam_warm || !s->r2 || !s->bdx || !s->res || !s->mu || !s->cg_p
+            || !s->cg_sp || !s->sw_val || !s->sw_tgt)
         return FCC_ERR_MEMORY;
     for (i = 0; i < P->n_fixed_rows; i++) {   /* constant norms and no penalty */
         s->rnorm[P->fixed_rows[i]] = P->fixed_norm[i];
@@ -103,10 +116,8 @@ void fcc_sparse_free(fcc_engine *e)
 {
     fcc_sparse *s = &e->sp;
     free_resized(s);
-    FCC_FREE(s->Mblk); FCC_FREE(s->Bblk); FCC_FREE(s->lq); FCC_FREE(s->alpha);
-    FCC_FREE(s->rnorm); FCC_FREE(s->tperm); FCC_FREE(s->lam); FCC_FREE(s->lam_warm);
-    FCC_FREE(s->r2); FCC_FREE(s->bdx); FCC_FREE(s->res); FCC_FREE(s->mu);
-    FCC_FREE(s->cg_p); FCC_FREE(s->cg_sp); FCC_FREE(s->u); FCC_FREE(s->w_n);
+    FCC_FREE(s->Mblk); FCC_FREE(s->Bblk); FCC_FREE(s->lq);
+    FCC_FREE(s->tperm); FCC_FREE(s->u); FCC_FREE(s->w_n);
     FCC_FREE(s->r1); FCC_FREE(s->dx); FCC_FREE(s->base); FCC_FREE(s->lz);
     FCC_FREE(s->track); FCC_FREE(s->bn); FCC_FREE(s->xw); FCC_FREE(s->rs);
     FCC_FREE(s->mv); FCC_FREE(s->qsave);

@@ -1,0 +1,161 @@
+/* The events' used rows folded into the sparse path's factorisation.
+ *
+ * When the sparse engine's pattern holds the model's switchable rows
+ * (fcc_sparse_fold.c; the set-up puts them there), a run folds the used rows into
+ * every factorisation: the rows' values go into the solve at each assembly of B
+ * (fill_rows), their targets -(dG/dt) v into each acceleration solve, and the
+ * refinement enforces them with the engine's own rows. The per-stage Schur complement
+ * of fcc_events.c (one constrained solve per used row for its response z_j, then G Z)
+ * is left out: fcc_ev_constrain has nothing to add, and reads the rows' multipliers
+ * from the solve (mu_j = -lambda_{m+j}: the Schur form's a + Z mu puts G^T mu on the
+ * right-hand side, the folded solve G^T lambda on the left). The step's velocity
+ * projection holds G v = 0 with the rows folded; after it fcc_ev_correct holds the
+ * positions, r_j(q) = held_j, with one folded solve instead of one response per row.
+ *
+ * Switches (fcc_ev_apply) run with the fold off (fold_live 0): their impacts and the
+ * rank decision of the used rows (decide_pivots) need the engine's own constrained
+ * responses, which a factor holding the rows does not give. Their velocity projection
+ * assembles B afresh, so its factor is the engine's own; the next stage factors with
+ * the new used rows folded.
+ *
+ * The pattern of each row is what its gradient read where the set-up sampled it
+ * (fccgen.runtime.paths). Every fill checks it: a used row with a nonzero outside its
+ * pattern (on a free coordinate) turns the fold off for the rest of the run (counted
+ * in n_fold_off), and its stages take the Schur complement from there, which reads the
+ * whole row.
+ */
+#include <math.h>
+#include <string.h>
+
+#include "fcc_events.h"
+
+/* Zero every row's values and norms (nothing folded). */
+static void clear_rows(fcc_engine *e)
+{
+    fcc_sparse *s = &e->sp;
+    const fcc_pattern *P = s->pat;
+    int j;
+    memset(s->sw_val, 0, (size_t)P->sw_ptr[P->n_sw] * sizeof(double));
+    for (j = 0; j < P->n_sw; j++)
+        s->rnorm[e->m + j] = 0.0;
+}
+
+/* Nonzeros of row g (n numbers) on coordinates that are not pinned. */
+static int free_nonzeros(const fcc_pattern *P, const double *g, int n)
+{
+    int i, count = 0;
+    for (i = 0; i < n; i++)
+        count += g[i] != 0.0;
+    for (i = 0; i < P->n_pinned; i++)
+        count -= g[P->pinned[i]] != 0.0;
+    return count;
+}
+
+static void fill_rows(void *ctx, fcc_engine *e, const double *q, const double *v)
+{
+    /* v NULL: the used rows' values on their patterns and their norms at q, zero for
+     * the others; else their targets -(dG/dt) v at (q, v). */
+    fcc_events *ev = ctx;
+    const fcc_event_spec *c = ev->spec;
+    fcc_sparse *s = &e->sp;
+    const fcc_pattern *P = s->pat;
+    int j, k, inside, n = c->n;
+    int live = ev->fold && ev->fold_live && ev->n_used > 0;
+    const double *g;
+    double *val, norm;
+    if (v != NULL) {
+        if (live)
+            c->tab->quantity_bias(q, v, e->asmb->t, ev->p, ev->rb);
+        for (j = 0; j < c->nr; j++)
+            s->sw_tgt[j] = live && ev->used[j] ? -ev->rb[j] : 0.0;
+        return;
+    }
+    if (!live) {
+        clear_rows(e);
+        return;
+    }
+    c->tab->quantity_gradients(q, NULL, 0.0, ev->p, ev->rg);
+    for (j = 0; j < c->nr; j++) {
+        val = s->sw_val + P->sw_ptr[j];
+        norm = 0.0;
+        inside = 0;
+        g = ev->rg + (size_t)j * n;
+        for (k = P->sw_ptr[j]; k < P->sw_ptr[j + 1]; k++) {
+            val[k - P->sw_ptr[j]] = ev->used[j] ? g[P->sw_idx[k]] : 0.0;
+            norm += val[k - P->sw_ptr[j]] * val[k - P->sw_ptr[j]];
+            inside += val[k - P->sw_ptr[j]] != 0.0;
+        }
+        if (ev->used[j] && free_nonzeros(P, g, n) != inside) {
+            ev->fold = 0;                     /* outside its pattern: Schur from here */
+            ev->n_fold_off++;
+            clear_rows(e);
+            return;
+        }
+        s->rnorm[e->m + j] = sqrt(norm);
+    }
+}
+
+int fcc_events_fold(fcc_events *ev, fcc_engine *e, int on)
+{
+    fcc_sparse *s = &e->sp;
+    ev->fold = on && e->sparse && s->pat != NULL && ev->spec->nr > 0
+               && s->pat->n_sw == ev->spec->nr;
+    ev->fold_live = ev->fold;
+    if (ev->fold) {
+        s->sw_fill = fill_rows;
+        s->sw_ctx = ev;
+    } else if (e->sparse && s->sw_ctx == ev) {
+        s->sw_fill = NULL;
+        s->sw_ctx = NULL;
+    }
+    e->factor_valid = 0;                      /* the next factor with or without them */
+    return ev->fold;
+}
+
+int fcc_ev_fold_constrain(fcc_engine *e, fcc_events *ev)
+{
+    /* The accelerations hold the used rows already when the factor had them folded:
+     * their multipliers into ev->mu (in the used rows' order). */
+    const fcc_event_spec *c = ev->spec;
+    int j, k = 0;
+    if (!(ev->fold && ev->fold_live && e->sp.sw_live))
+        return 0;
+    for (j = 0; j < c->nr; j++)
+        if (ev->used[j])
+            ev->mu[k++] = -e->sp.lam[e->m + j];
+    return 1;
+}
+
+/* x <- the folded solve's x of M x + B^T lambda = 0, B x = 0, G x = sw_b. */
+static void folded_solve(fcc_engine *e, double *x)
+{
+    e->sp.sw_b = e->sp.sw_tgt;
+    fcc_sp_solve_kkt(e, NULL, NULL, NULL, x, 0, 0);
+    e->sp.sw_b = NULL;
+}
+
+int fcc_ev_fold_correct(fcc_engine *e, fcc_events *ev, double *q)
+{
+    /* fcc_ev_correct with the factor at q holding the used rows (the step's velocity
+     * projection): dq with G dq = held - r(q), M-orthogonal to the engine's rows.
+     * The speeds need nothing more: that projection held G v = 0 with the rows at
+     * this q already (the Schur form's second solve holds them with G at this q too,
+     * after q moved); a solve for their rounding-size residual only met the weak
+     * direction of the locked row (rate 0.28 per step on the boom of 12 units). */
+    const fcc_event_spec *c = ev->spec;
+    fcc_sparse *s = &e->sp;
+    int i, j, n = c->n;
+    double *dx = ev->acc;
+    if (!(ev->fold && ev->fold_live && s->sw_live))
+        return 0;
+    c->tab->quantity_values(q, NULL, 0.0, ev->p, ev->r);
+    for (j = 0; j < c->nr; j++)
+        s->sw_tgt[j] = ev->used[j] ? ev->held[j] - ev->r[j] : 0.0;
+    folded_solve(e, dx);
+    for (i = 0; i < n; i++)
+        q[i] += dx[i];
+    if (!fcc_finite(q, n))
+        return fcc_fail(e, FCC_ERR_NONFINITE_RESULT, 0, 0);
+    e->factor_valid = 0;                      /* q moved: the next stage refactors */
+    return 1;
+}

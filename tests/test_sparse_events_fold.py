@@ -1,0 +1,94 @@
+"""Locked rows folded into the sparse factorisation (engine/fcc_sparse_fold.c,
+fcc_events_fold.c) against the Schur complement of the same rows (fcc_events.c).
+
+The set-up puts each switchable joint row into the pattern of A; a run folds the used
+rows into every factorisation, and result.info["event_rows_folded"] says so. A solver
+whose pattern has no such rows (CompiledSolver._switchable_patterns None) takes the
+Schur complement. Both solve the same constrained systems, and differ by the
+refinement's rounding (it stops at 1e-15 of |x|), amplified by the motion: hence the
+tolerances of tests/test_sparse_events.py, 1e-9 of each column's largest value (or
+of 1) and 1e-10 s on the event times (measured 8e-14 on the boom of 3 units over
+2 s).
+"""
+from __future__ import annotations
+
+import importlib.util
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import fccgen.api as api
+from conftest import example_module
+from fccgen.errors import RunWarning
+from fccgen.runtime import CompiledSolver
+from test_sparse_events import assert_same
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def latched_mast_text(n: int) -> str:
+    """benchmarks/sparse_events.py's scissor mast of n bays with a latch per bay, its
+    latches locked from its first step (the benchmark's "locked" variant: in the
+    natural run the first latch takes the mast's one DOF and the others never
+    cross)."""
+    spec = importlib.util.spec_from_file_location(
+        "sparse_events_bench", ROOT / "benchmarks" / "sparse_events.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.variants(module.latched_mast(n))[0]
+
+
+def run(solver, t_end, schur=False, patterns=None, monkeypatch=None):
+    """A sparse RK4 run of a fresh solver of solver's model: folded (the set-up's
+    patterns, or patterns), or with the Schur complement (no rows in the pattern)."""
+    if schur or patterns is not None:
+        monkeypatch.setattr(CompiledSolver, "_switchable_patterns",
+                            None if schur else patterns)
+    fresh = CompiledSolver(solver.plan, solver.module, linear_solver="sparse",
+                           events_module=solver.events_module)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RunWarning)
+        return fresh.simulate(t_end=t_end, dt=1e-3, method="rk4", reactions=False)
+
+
+@pytest.fixture(scope="module")
+def mast3(build_dir, tmp_path_factory):
+    """The mast of 3 bays whose three latches lock in its first step."""
+    path = tmp_path_factory.mktemp("mast") / "mast3.yaml"
+    path.write_text(latched_mast_text(3))
+    return api.load(path, build_dir, linear_solver="sparse")
+
+
+def test_latched_mast_folded_as_schur(mast3, monkeypatch):
+    """The mast of 3 bays to 0.3 s, its three latches locking in one step (1 -> 0
+    DOF, two of the rows redundant): folded, the same run as with the Schur
+    complement, in fewer solves (one refinement per stage instead of one more per
+    used row)."""
+    folded = run(mast3, 0.3)
+    schur = run(mast3, 0.3, schur=True, monkeypatch=monkeypatch)
+    assert folded.info["event_rows_folded"] and folded.info["event_fold_left"] == 0
+    assert not schur.info["event_rows_folded"]
+    assert_same(schur, folded, [f"latch{k}" for k in range(3)])
+    assert [e["dof"] for e in folded.events][-1] == 0
+    assert folded.info["sparse_solves"] < schur.info["sparse_solves"]
+
+
+def test_a_row_outside_its_pattern_leaves_the_fold(build_dir, tmp_path, monkeypatch):
+    """The boom of 3 units whose latch row is given a pattern without one of the
+    coordinates its gradient reads: the first fill after the latch finds it, the run
+    leaves the fold for the Schur complement (counted) and equals the folded run."""
+    path = tmp_path / "boom3.yaml"
+    path.write_text(example_module("make_scissor_boom").model_text(3))
+    solver = api.load(path, build_dir)
+    folded = run(solver, 1.0)
+    rows = solver._switchable_patterns
+    pinned = set(int(i) for i in solver._engine.pinned_coordinates[0])
+    free = [[i for i in r if int(i) not in pinned] for r in rows]
+    cut = [np.array(f[:-1], dtype=np.intp) for f in free]     # one coordinate less
+    assert any(len(f) for f in free)
+    broken = run(solver, 1.0, patterns=cut, monkeypatch=monkeypatch)
+    assert folded.info["event_rows_folded"] and folded.info["event_fold_left"] == 0
+    assert not broken.info["event_rows_folded"] and broken.info["event_fold_left"] == 1
+    assert_same(broken, folded, ["latch"])
