@@ -257,10 +257,12 @@ class CompiledSolver:
         at = (pattern_samples(self.plan.q0, self.plan.v_target, self.length_scale)
               if sparse and not full_pattern else None)
         # the locked rows folded into the factorisation (engine/fcc_sparse_fold.c) on
-        # the path taken by choice or size (paths.use_sparse); a small model that
-        # "auto" moves to the sparse path after its rank decision keeps the Schur
-        # complement, whose rounding its finite-difference checks were measured with
-        fold = sparse and use_sparse(self.linear_solver, self.n_q)
+        # models of at least SPARSE_MIN_COORDINATES coordinates, whichever way they
+        # came to the sparse path; smaller ones keep the Schur complement: folded, the
+        # solar array's (18 coordinates) rows cost more to fill than the solves they
+        # save (its step 2.32 plain steps against 2.16), and its finite-difference
+        # checks were measured with the Schur complement's rounding
+        fold = sparse and self.n_q >= SPARSE_MIN_COORDINATES
         return make_engine(self._asm, self.rank_tol, self.position_tol, self.max_newton,
                            sparse, at=at,
                            switchable=self._switchable_patterns if fold else None)
