@@ -208,6 +208,7 @@ void fcc_sparse_set_watch(struct fcc_engine *e, int k, const double *basis,
 void fcc_sp_assemble_blocks(struct fcc_engine *e, const double *q, const double *v,
                             int flags);
 void fcc_sp_assemble_mb(struct fcc_engine *e, const double *q, int flags);
+int *fcc_sp_copy_ints(const int *src, int n);            /* fcc_sparse_pattern.c */
 void fcc_sp_check_fixed_g(struct fcc_engine *e);
 void fcc_sp_mult_m(struct fcc_engine *e, const double *x, double *y, int add);
 void fcc_sp_mult_m_full(struct fcc_engine *e, const double *x, double *y, int add);

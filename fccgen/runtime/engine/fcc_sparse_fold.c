@@ -34,20 +34,6 @@
  * residuals remove. */
 #define SW_BOOST FCC_AL_BOOST
 
-static void *zalloc(size_t n, size_t size)
-{
-    return FCC_CALLOC(n > 0 ? n : 1, size);
-}
-
-static int *copy_ints(const int *src, int n)
-{
-    int i, *p = zalloc((size_t)n, sizeof(int));
-    if (p != NULL)
-        for (i = 0; i < n; i++)
-            p[i] = src[i];
-    return p;
-}
-
 int fcc_pattern_set_switchable(fcc_pattern *P, int n_sw, const int *sw_ptr,
                                const int *sw_idx, const int *sw_ent_ptr,
                                const int *sw_ent_a, const int *sw_ent_b,
@@ -78,12 +64,12 @@ int fcc_pattern_set_switchable(fcc_pattern *P, int n_sw, const int *sw_ptr,
     }
     n_idx = sw_ptr[n_sw];
     n_ent = sw_ent_ptr[n_sw];
-    P->sw_ptr = copy_ints(sw_ptr, n_sw + 1);
-    P->sw_idx = copy_ints(sw_idx, n_idx);
-    P->sw_ent_ptr = copy_ints(sw_ent_ptr, n_sw + 1);
-    P->sw_ent_a = copy_ints(sw_ent_a, n_ent);
-    P->sw_ent_b = copy_ints(sw_ent_b, n_ent);
-    P->sw_ent_pos = copy_ints(sw_ent_pos, n_ent);
+    P->sw_ptr = fcc_sp_copy_ints(sw_ptr, n_sw + 1);
+    P->sw_idx = fcc_sp_copy_ints(sw_idx, n_idx);
+    P->sw_ent_ptr = fcc_sp_copy_ints(sw_ent_ptr, n_sw + 1);
+    P->sw_ent_a = fcc_sp_copy_ints(sw_ent_a, n_ent);
+    P->sw_ent_b = fcc_sp_copy_ints(sw_ent_b, n_ent);
+    P->sw_ent_pos = fcc_sp_copy_ints(sw_ent_pos, n_ent);
     if (!P->sw_ptr || !P->sw_idx || !P->sw_ent_ptr || !P->sw_ent_a || !P->sw_ent_b
             || !P->sw_ent_pos)
         return FCC_ERR_MEMORY;

@@ -16,7 +16,8 @@ static void *zalloc(size_t n, size_t size)
     return FCC_CALLOC(n > 0 ? n : 1, size);
 }
 
-static int *copy_ints(const int *src, int n)
+/* A heap copy of n ints (at least one allocated), or NULL when out of memory. */
+int *fcc_sp_copy_ints(const int *src, int n)
 {
     int i, *p = zalloc((size_t)n, sizeof(int));
     if (p != NULL)
@@ -172,13 +173,13 @@ int fcc_pattern_set_view(fcc_pattern *P, const int *snq, const int *sloc,
     P->total_mc = total_m;
     P->total_bc = total_b;
     P->n_pinned = n_pinned;
-    P->pinned = copy_ints(pinned, n_pinned);
+    P->pinned = fcc_sp_copy_ints(pinned, n_pinned);
     P->n_fixed_rows = n_fixed_rows;
-    P->fixed_rows = copy_ints(fixed_rows, n_fixed_rows);
+    P->fixed_rows = fcc_sp_copy_ints(fixed_rows, n_fixed_rows);
     P->fixed_norm = copy_doubles(fixed_norm, n_fixed_rows);
     P->fixed_g_tol = copy_doubles(fixed_g_tol, n_fixed_rows);
     P->n_fixed = n_fixed;
-    P->fixed_off = copy_ints(fixed_off, n_fixed);
+    P->fixed_off = fcc_sp_copy_ints(fixed_off, n_fixed);
     P->fixed_val = copy_doubles(fixed_val, n_fixed);
     P->fixed_tol = copy_doubles(fixed_tol, n_fixed);
     if (!P->pinned || !P->fixed_rows || !P->fixed_norm || !P->fixed_g_tol
@@ -193,9 +194,9 @@ int fcc_pattern_set_guards(fcc_pattern *P, int n_zero_m, const int *zero_m,
 {
     FCC_FREE(P->zero_m); FCC_FREE(P->zero_b); FCC_FREE(P->zero_m_tol);
     FCC_FREE(P->zero_b_tol);
-    P->zero_m = copy_ints(zero_m, n_zero_m);
+    P->zero_m = fcc_sp_copy_ints(zero_m, n_zero_m);
     P->zero_m_tol = copy_doubles(zero_m_tol, n_zero_m);
-    P->zero_b = copy_ints(zero_b, n_zero_b);
+    P->zero_b = fcc_sp_copy_ints(zero_b, n_zero_b);
     P->zero_b_tol = copy_doubles(zero_b_tol, n_zero_b);
     P->n_zero_m = n_zero_m;
     P->n_zero_b = n_zero_b;
@@ -213,13 +214,13 @@ int fcc_pattern_set_structure(fcc_pattern *P, const int *perm, const int *Ap,
     int *parent, *Lnz, *flag, *pattern, *pinv, *is_pinned;
     free_structure(P);
     P->nnz_a = Ap[n];
-    P->perm = copy_ints(perm, n);
-    P->Ap = copy_ints(Ap, n + 1);
-    P->Ai = copy_ints(Ai, P->nnz_a);
-    P->ent_ptr = copy_ints(ent_ptr, m->n_el + 1);
-    P->ent_a = copy_ints(ent_a, n_ent);
-    P->ent_b = copy_ints(ent_b, n_ent);
-    P->ent_pos = copy_ints(ent_pos, n_ent);
+    P->perm = fcc_sp_copy_ints(perm, n);
+    P->Ap = fcc_sp_copy_ints(Ap, n + 1);
+    P->Ai = fcc_sp_copy_ints(Ai, P->nnz_a);
+    P->ent_ptr = fcc_sp_copy_ints(ent_ptr, m->n_el + 1);
+    P->ent_a = fcc_sp_copy_ints(ent_a, n_ent);
+    P->ent_b = fcc_sp_copy_ints(ent_b, n_ent);
+    P->ent_pos = fcc_sp_copy_ints(ent_pos, n_ent);
     P->Lp = zalloc((size_t)n + 1, sizeof(int));
     P->pin_diag = zalloc((size_t)P->n_pinned, sizeof(int));
     parent = zalloc((size_t)n, sizeof(int));
