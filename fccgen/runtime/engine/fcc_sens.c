@@ -118,42 +118,6 @@ static void store_rows(fcc_sens *s, int row0, int nq, int ng)
     }
 }
 
-/* The tangent kernels of every element along (sq, sv, dP_j) at (q, v) with the
- * accelerations a and multipliers lam: dR1 into rhs, dR2 into b, (dg/dp) dP_j into
- * gp, dPhi into phi. */
-void fcc_sens_sweep(fcc_engine *e, fcc_sens *s, const double *q, const double *v,
-                    const double *a, const double *lam, const double *sq,
-                    const double *sv, const double *dPj)
-{
-    const fcc_model *md = s->model;
-    const double *params = e->asmb->params;
-    int el, i, nq, ng, row0;
-    const int *idx;
-    const fcc_dp_class *k;
-    memset(s->rhs, 0, (size_t)s->n * sizeof(double));
-    for (el = 0; el < md->n_el; el++) {
-        k = &s->dp->classes[md->cls[el] - md->table->classes];
-        nq = k->n_q;
-        ng = k->n_g;
-        idx = md->qidx + md->qptr[el];
-        row0 = md->gptr[el];
-        for (i = 0; i < nq; i++) {
-            s->lq[i] = q[idx[i]];
-            s->lv[i] = v[idx[i]];
-            s->la[i] = a[idx[i]];
-            s->lsq[i] = sq[idx[i]];
-            s->lsv[i] = sv[idx[i]];
-        }
-        for (i = 0; i < ng; i++)
-            s->llam[i] = lam[row0 + i];
-        k->tangent(s->lq, s->lv, params + md->pptr[el], s->la, s->llam, s->lsq, s->lsv,
-                   dPj + md->pptr[el], s->lout);
-        for (i = 0; i < nq; i++)
-            s->rhs[idx[i]] += s->lout[i];
-        store_rows(s, row0, nq, ng);
-    }
-}
-
 /* Prepare the tangents of the elements (with rows only: rows_only) at (q, v, a, lam)
  * into W (a, lam NULL: zeros). */
 static void prepare(fcc_engine *e, fcc_sens *s, const double *q, const double *v,
@@ -208,6 +172,19 @@ static void prepared_sweep(fcc_sens *s, const double *sq, const double *sv,
             s->rhs[idx[i]] += s->lout[i];
         store_rows(s, md->gptr[el], nq, ng);
     }
+}
+
+/* The tangent kernels of every element along (sq, sv, dP_j) at (q, v) with the
+ * accelerations a and multipliers lam: dR1 into rhs, dR2 into b, (dg/dp) dP_j into
+ * gp, dPhi into phi. The elements are prepared there (overwriting the stage's
+ * prepared entries: the event sweeps call it between steps, and every stage prepares
+ * its own), then applied, as each class's one-shot tangent kernel is. */
+void fcc_sens_sweep(fcc_engine *e, fcc_sens *s, const double *q, const double *v,
+                    const double *a, const double *lam, const double *sq,
+                    const double *sv, const double *dPj)
+{
+    prepare(e, s, q, v, a, lam, 0);
+    prepared_sweep(s, sq, sv, dPj);
 }
 
 /* The projections' sweep along (sq, 0, dP_j) with zero accelerations and multipliers:
