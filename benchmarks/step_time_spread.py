@@ -2,6 +2,7 @@
 (docs/export.md, "Step time"; docs/performance.md).
 
     python benchmarks/step_time_spread.py [--repeats 5] [--models a02_n_four_bar,solar_array]
+        [--event-location steps,interpolant]
 
 Per model: fccgen export --c (rk4 with projection, the sparse path, the model's dt),
 built with -O2, linked with the timing harness benchmarks/c/step_spread.c, which runs
@@ -25,6 +26,12 @@ median plain step. Then where the time goes: the sparse solves' refinement
 iterations per plain step (the step's cost follows them) and the acceleration
 evaluations of plain and event steps. Run with single-threaded BLAS; no Python runs
 in the timed loop.
+
+--event-location: the exports' ways of locating events (fccgen export
+--event-location), each model exported and timed once per way, in turn: "steps"
+(re-integrated partial steps, the default) and "interpolant" (the step's
+interpolant: an event step takes one evaluation more than a step and the rest of the
+step). Models without events are timed once.
 """
 from __future__ import annotations
 
@@ -41,6 +48,7 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
+from fccgen.api import plan_model  # noqa: E402
 from fccgen.export import export_c  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -107,15 +115,23 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--repeats", type=int, default=5)
     p.add_argument("--models", default="a02_n_four_bar,solar_array")
+    p.add_argument("--event-location", default="steps",
+                   help="comma-separated: steps, interpolant (default steps)")
     args = p.parse_args()
+    ways = args.event_location.split(",")
     with tempfile.TemporaryDirectory() as tmp:
         build = Path(tmp) / "generated"
         print(f"{'model':15s} {'clock':5s} {'steps':>6s} {'median':>9s} {'p99.9':>10s} "
               f"{'worst':>11s} {'worst/med':>9s} {'p99.9/med':>9s} {'least w/m':>10s} "
               f"{'events':>6s} {'event/med':>9s}")
         for name in args.models.split(","):
-            folder = export_c(ROOT / "examples" / f"{name}.yaml", Path(tmp) / name, build)
-            report(name, step_times(name, folder, args.repeats), model_dt(folder, name))
+            model = ROOT / "examples" / f"{name}.yaml"
+            for way in (ways if plan_model(model).model.events else ways[:1]):
+                folder = export_c(model, Path(tmp) / f"{name}_{way}", build,
+                                  event_location=way)
+                label = name if len(ways) == 1 else f"{name}/{way[:6]}"
+                report(label, step_times(name, folder, args.repeats),
+                       model_dt(folder, name))
 
 
 if __name__ == "__main__":

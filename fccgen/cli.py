@@ -93,6 +93,11 @@ def _parser() -> argparse.ArgumentParser:
                         "measured on, comma-separated (default: every moving point)")
     s.add_argument("--output-dt", type=float,
                    help="output interval, a multiple of dt (default: every step)")
+    s.add_argument("--event-location", choices=("steps", "interpolant"),
+                   help="rk4: locate an event's crossing by re-integrated partial steps "
+                        "(steps, the default) or on the step's interpolant, with the "
+                        "state there from it (interpolant: each event step costs two "
+                        "steps' evaluations and one more; docs/events.md)")
     s.add_argument("--no-reactions", action="store_true",
                    help="skip the joint reaction columns of a mechanism-level model "
                         "(J.fx ... J.tz; computed after the run)")
@@ -229,6 +234,12 @@ def _viz_sweep_parsers(sub, common) -> None:
     xp.add_argument("--c", metavar="DIR", dest="c_dir",
                     help="write the C project (Makefile, CMakeLists.txt, API) into DIR")
     xp.add_argument("--fmu", metavar="FILE", help="write an FMU (.fmu) for linux64")
+    xp.add_argument("--event-location", choices=("steps", "interpolant"),
+                    help="how the exported engine locates events by default (the C "
+                         "API's NAME_set_event_location changes it): by re-integrated "
+                         "partial steps (steps, as fccgen simulate) or on the step's "
+                         "interpolant (a step with an event then costs two steps' "
+                         "evaluations and one more; docs/export.md \"Step time\")")
     xp.add_argument("--sensitivities", nargs="?", const=True, default=False,
                     metavar="KEY,KEY",
                     help="rk4 sensitivities with respect to the parameter keys (derives "
@@ -514,6 +525,8 @@ def _run(args, progress) -> int:
                                           ("beta", args.baumgarte_beta)) if v is not None})
         if args.no_reactions:
             options["reactions"] = False
+        if args.event_location is not None:
+            options["event_location"] = args.event_location
         options.update(_error_options(args))
         result, init = api.simulate(
             args.model, t_end=args.t_end, dt=args.dt, method=args.method,

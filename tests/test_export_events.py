@@ -343,3 +343,69 @@ def test_a_stop_event_ends_the_exported_run_where_simulate_ends(build_dir, tmp_p
                                  stop_time=3.0, output_interval=0.01)
     assert fmu_rows["time"][-1] == pytest.approx(result.t[-1], abs=1e-15)
     assert fmu_rows["A.angle"][-1] == pytest.approx(result["A.angle"][-1], rel=1e-12)
+
+
+def test_an_export_that_locates_on_the_interpolant(build_dir, tmp_path, compiled_sparse):
+    """fccgen export --event-location interpolant: the project's runs locate events on
+    the step's interpolant by default, its example's CSV equals simulate(
+    event_location="interpolant") to 1e-12 (the same engine and steps), its selftest
+    replays that run, and NAME_set_event_location("steps") gives back simulate's
+    default run (the example's own run is the default; the harness sets the other)."""
+    from fccgen.export.cli import run_export
+    args = type("Args", (), dict(model=EXAMPLES / "solar_array.yaml", c_dir=None,
+                                 fmu=None, build_dir=build_dir, sensitivities=False,
+                                 event_location="interpolant"))
+    args.c_dir = tmp_path / "on_ip"
+    assert run_export(args, None) == 0
+    folder = args.c_dir
+    run([MAKE, "-s", f"CC={CC}", f"CFLAGS={STRICT}"], folder)
+    run(["./solar_array_example", "out.csv"], folder)
+    names = (folder / "out.csv").read_text().splitlines()[0].split(",")
+    rows = np.loadtxt(folder / "out.csv", delimiter=",", skiprows=1, ndmin=2)
+    result = compiled_sparse("solar_array").simulate(reactions=False,
+                                                     event_location="interpolant")
+    assert [e["name"] for e in result.events] == ["panel_latch", "root_latch"]
+    for k, column in enumerate(names):
+        want = result.t if column == "t" else result[column]
+        scale = max(float(np.max(np.abs(want))), 1e-300)
+        assert np.max(np.abs(rows[:, k] - want)) <= 1e-12 * scale, column
+    assert_event_rows(folder / "out_events.csv", result.events)
+    assert run(["./solar_array_selftest"], folder).strip() == "selftest passed"
+    # the API switches back to partial steps: the default run, simulate's
+    harness = tmp_path / "steps.c"
+    harness.write_text(
+        '#include <stdio.h>\n#include "solar_array.h"\n'
+        "int main(void)\n{\n"
+        "    solar_array_sim *sim = solar_array_create();\n"
+        "    int k = solar_array_output_index(\"P.z\");\n"
+        "    if (sim == NULL || k < 0\n"
+        "        || solar_array_set_event_location(sim, \"nearest\") == 0\n"
+        "        || solar_array_set_event_location(sim, \"steps\") != 0\n"
+        "        || solar_array_start(sim, 2.5) != 0 || solar_array_step_to(sim, 2.5) != 0)\n"
+        "        return 1;\n"
+        "    printf(\"%a\\n\", solar_array_output(sim, k));\n"
+        "    solar_array_destroy(sim);\n"
+        "    return 0;\n}\n")
+    exe = tmp_path / "steps"
+    run([CC, "-std=c99", "-O2", f"-I{folder}", str(harness),
+         str(folder / "libsolar_array.a"), "-o", str(exe), "-lm"], tmp_path)
+    got = float.fromhex(run([str(exe)], tmp_path).strip())
+    want = compiled_sparse("solar_array").simulate(t_end=2.5, reactions=False)
+    other = compiled_sparse("solar_array").simulate(t_end=2.5, reactions=False,
+                                                    event_location="interpolant")
+    # the two ways end 7.6e-13 apart in P.z (of its 0.24); the C engine and the
+    # Python build differ by rounding (2e-16 relative): 1e-14 tells them apart
+    scale = float(np.max(np.abs(want["P.z"])))
+    assert abs(got - want["P.z"][-1]) <= 1e-14 * scale
+    assert abs(got - other["P.z"][-1]) > 1e-13 * scale
+
+
+def test_interpolant_location_with_sensitivities_is_refused(build_dir, tmp_path):
+    from fccgen.export.c_project import ExportError
+    from fccgen.export.cli import run_export
+    args = type("Args", (), dict(model=EXAMPLES / "solar_array.yaml",
+                                 c_dir=tmp_path / "x", fmu=None, build_dir=build_dir,
+                                 sensitivities=True, event_location="interpolant"))
+    with pytest.raises(ExportError, match="does not carry sensitivities"):
+        run_export(args, None)
+    assert not (tmp_path / "x").exists()

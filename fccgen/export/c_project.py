@@ -61,10 +61,11 @@ def refusal(plan) -> str:
     return ""
 
 
-def python_run(solver):
+def python_run(solver, event_location="steps"):
     """The Python build's run of the model's simulate: settings on the sparse path,
-    without reactions (the golden values and the decided rank)."""
-    result = solver.simulate(reactions=False)
+    without reactions (the golden values and the decided rank); event_location: how
+    its events are located (the export's default, simulate's event_location)."""
+    result = solver.simulate(reactions=False, event_location=event_location)
     info = result.info
     unconverged = info.get("sparse_unconverged", 0) or 0
     if unconverged:
@@ -224,9 +225,12 @@ class Project:
 
 
 def c_project_files(model_path, build_dir="generated", *, progress=None,
-                    sensitivities: bool = False) -> Project:
+                    sensitivities: bool = False, event_location="steps") -> Project:
     """Build the model (sparse path), run it in Python, and render its C project
-    (sensitivities: with the d/dp kernels and every exported key's sensitivity)."""
+    (sensitivities: with the d/dp kernels and every exported key's sensitivity;
+    event_location: the project's default way of locating events, simulate's)."""
+    from ..runtime.event_settings import check_event_location
+    check_event_location(event_location, True if sensitivities else None)
     import fccgen
     from ..api import plan_model
     plan = plan_model(model_path)
@@ -239,7 +243,7 @@ def c_project_files(model_path, build_dir="generated", *, progress=None,
         raise ExportError(f"{solver.plan.model.source}: cannot export "
                           f"{solver.plan.model.name}: {why}")
     name = c_identifier(solver.plan.model.name)
-    result = python_run(solver)
+    result = python_run(solver, event_location)
     table = OutputTable(solver.plan, export_columns(solver, result))
     table.set_angle_shifts(result)
     keys = keep_initial_speeds(solver, parameter_map(solver.plan), result)
@@ -249,7 +253,8 @@ def c_project_files(model_path, build_dir="generated", *, progress=None,
     if sensitivities:
         found = c_sens.check(solver, keys, ExportError)
         sens_result = c_sens.golden_run(solver, found)
-    files = render_files(solver, name, result, table, keys, inputs, found, sens_result)
+    files = render_files(solver, name, result, table, keys, inputs, found, sens_result,
+                         event_location == "interpolant")
     if found is not None:
         dp = c_sens.files(solver, build_dir, progress)
         files["dp_kernels.c"] = dp["dp_kernels.c"]
@@ -266,13 +271,14 @@ def c_project_files(model_path, build_dir="generated", *, progress=None,
 
 
 def export_c(model_path, out_dir, build_dir="generated", *, progress=None,
-             sensitivities: bool = False) -> Path:
+             sensitivities: bool = False, event_location="steps") -> Path:
     """Write the C project of the model into out_dir (made, or replaced when it holds
     an earlier export); returns out_dir. sensitivities: the project carries rk4
-    sensitivities (docs/export.md "Sensitivities")."""
+    sensitivities (docs/export.md "Sensitivities"); event_location: its default way of
+    locating events ("steps" or "interpolant", docs/export.md "Step time")."""
     out_dir = Path(out_dir)
     project = c_project_files(model_path, build_dir, progress=progress,
-                              sensitivities=sensitivities)
+                              sensitivities=sensitivities, event_location=event_location)
     write_project(out_dir, project.files)
     return out_dir
 
@@ -300,7 +306,7 @@ def model_inputs(plan) -> list:
 
 
 def render_files(solver, name, result, table, keys, inputs, found=None,
-                 sens_result=None) -> dict[str, str]:
+                 sens_result=None, on_interpolant=False) -> dict[str, str]:
     from ..render import table_symbol
     env = environment()
     ctx = dict(n=name, version=__version__, table=table_symbol(name),
@@ -310,7 +316,8 @@ def render_files(solver, name, result, table, keys, inputs, found=None,
                inputs=[i for i, _, _ in inputs],
                outputs=[c for c, _, _ in table.columns], n_steps=None,
                sens_keys=None if found is None else [k for k, _, _ in found],
-               dp_table=c_sens.table_symbol(solver.plan.model.name))
+               dp_table=c_sens.table_symbol(solver.plan.model.name),
+               on_interpolant=bool(on_interpolant))
     files = {f"{name}.h": env.get_template("api.h.jinja").render(ctx),
              f"{name}_api.c": env.get_template("api.c.jinja").render(ctx),
              f"{name}_data.h": data_header(solver, result, table, keys, inputs, found),

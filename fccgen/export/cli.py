@@ -12,13 +12,18 @@ def run_export(args, progress) -> int:
                           "project carries every key's sensitivity and its program "
                           "chooses them at run time: give --c DIR with --sensitivities "
                           "alone (docs/export.md, \"Sensitivities\")")
+    location = getattr(args, "event_location", None) or "steps"
+    if location == "interpolant" and sensitivities:
+        raise ExportError("--event-location interpolant does not carry sensitivities "
+                          "through events (they are located by partial steps): leave "
+                          "it out with --sensitivities")
     if args.c_dir:
         out = export_c(args.model, args.c_dir, args.build_dir, progress=progress,
-                       sensitivities=bool(sensitivities))
+                       sensitivities=bool(sensitivities), event_location=location)
         print(f"C project written to {out}: cd there and run make")
     if args.fmu:
         from .fmu import export_fmu
         out = export_fmu(args.model, args.fmu, args.build_dir, progress=progress,
-                         sensitivities=sensitivities)
+                         sensitivities=sensitivities, event_location=location)
         print(f"FMU written to {out}")
     return 0

@@ -136,7 +136,7 @@ def build_library(name: str, files: dict, cache_root: Path) -> Path:
 
 
 def export_fmu(model_path, fmu_path, build_dir="generated", *, progress=None,
-               sensitivities=None) -> Path:
+               sensitivities=None, event_location="steps") -> Path:
     """Write the FMU of the model to fmu_path (.fmu); returns its path.
     sensitivities: None (without), True (every key that has one) or the keys whose
     sensitivities the FMU outputs (docs/export.md, "Sensitivities in the FMU")."""
@@ -144,7 +144,8 @@ def export_fmu(model_path, fmu_path, build_dir="generated", *, progress=None,
     if fmu_path.suffix != ".fmu":
         raise ExportError(f"{fmu_path}: an FMU file name ends in .fmu")
     project = c_project_files(model_path, build_dir, progress=progress,
-                              sensitivities=bool(sensitivities))
+                              sensitivities=bool(sensitivities),
+                              event_location=event_location)
     sens_keys = chosen_keys(model_path, project, sensitivities)
     name, files = project.name, dict(project.files)
     events = project.event_names or []

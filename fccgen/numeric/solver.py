@@ -306,7 +306,8 @@ class NumericSolver:
     def simulate(self, t_end=None, dt=None, method=None, output_dt=None, project=True,
                  q0=None, v0=None, progress=None, rtol=None, atol=None,
                  reactions=True, event_tol=1e-12, rest_speed=1e-6, error=None,
-                 error_on=None, inputs=None, **method_options) -> Result:
+                 error_on=None, inputs=None, event_location="steps",
+                 **method_options) -> Result:
         """Integrate from (q0, v0), used as given; when q0 is None the consistent
         initial state is used, and when only v0 is None plan.v_target is projected at
         q0. The arguments mean what they mean for
@@ -314,7 +315,12 @@ class NumericSolver:
         and output_dt come from the model file; error, error_on: an error target
         (fccgen.target_error). Events (numeric/events.py) are located by rk4 and dopri5
         with projection, as in the compiled runtime. inputs: as the compiled
-        runtime's (fccgen.runs.inputs): sampled at the output times, held between."""
+        runtime's (fccgen.runs.inputs): sampled at the output times, held between.
+        event_location: "steps" only (the numeric version is the compiled runtime's
+        check: its events are bracketed by partial steps, SciPy's brentq)."""
+        if event_location != "steps":
+            raise ValueError(f"the numeric version locates events by partial steps "
+                             f"only (event_location='steps'), not {event_location!r}")
         if error is not None and inputs:
             raise ValueError("an error target (error=) chooses its own runs; give "
                              "inputs to a run with a method and step instead")

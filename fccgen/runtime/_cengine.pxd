@@ -468,6 +468,7 @@ cdef extern from "fcc_rk4.h":
         fcc_events *ev
         double *saved
         double *dense
+        int on_interpolant
         fcc_pause_fn pause
         void *pause_ctx
         long k, n_out, n_rhs, newton_total

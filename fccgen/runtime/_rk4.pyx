@@ -61,7 +61,7 @@ cdef int pause_holding_inputs(void *ctx) noexcept nogil:
 def simulate_rk4(Engine engine, q0, v0, double t_end, double dt, long n_steps,
                  long output_every, bint project, progress=None,
                  double progress_interval=0.5, events=None, work=None, inputs=None,
-                 sens=None, bint interpolant=True):
+                 sens=None, bint interpolant=True, bint on_interpolant=False):
     """Classical RK4 from (q0, v0) (used as given) over n_steps steps of dt, the last
     one shortened to end at t_end; after each step, if project, position then velocity
     projection. Records t = 0, every output_every steps and t_end.
@@ -84,10 +84,16 @@ def simulate_rk4(Engine engine, q0, v0, double t_end, double dt, long n_steps,
     interpolant: an event's location places its trials (re-integrated partial steps)
     by the step's Hermite interpolant; False: by the Illinois iteration alone, twice
     the partial steps (the reference the tests compare the located times with).
+
+    on_interpolant (needs interpolant): an event function's crossing is located on the
+    step's interpolant, with the acceleration evaluated at the step's end, and the
+    state there is the interpolant's, projected (event_location="interpolant" of
+    simulate): an event step costs one evaluation more than a step and the rest of
+    the step, whatever the crossing. Runs with sensitivities take the partial steps.
     """
     return _simulate(engine, q0, v0, t_end, dt, n_steps, output_every, project, False,
                      0.0, 0.0, progress, progress_interval, events, work, inputs, sens,
-                     interpolant)
+                     interpolant, on_interpolant)
 
 
 def simulate_baumgarte(Engine engine, q0, v0, double t_end, double dt, long n_steps,
@@ -107,7 +113,7 @@ def simulate_baumgarte(Engine engine, q0, v0, double t_end, double dt, long n_st
 def _simulate(Engine engine, q0, v0, double t_end, double dt, long n_steps,
               long output_every, bint project, bint baumgarte, double alpha, double beta,
               progress, double progress_interval, events=None, work=None, inputs=None,
-              sens=None, bint interpolant=True):
+              sens=None, bint interpolant=True, bint on_interpolant=False):
     """The shared driver of simulate_rk4 and simulate_baumgarte."""
     if engine.c.running:
         raise RuntimeError("this engine is already running a simulation")
@@ -147,6 +153,7 @@ def _simulate(Engine engine, q0, v0, double t_end, double dt, long n_steps,
     r.out.cerr = array_data(arrays["constraint_error"])
     r.saved = array_data(saved)
     r.dense = array_data(dense) if interpolant else NULL
+    r.on_interpolant = on_interpolant and interpolant
     r.pause, r.pause_ctx = past_deadline, &deadline
     cdef held_inputs held
     cdef int i

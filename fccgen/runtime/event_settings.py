@@ -15,6 +15,23 @@ MAX_PER_STEP = 50
 LOG_ROWS = 100_000
 
 
+# simulate(event_location=...): rk4's two ways of locating an event function's crossing
+EVENT_LOCATIONS = ("steps", "interpolant")
+
+
+def check_event_location(value, sensitivities=None) -> None:
+    """Refuse an ``event_location`` that is not one of EVENT_LOCATIONS, and
+    "interpolant" with sensitivities (their jump terms are taken at the state of the
+    re-integrated partial steps)."""
+    if not isinstance(value, str) or value not in EVENT_LOCATIONS:
+        raise ValueError(f"event_location must be one of {', '.join(EVENT_LOCATIONS)}, "
+                         f"not {value!r}")
+    if value == "interpolant" and sensitivities is not None:
+        raise ValueError("event_location='interpolant' does not carry sensitivities "
+                         "through an event (they are located by re-integrated partial "
+                         "steps): leave event_location at 'steps'")
+
+
 def max_per_step(n_events: int) -> int:
     """The Zeno guard of a model with ``n_events`` event functions: the events one step
     may carry before the next bounce rests instead (engine/fcc_rk4.c).

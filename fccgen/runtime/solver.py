@@ -39,6 +39,7 @@ from .assembler import make_assembler, time_slots
 from .setup_reuse import (SetupStore, jacobian_key, kept_decision, kept_initial_state,
                           shared_decision)
 from .turns import REBASING, turn_check
+from .event_settings import check_event_location
 from ..runs.inputs import input_run
 from .work import work_tracker
 
@@ -307,7 +308,7 @@ class CompiledSolver:
                  q0=None, v0=None, progress=None, rtol=None, atol=None,
                  reactions=True, event_tol=1e-12, rest_speed=1e-6, error=None,
                  error_on=None, inputs=None, sensitivities=None,
-                 **method_options) -> Result:
+                 event_location="steps", **method_options) -> Result:
         """Integrate from (q0, v0), used as given, to t_end. q0 None: the consistent
         :meth:`initial_state`; only v0 None: the model's initial speeds projected at q0.
 
@@ -325,7 +326,12 @@ class CompiledSolver:
         (fccgen.mechanism.reactions; ``result.info["reactions"]`` says whether they
         are unique, or why they are absent).
         event_tol: events are located to this time (seconds); rest_speed: a bounce
-        slower than this rests on its limit (docs/events.md). ``result.events``: the
+        slower than this rests on its limit (docs/events.md). event_location (rk4):
+        "steps", the crossing bracketed by re-integrated partial steps; "interpolant",
+        located on the step's interpolant and the state there taken from it, so that
+        an event step costs two steps' evaluations and one more, whatever the
+        crossing (dopri5 always locates on its continuous extension; docs/events.md
+        "Location"). ``result.events``: the
         event table (fccgen.events.table), also kept in ``result.info["events"]`` so
         that every file format carries it.
         error: the largest position error accepted over the run (model length units;
@@ -345,6 +351,7 @@ class CompiledSolver:
         if error is not None and inputs:
             raise ValueError("an error target (error=) chooses its own runs; give "
                              "inputs to a run with a method and step instead")
+        check_event_location(event_location, sensitivities)
         if sensitivities is not None and error is not None:
             raise ValueError("sensitivities are integrated by one rk4 or dopri5 run: give "
                              "its dt or rtol, not an error target")
@@ -356,12 +363,15 @@ class CompiledSolver:
                                      **({} if project else {"project": project}),
                                      event_tol=event_tol, rest_speed=rest_speed, dt=dt,
                                      rtol=rtol, atol=atol,
+                                     **({} if event_location == "steps" else
+                                        {"event_location": event_location}),
                                      **method_options)
         args = dict(t_end=t_end, dt=dt, method=method, output_dt=output_dt,
                     project=project, q0=q0, v0=v0, progress=progress, rtol=rtol,
                     atol=atol, reactions=reactions, event_tol=event_tol,
                     rest_speed=rest_speed, inputs=inputs,
-                    sensitivities=sensitivities, **method_options)
+                    sensitivities=sensitivities, event_location=event_location,
+                    **method_options)
         # On the sparse path, a run whose motion leaves the pattern of A read at the
         # written positions (a model written in a plane that moves out of it) stops at
         # the first such assembly and is run again on the full pattern, once.
@@ -369,7 +379,8 @@ class CompiledSolver:
 
     def _simulate_once(self, t_end, dt, method, output_dt, project, q0, v0, progress,
                        rtol, atol, reactions, event_tol, rest_speed, inputs=None,
-                       sensitivities=None, **method_options) -> Result:
+                       sensitivities=None, event_location="steps",
+                       **method_options) -> Result:
         """One run (:meth:`simulate`)."""
         d = self.plan.model.simulate
         m = registry.get(d.method if method is None else method, METHODS)
@@ -389,7 +400,7 @@ class CompiledSolver:
         try:
             return self._simulate_held(m, opts, sched, held, dt, project, q0, v0,
                                        progress, reactions, event_tol, rest_speed, keys,
-                                       bool(sens_error))
+                                       bool(sens_error), event_location)
         finally:
             if held is not None:                 # direct calls see the start values
                 self._asm.put_params(held.slots, [self.plan.model.inputs[held.names[c]]
@@ -397,7 +408,7 @@ class CompiledSolver:
 
     def _simulate_held(self, m, opts, sched, held, dt, project, q0, v0, progress,
                        reactions, event_tol, rest_speed, keys=None,
-                       sens_error=False) -> Result:
+                       sens_error=False, event_location="steps") -> Result:
         """One run (:meth:`simulate`) with the inputs set (``held``); keys: the
         parameters of its sensitivities (checked), or None; sens_error: dopri5's error
         control includes them."""
@@ -427,7 +438,8 @@ class CompiledSolver:
 
         def run():
             arrays, stats = self._run(m, sched, opts, project, q0, v0, report, events,
-                                      tracker, held, sens, sens_scale, sens_engine)
+                                      tracker, held, sens, sens_scale, sens_engine,
+                                      event_location == "interpolant")
             kept["work"] = arrays.get("work") if tracker is not None else None
             return arrays, stats
         try:
@@ -452,6 +464,8 @@ class CompiledSolver:
             turn_check(result, self.plan, self.events_module, events,
                        turn if m.name in REBASING else None)
         if events is not None and events.n_events:
+            result.info["event_location"] = ("interpolant" if m.name == "dopri5"
+                                             else event_location)
             from ..events.table import (energy_balance, event_rows, report_dropped_events,
                                         report_switches)
             from ._events import ACTIONS, NOTES
@@ -635,7 +649,8 @@ class CompiledSolver:
         return q0, v0
 
     def _run(self, m, sched, opts, project, q0, v0, report, events=None, work=None,
-             held=None, sens=None, sens_scale=None, sens_engine=None):
+             held=None, sens=None, sens_scale=None, sens_engine=None,
+             on_interpolant=False):
         """(arrays, stats) of one run of method m (held: inputs that change over the
         run, fccgen.runs.inputs; rk4 and baumgarte only; sens: rk4's or dopri5's
         sensitivities, carried by sens_engine; sens_scale: the parameters' sizes for
@@ -650,7 +665,7 @@ class CompiledSolver:
         if m.name == "rk4":
             return simulate_rk4(e, q0, v0, s.t_end, s.dt, s.n_steps, s.every, project,
                                 report, self.progress_interval, events=events, work=work,
-                                inputs=held, sens=sens)
+                                inputs=held, sens=sens, on_interpolant=on_interpolant)
         if m.name == "baumgarte":
             return simulate_baumgarte(e, q0, v0, s.t_end, s.dt, s.n_steps, s.every,
                                       opts["alpha"], opts["beta"], report,

@@ -136,7 +136,7 @@ class Pilot:
     v0: np.ndarray
     length_scale: float
     noise: float                   # differences below this are the projections' noise
-    run_options: dict = field(default_factory=dict)    # event_tol, rest_speed
+    run_options: dict = field(default_factory=dict)    # event_tol, rest_speed, event_location
     progress: object = None
     cost: float = 0.0              # evaluations spent in pilot runs
     singular: dict | None = None   # singular.approach of the pilot's positions

@@ -53,7 +53,7 @@ REPEAT_FAILURES = (SimulationError, ArithmeticError, np.linalg.LinAlgError)
 
 def simulate_to_error(solver, error, error_on=None, *, t_end=None, output_dt=None,
                       method=None, q0=None, v0=None, progress=None, reactions=True,
-                      event_tol=None, rest_speed=None, **chosen):
+                      event_tol=None, rest_speed=None, event_location=None, **chosen):
     """A run whose largest position error over [0, t_end] is estimated to be at most
     ``error`` (model length units), with the method and setting the pilot chose
     (``method``: only that one is considered). ``result.info`` gets ``error_target``,
@@ -74,7 +74,8 @@ def simulate_to_error(solver, error, error_on=None, *, t_end=None, output_dt=Non
                          output_dt, np.asarray(q0, float), np.asarray(v0, float),
                          solver.length_scale, noise=NOISE * EPS * solver.length_scale,
                          run_options={k: v for k, v in (("event_tol", event_tol),
-                                                        ("rest_speed", rest_speed))
+                                                        ("rest_speed", rest_speed),
+                                                        ("event_location", event_location))
                                       if v is not None},
                          progress=progress)
     fits = measure_candidates(frame, error, [method] if method else None,

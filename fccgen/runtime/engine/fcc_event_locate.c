@@ -188,6 +188,26 @@ int fcc_ev_guess(fcc_events *ev, int k, const fcc_interp *ip, const fcc_bracket 
     return 1;
 }
 
+int fcc_ev_interp_locate(fcc_events *ev, int k, const fcc_interp *ip, double *tau)
+{
+    fcc_bracket in;
+    double c;
+    in.a = 0.0;
+    in.b = ip->h;
+    in.fb = fcc_ev_interp_value(ev, k, ip, in.b);
+    in.fa = fabs(ev->s0[k]) < 1e-200 ? -in.fb : fcc_ev_interp_value(ev, k, ip, 0.0);
+    in.side = 0;
+    in.it = 0;
+    if (!fcc_ev_crosses(ev, k, in.fa, in.fb))
+        return 0;
+    while (fcc_ev_bracket_open(ev, &in, ip->scale)) {
+        c = fcc_ev_bracket_trial(&in);
+        fcc_ev_bracket_update(ev, k, &in, c, fcc_ev_interp_value(ev, k, ip, c));
+    }
+    *tau = in.b;
+    return 1;
+}
+
 double fcc_ev_guided_trial(fcc_events *ev, fcc_bracket *br, double g, double scale)
 {
     /* The next real trial beside the guess g: a quarter of the tolerance past it when

@@ -163,6 +163,11 @@ double fcc_ev_interp_value(fcc_events *ev, int k, const fcc_interp *ip, double t
 int fcc_ev_guess(fcc_events *ev, int k, const fcc_interp *ip, const fcc_bracket *br,
                  double d, double *g);
 double fcc_ev_guided_trial(fcc_events *ev, fcc_bracket *br, double g, double scale);
+/* The crossing of event function k (k < ne) on the interpolant over [0, ip->h],
+ * closed to the location tolerance by the Illinois iteration on event kernels alone
+ * (at most 200): *tau, the end of the bracket past the crossing. 0: it does not cross
+ * on the interpolant (the caller takes the real trials). */
+int fcc_ev_interp_locate(fcc_events *ev, int k, const fcc_interp *ip, double *tau);
 void fcc_ev_refresh(fcc_events *ev, const double *q);
 /* The angle references' copies into the element parameters (after a change of p). */
 void fcc_ev_mirror(fcc_events *ev);

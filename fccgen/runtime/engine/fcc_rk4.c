@@ -7,7 +7,9 @@
  * reused. Events: after each step the watched values are compared with the step's
  * start; the first that crossed is located by re-integrating partial steps from the
  * saved start (Illinois, its trials placed by the step's Hermite interpolant), acted
- * on, and the rest of the step integrated again.
+ * on, and the rest of the step integrated again. With on_interpolant an event
+ * function's crossing is located on the interpolant itself and the state there taken
+ * from it: no partial step.
  */
 #include <math.h>
 #include <string.h>
@@ -209,6 +211,34 @@ static const fcc_interp *interpolant(fcc_engine *e, fcc_rk4 *r, double t0, doubl
     return ip;
 }
 
+/* The interpolant's end acceleration, evaluated at the step's end state (r->q, r->v
+ * at t1, projected) in place of the last stage's approximation: the velocities'
+ * cubic is then of the step's order, O(h^4), and the positions' quintic O(h^6) (with
+ * RK4's last stage, O(h^2) off at the end, they are O(h^3) and O(h^4)). Its stage
+ * power is the work's rate there. */
+static int end_acceleration(fcc_engine *e, fcc_rk4 *r, double t1)
+{
+    fcc_put_time(e->asmb, t1);
+    return stage(e, r, 4, r->q, r->v, r->dense + 3 * e->n, 0);
+}
+
+/* The state at t0 + tau on the step's interpolant ip into r->q, r->v (the located
+ * time of an event found on it), and the work there by the cubic in the work and its
+ * rates at the ends. The caller projects it (after_step). */
+static void interpolated_state(fcc_engine *e, fcc_rk4 *r, const fcc_interp *ip,
+                               double tau, const double *work)
+{
+    double h = ip->h, th = tau / h, t2 = th * th, t3 = t2 * th;
+    fcc_ev_interp_state(ip, tau);
+    memcpy(r->q, ip->q, (size_t)e->n * sizeof(double));
+    memcpy(r->v, ip->v, (size_t)e->n * sizeof(double));
+    if (r->pw != NULL)        /* work: W and its rate at the start, then at the end */
+        r->w = (1.0 - 3.0 * t2 + 2.0 * t3) * work[0] + h * (th - 2.0 * t2 + t3) * work[1]
+             + (3.0 * t2 - 2.0 * t3) * work[2] + h * (t3 - t2) * work[3];
+    r->trial_tau = tau;
+    e->factor_valid = 0;
+}
+
 /* r->q, r->v hold the state at the located time best, so it need not be integrated
  * again: the last trial was at best, no sensitivities run (trials carry none), and no
  * watch solved accelerations after it (a resting bounce's release function: that
@@ -247,8 +277,8 @@ static int events(fcc_engine *e, fcc_rk4 *r, double t0, double h)
 {
     fcc_events *ev = r->ev;
     int ne = ev->spec->ne, max_per_step = ev->spec->max_per_step;
-    int k, j, first, rc, count = 0, loops = 0;
-    double tau, best;
+    int k, j, first, rc, count = 0, loops = 0, on_ip, found, from_ip;
+    double tau, best, work[4] = {0.0, 0.0, 0.0, 0.0};
     fcc_interp interp;
     const fcc_interp *ip;
     for (;;) {
@@ -264,18 +294,32 @@ static int events(fcc_engine *e, fcc_rk4 *r, double t0, double h)
         first = k;
         fcc_ev_mark_crossed(ev);
         ip = interpolant(e, r, t0, h, &interp);
+        on_ip = ip != NULL && r->on_interpolant && r->sens == NULL;
+        if (on_ip) {
+            work[0] = r->wsave;              /* before partial steps overwrite them */
+            work[1] = r->p[0];
+            work[2] = r->w;
+            if (end_acceleration(e, r, t0 + h) < 0)
+                return -1;
+            work[3] = r->p[3];
+        }
         r->trial_tau = -1.0;
+        from_ip = 0;
         for (j = k; j < 2 * ne; j++) {           /* the earliest of those that crossed */
             if (j > k && !fcc_ev_watched(ev, j, ev->s0, ev->s1))   /* a held lock */
                 continue;
-            if (locate(e, r, j, t0, h, ip, &tau) < 0)
+            found = on_ip && j < ne && fcc_ev_interp_locate(ev, j, ip, &tau);
+            if (!found && locate(e, r, j, t0, h, ip, &tau) < 0)
                 return -1;
             if (tau < best || j == k) {
                 best = tau;
                 first = j;
+                from_ip = found;
             }
         }
-        if (!at_last_trial(r, best) && state_at(e, r, t0, best) < 0)
+        if (from_ip)
+            interpolated_state(e, r, ip, best, work);
+        else if (!at_last_trial(r, best) && state_at(e, r, t0, best) < 0)
             return -1;
         if (after_step(e, r) < 0)
             return -1;

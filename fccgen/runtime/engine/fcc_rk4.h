@@ -22,6 +22,12 @@ typedef struct fcc_rk4 {
     double *dense;            /* 6 n: the step's interpolant that places the location's
                                  trials (NULL: Illinois alone, twice the partial
                                  steps) */
+    int on_interpolant;       /* with dense: an event function's crossing is located on
+                                 the step's interpolant, its end acceleration evaluated
+                                 at the step's end, and the state there is the
+                                 interpolant's (as dopri5's dense output): one
+                                 evaluation more per event step instead of the partial
+                                 steps (none with sens: they take the partial steps) */
     fcc_pause_fn pause;
     void *pause_ctx;
     /* state and statistics */
