@@ -86,6 +86,16 @@ class Reporter:
                                     self.total if total is None else total, t, now - start))
 
 
+def reads_only(progress) -> bool:
+    """Whether a progress callback promised (its attribute ``reads_only``) not to call
+    the solver that reports to it: a run then keeps the engine's factorisation across
+    the callback, and its numbers are those of a run without the callback. Any other
+    callback may use the solver (its engine's factorisation, its warm starts): the step
+    after it factorises afresh, which can move the last digits of the run (more where
+    the run passes near a singular position)."""
+    return bool(getattr(progress, "reads_only", False))
+
+
 def restaged(progress: Progress, stage: str) -> Progress:
     """A callback that passes ``progress`` the same events under another stage name
     (e.g. the runs of the accuracy reference under "reference")."""
@@ -98,6 +108,7 @@ def restaged(progress: Progress, stage: str) -> Progress:
         else:
             event = ProgressEvent(str(event), stage)
         progress(event)
+    forward.reads_only = reads_only(progress)
     return forward
 
 
@@ -110,6 +121,7 @@ class RunReporter:
         self.t_end = float(t_end)
         self.reporter = Reporter(progress, stage, total=self.t_end)
         self.reported = False
+        self.reads_only = reads_only(progress)     # see reads_only()
 
     def __call__(self, t) -> None:
         t = float(t)

@@ -39,6 +39,8 @@ def write_line(text: str, stream=None) -> None:
 class ProgressDisplay:
     """The progress callback of the command line (see the module docstring)."""
 
+    reads_only = True       # it writes text and never calls the solver (reads_only())
+
     def __init__(self, quiet: bool, stream=None):
         self.quiet = quiet
         self.stream = stream or sys.stderr

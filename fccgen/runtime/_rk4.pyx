@@ -217,7 +217,13 @@ def _simulate(Engine engine, q0, v0, double t_end, double dt, long n_steps,
             PyErr_CheckSignals()
             if progress is not None:
                 progress(r.k * dt)
-            engine.c.factor_valid = False     # the callback may have used the engine
+                if not getattr(progress, "reads_only", False):
+                    # the callback may have used the engine; without one (or with one
+                    # that only reads, fccgen.progress.reads_only) the factorisation
+                    # held stays, so that a run's numbers do not depend on when it
+                    # paused (a fresh factorisation after a pause counts down the
+                    # raised penalties' hold: A02 ended 1.8e-5 m apart)
+                    engine.c.factor_valid = False
     except (SimulationError, KeyboardInterrupt) as exc:
         keep_rows(exc, arrays, r.n_out,
                   dict(steps=r.k, rhs_evaluations=r.n_rhs, newton_iterations=r.newton_total, max_constraint_error=r.max_cerr))

@@ -321,7 +321,9 @@ class CompiledSolver:
         method_options: the method's options (e.g. alpha, beta for baumgarte).
         progress: called with a :class:`~fccgen.progress.ProgressEvent` (stage
         "simulate", done = t of total = t_end; its text ``"t = ... of ..."``) at most
-        about every 0.5 s of wall time. ``result.info`` holds fccgen.settings.methods.INFO_KEYS and more.
+        about every 0.5 s of wall time. It may call this solver; one that does not can
+        say so (an attribute ``reads_only = True``, fccgen.progress.reads_only), and
+        the run's numbers are then those of a run without it. ``result.info`` holds fccgen.settings.methods.INFO_KEYS and more.
         reactions: add the joint reaction columns of a mechanism-level model
         (fccgen.mechanism.reactions; ``result.info["reactions"]`` says whether they
         are unique, or why they are absent).
