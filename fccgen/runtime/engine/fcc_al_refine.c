@@ -44,7 +44,7 @@
  * raised alpha below, whose factor leaves some 1e-14 |x| of noise, such solves ran
  * all refine_max corrections, counted as not converged and were done again with
  * RHO's factor: on the scissor boom of 500 units, 69 conjugate-gradient steps, and
- * 17 ms per RK4 step against 6.7 ms with the floor.) The
+ * 14.4 ms per RK4 step against 4.24 ms with the floor: docs/performance.md.) The
  * refinement ends when a correction after the first starts below that bound (its
  * right-hand side is rounding: nothing left for the iterations) or changes x by at
  * most REFINE_STOP |x| (the same floor); after refine_max corrections it is a solve
