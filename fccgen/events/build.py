@@ -6,6 +6,12 @@ quantity_values r_j(q) (joint angles and slides that events read or lock),
 quantity_gradients dr_j/dq and quantity_bias (d/dt dr_j/dq) v. Common subexpressions
 are eliminated over all outputs of a kernel together; structurally zero entries of the
 dense gradients are not printed (the kernel clears out first).
+
+The quantities' Jacobian is also printed packed (quantity_gradient_values): only its
+structural nonzeros, row by row, with their columns (gradient_ptr, gradient_idx) in
+the table. The runtime fills the rows it holds at every assembly from it, so that a
+model with many switchable rows reads (rows x their nonzeros) numbers, not
+(rows x n_q); the dense kernel is the packed one scattered (the same values).
 """
 from __future__ import annotations
 
@@ -34,10 +40,12 @@ class EventKernel:
     temporaries: tuple[tuple[str, str], ...]
     outputs: tuple[tuple[int, str], ...]       # (slot, C expression)
     n_ops: int
+    packed: bool = False                       # printed as <name>_values (out[k]: the
+                                               # k-th output) and scattered to its slots
 
 
 def _print(name: str, equation: str, exprs: list, system: EventSystem,
-           sparse: bool) -> EventKernel:
+           sparse: bool, packed: bool = False) -> EventKernel:
     keep = [(k, e) for k, e in enumerate(exprs) if not (sparse and e == 0)]
     values = [e for _, e in keep]
     used = set().union(*(e.free_symbols for e in values)) if values else set()
@@ -50,7 +58,7 @@ def _print(name: str, equation: str, exprs: list, system: EventSystem,
     return EventKernel(name, equation, len(exprs), sparse,
                        tuple((str(s), printer.doprint(e)) for s, e in temps),
                        tuple((k, printer.doprint(e)) for (k, _), e in zip(keep, reduced)),
-                       int(n_ops))
+                       int(n_ops), packed and sparse)
 
 
 def print_kernels(system: EventSystem) -> list[EventKernel]:
@@ -63,11 +71,24 @@ def print_kernels(system: EventSystem) -> list[EventKernel]:
         _print("quantity_values", "r_j(q)", qty, system, False),
         _print("quantity_gradients", "dr_j/dq",
                [g for x in system.quantities
-                for g in (system.gradient(x.expr) if x.lockable else zero)], system, True),
+                for g in (system.gradient(x.expr) if x.lockable else zero)], system, True,
+               packed=True),
         _print("quantity_bias", "(d/dt dr_j/dq) v",
                [system.quantity_bias(x) if x.lockable else sympy.S.Zero
                 for x in system.quantities], system, False),
     ]
+
+
+def gradient_pattern(kernel: EventKernel, n_q: int, n_rows: int) -> tuple[list, list]:
+    """(ptr, idx) of a packed kernel's rows of n_q columns: row j's outputs are
+    ptr[j] .. ptr[j + 1] - 1, their columns idx (increasing)."""
+    ptr, idx = [0] * (n_rows + 1), []
+    for slot, _ in kernel.outputs:
+        ptr[slot // n_q + 1] += 1
+        idx.append(slot % n_q)
+    for j in range(n_rows):
+        ptr[j + 1] += ptr[j]
+    return ptr, idx
 
 
 def event_hash(system: EventSystem) -> str:
@@ -83,7 +104,10 @@ def render(model_name: str, module_name: str, system: EventSystem, names: list[s
            kernels: list[EventKernel], e_hash: str, flags: list[str]) -> dict[str, str]:
     from importlib.resources import files
     env = environment()
-    ctx = dict(fccgen_version=__version__, model_name=model_name, module_name=module_name,
+    gradients = next(k for k in kernels if k.name == "quantity_gradients")
+    ptr, idx = gradient_pattern(gradients, len(system.q), len(system.quantities))
+    ctx = dict(gradient_ptr=ptr, gradient_idx=idx,
+               fccgen_version=__version__, model_name=model_name, module_name=module_name,
                event_hash=e_hash, n_q=len(system.q), n_p=len(system.p),
                event_names=names, quantity_names=[x.name for x in system.quantities],
                kernels=kernels, compile_args=flags, link_args=link_args())

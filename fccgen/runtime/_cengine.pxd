@@ -335,6 +335,7 @@ cdef extern from "fcc_events.h":
         FCC_LOG_COLS
         FCC_NOTE_REDUNDANT
         FCC_NOTE_UNCERTAIN
+        FCC_EVENT_ABI_VERSION
 
     ctypedef struct fcc_event_table:
         int abi_version
@@ -348,6 +349,11 @@ cdef extern from "fcc_events.h":
                                    const double *p, double *out) noexcept nogil
         void (*quantity_bias)(const double *q, const double *v, double t,
                               const double *p, double *out) noexcept nogil
+        int n_gradient_nz
+        const int *gradient_ptr
+        const int *gradient_idx
+        void (*quantity_gradient_values)(const double *q, const double *v, double t,
+                                         const double *p, double *out) noexcept nogil
 
     ctypedef struct fcc_event_spec:
         const fcc_event_table *tab

@@ -14,7 +14,7 @@ import numpy as np
 
 from ._cengine cimport (FCC_ACT_BOUNCE, FCC_ACT_LOCK, FCC_ACT_LOG, FCC_ACT_RELEASE,
                         FCC_ACT_REST, FCC_ACT_STOP, FCC_ACT_UNLOCK, FCC_ERR_MEMORY,
-                        FCC_ERR_ARGUMENT, FCC_LOG_COLS, FCC_NOTE_REDUNDANT,
+                        FCC_ERR_ARGUMENT, FCC_EVENT_ABI_VERSION, FCC_LOG_COLS, FCC_NOTE_REDUNDANT,
                         FCC_NOTE_UNCERTAIN, FCC_OK, fcc_event_spec_free,
                         fcc_event_spec_init, fcc_event_table, fcc_events_free,
                         fcc_events_init, fcc_events_mirror, fcc_events_rank_work,
@@ -53,7 +53,7 @@ cdef class EventSet:
         self.names = tuple(module.EVENT_NAMES)
         cdef const fcc_event_table *tab = <const fcc_event_table *>PyCapsule_GetPointer(
             module.table_capsule(), "fccgen.event_table")
-        if tab.abi_version != 1 or tab.n_q != n_q:
+        if tab.abi_version != FCC_EVENT_ABI_VERSION or tab.n_q != n_q:
             raise ValueError(f"the event module does not fit this model (ABI "
                              f"{tab.abi_version}, {tab.n_q} coordinates, want {n_q})")
         if not (tol > 0 and v_rest >= 0 and max_per_step >= 1):
@@ -216,6 +216,26 @@ cdef class EventSet:
                 for j in range(n):
                     g[i, j] = self.c.rg[i * n + j]
         return r, g, b
+
+    def gradient_rows(self, q):
+        """(ptr, idx, values, dense) of the joint quantities' Jacobian at q with the
+        current angle references: its structural nonzeros as the engine reads them
+        (row j: values[ptr[j]:ptr[j + 1]] in the columns idx[ptr[j]:ptr[j + 1]]), and
+        the dense kernel's (nr, n) rows written into a buffer of NaN (for checks)."""
+        qa = np.ascontiguousarray(q, float)
+        cdef double[::1] qv = qa
+        cdef const fcc_event_table *tab = self.spec.tab
+        cdef int n = self.spec.n, nr = self.spec.nr, nz = tab.n_gradient_nz
+        if qa.shape[0] != n:
+            raise ValueError(f"q must hold {n} numbers")
+        ptr = np.array([tab.gradient_ptr[j] for j in range(nr + 1)], dtype=np.intp)
+        idx = np.array([tab.gradient_idx[k] for k in range(nz)], dtype=np.intp)
+        values, dense = np.full(max(nz, 1), np.nan), np.full(max(nr * n, 1), np.nan)
+        cdef double[::1] vv = values, dv = dense
+        if nr:
+            tab.quantity_gradient_values(&qv[0], NULL, 0.0, self.c.p, &vv[0])
+            tab.quantity_gradients(&qv[0], NULL, 0.0, self.c.p, &dv[0])
+        return ptr, idx, values[:nz], dense[:nr * n].reshape(nr, n)
 
     def values(self, q, v, double t):
         """s_k at (q, v, t) with the current angle references: a fresh array."""

@@ -10,7 +10,7 @@
 #ifndef FCCGEN_EVENTS_H
 #define FCCGEN_EVENTS_H
 
-#define FCC_EVENT_ABI_VERSION 1
+#define FCC_EVENT_ABI_VERSION 2
 #define FCC_EVENT_CAPSULE_NAME "fccgen.event_table"
 
 typedef void (*fcc_event_kernel)(const double *q, const double *v, double t,
@@ -27,6 +27,14 @@ typedef struct {
     fcc_event_kernel quantity_values;     /* out[n_quantities]: joint angles, slides */
     fcc_event_kernel quantity_gradients;  /* out[n_quantities*n_q]: their Jacobian */
     fcc_event_kernel quantity_bias;       /* out[n_quantities]: (d/dt Jacobian) v */
+    /* The Jacobian's structural nonzeros (the entries quantity_gradients may write
+     * other than 0), row by row: row j's are gradient_ptr[j] .. gradient_ptr[j+1] - 1,
+     * in the columns gradient_idx (increasing in a row); quantity_gradient_values
+     * writes them, out[n_gradient_nz], the same numbers as quantity_gradients. */
+    int n_gradient_nz;
+    const int *gradient_ptr;              /* [n_quantities + 1] */
+    const int *gradient_idx;              /* [n_gradient_nz] */
+    fcc_event_kernel quantity_gradient_values;
 } fcc_event_table;
 
 #endif

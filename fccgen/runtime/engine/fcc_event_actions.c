@@ -53,7 +53,7 @@ static void scaled_rows(fcc_engine *e, fcc_events *ev, const double *q)
     double *w = ev->sig + rows;                   /* rows numbers of work after sig */
     const int *group = e->model->row_group;
     fcc_assemble(e->asmb, q, NULL, FCC_ASM_B);
-    c->tab->quantity_gradients(q, NULL, 0.0, ev->p, ev->rg);
+    fcc_ev_gradients(ev, q);
     memcpy(ev->aug, e->asmb->B, (size_t)ev->m * n * sizeof(double));
     memcpy(ev->aug + ev->m * n, ev->rg, (size_t)c->nr * n * sizeof(double));
     for (k = 0; k < rows; k++) {
@@ -128,7 +128,7 @@ static int decide_pivots(fcc_engine *e, fcc_events *ev, const double *q)
     double *L = ev->gz, *y = ev->mu, *z;
     const double *g;
     double d, gg, p, acc, ratio, mref = e->sp.mref > 0.0 ? e->sp.mref : 1.0;
-    c->tab->quantity_gradients(q, NULL, 0.0, ev->p, ev->rg);
+    fcc_ev_gradients(ev, q);
     ev->n_used = 0;
     for (i = 0; i < nr; i++) {
         ev->used[i] = 0;

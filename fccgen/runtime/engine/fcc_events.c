@@ -87,6 +87,8 @@ int fcc_events_init(fcc_events *ev, const fcc_event_spec *c, const double *const
     ev->r = FCC_CALLOC(nr + 1, sizeof(double));
     ev->rg = FCC_CALLOC(nr * n + 1, sizeof(double));
     ev->rb = FCC_CALLOC(nr + 1, sizeof(double));
+    ev->rgv = FCC_CALLOC((size_t)c->tab->n_gradient_nz + 1, sizeof(double));
+    ev->fold_free = FCC_CALLOC(n + (size_t)c->tab->n_gradient_nz + 1, sizeof(int));
     ev->z = FCC_CALLOC(nr * n + 1, sizeof(double));
     ev->gz = FCC_CALLOC(nr * nr + 1, sizeof(double));
     ev->mu = FCC_CALLOC(nr + 1, sizeof(double));
@@ -102,7 +104,7 @@ int fcc_events_init(fcc_events *ev, const fcc_event_spec *c, const double *const
     if (!ev->p || !ev->s0 || !ev->s1 || !ev->sg || !ev->r || !ev->rg || !ev->rb
             || !ev->z || !ev->gz || !ev->mu || !ev->held || !ev->active || !ev->used
             || !ev->rested || !ev->rel_sign || !ev->acc || !ev->log || !ev->tie
-            || !ev->s_prev) {
+            || !ev->s_prev || !ev->rgv || !ev->fold_free) {
         fcc_events_free(ev);
         return FCC_ERR_MEMORY;
     }
@@ -123,7 +125,8 @@ void fcc_events_free(fcc_events *ev)
     FCC_FREE(ev->used); FCC_FREE(ev->rested); FCC_FREE(ev->rel_sign); FCC_FREE(ev->acc);
     FCC_FREE(ev->log); FCC_FREE(ev->aug); FCC_FREE(ev->svm); FCC_FREE(ev->sig);
     FCC_FREE(ev->svw); FCC_FREE(ev->mslot); FCC_FREE(ev->mang); FCC_FREE(ev->mkeep);
-    FCC_FREE(ev->zlam); FCC_FREE(ev->zlam_ok);
+    FCC_FREE(ev->zlam); FCC_FREE(ev->zlam_ok); FCC_FREE(ev->rgv);
+    FCC_FREE(ev->fold_from); FCC_FREE(ev->fold_free);
     memset(ev, 0, sizeof(*ev));
 }
 
@@ -253,6 +256,19 @@ static int solve_small(double *A, double *b, int k)
     return 0;
 }
 
+void fcc_ev_gradients(fcc_events *ev, const double *q)
+{
+    const fcc_event_table *tab = ev->spec->tab;
+    int j, k, n = ev->spec->n;
+    double *row;
+    tab->quantity_gradient_values(q, NULL, 0.0, ev->p, ev->rgv);
+    for (j = 0; j < tab->n_quantities; j++) {
+        row = ev->rg + (size_t)j * n;
+        for (k = tab->gradient_ptr[j]; k < tab->gradient_ptr[j + 1]; k++)
+            row[tab->gradient_idx[k]] = ev->rgv[k];
+    }
+}
+
 void fcc_ev_response(fcc_engine *e, const double *g, double *z)
 {
     /* z = argmin z^T M z / 2 - g z subject to B z = 0, with the factorisation the
@@ -285,7 +301,7 @@ int fcc_ev_responses(fcc_engine *e, fcc_events *ev, const double *q)
      * order) with the engine's factorisation at q; the number of used rows. */
     const fcc_event_spec *c = ev->spec;
     int j, m = 0;
-    c->tab->quantity_gradients(q, NULL, 0.0, ev->p, ev->rg);
+    fcc_ev_gradients(ev, q);
     for (j = 0; j < c->nr; j++) {
         if (ev->used[j]) {
             fcc_ev_row_response(e, ev, j, ev->z + m * c->n);

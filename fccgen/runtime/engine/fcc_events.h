@@ -58,6 +58,8 @@ typedef struct fcc_events {
                                  (or a trial time), then n numbers of work */
     double *sg;               /* event gradients (ne x n) */
     double *r, *rg, *rb;      /* quantity values, gradients (nr x n), bias */
+    double *rgv;              /* the gradients' structural nonzeros (the table's
+                                 n_gradient_nz, row by row; fcc_ev_gradients) */
     double *z;                /* nr x n: constrained responses to the active rows */
     double *gz;               /* nr x nr work */
     double *mu;
@@ -99,6 +101,11 @@ typedef struct fcc_events {
     int fold_live;            /* ... and they go into the factor now (not in actions) */
     long n_fold_off;          /* runs that left the fold for the Schur complement: a
                                  row read a coordinate outside its pattern */
+    int *fold_from;           /* per entry of the pattern's rows: its place in rgv,
+                                 -1 where the row has no structural nonzero there */
+    int fold_cap;             /* ... room for this many */
+    int *fold_free;           /* n + n_gradient_nz: work, then per entry of rgv: its
+                                 coordinate is not pinned (fcc_events_fold.c) */
 } fcc_events;
 
 /* Illinois (modified regula falsi) on one watched value. */
@@ -209,6 +216,10 @@ double fcc_ev_leaving(fcc_events *ev, int k, const double *q, const double *v,
                       double t);
 
 /* Shared by fcc_events.c and fcc_event_actions.c. */
+/* The quantities' Jacobian at q: its structural nonzeros into ev->rgv, and scattered
+ * into the dense rows ev->rg (whose other entries are zero from the start and never
+ * written): (rows x their nonzeros) numbers instead of the dense kernel's nr x n. */
+void fcc_ev_gradients(fcc_events *ev, const double *q);
 void fcc_ev_response(fcc_engine *e, const double *g, double *z);
 void fcc_ev_row_response(fcc_engine *e, fcc_events *ev, int j, double *z);
 int fcc_ev_responses(fcc_engine *e, fcc_events *ev, const double *q);

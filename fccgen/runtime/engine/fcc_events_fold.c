@@ -40,32 +40,65 @@ static void clear_rows(fcc_engine *e)
         s->rnorm[e->m + j] = 0.0;
 }
 
-/* Nonzeros of row g (n numbers) on coordinates that are not pinned. */
-static int free_nonzeros(const fcc_pattern *P, const double *g, int n)
+/* fold_from and fold_free for P, made afresh whenever a run folds (the engine's pattern
+ * may be another one, or changed, since the last run): each entry of the rows'
+ * patterns found among its row's structural nonzeros (the event table's gradient_idx),
+ * and which of those are on coordinates not pinned. 0, or -1 (memory). */
+static int fold_maps(fcc_events *ev, const fcc_pattern *P)
 {
-    int i, count = 0;
-    for (i = 0; i < n; i++)
-        count += g[i] != 0.0;
-    for (i = 0; i < P->n_pinned; i++)
-        count -= g[P->pinned[i]] != 0.0;
-    return count;
+    const fcc_event_table *tab = ev->spec->tab;
+    int j, k, lo, hi, mid, col, nz = tab->n_gradient_nz, n_idx = P->sw_ptr[P->n_sw];
+    int *pin = ev->fold_free;                 /* n flags first, then the nz flags */
+    if (n_idx > ev->fold_cap) {
+        FCC_FREE(ev->fold_from);
+        ev->fold_cap = 0;
+        ev->fold_from = FCC_CALLOC((size_t)n_idx + 1, sizeof(int));
+        if (ev->fold_from == NULL)
+            return -1;
+        ev->fold_cap = n_idx;
+    }
+    memset(pin, 0, (size_t)ev->spec->n * sizeof(int));
+    for (k = 0; k < P->n_pinned; k++)
+        pin[P->pinned[k]] = 1;
+    for (k = 0; k < nz; k++)
+        pin[ev->spec->n + k] = !pin[tab->gradient_idx[k]];
+    for (j = 0; j < P->n_sw; j++) {
+        for (k = P->sw_ptr[j]; k < P->sw_ptr[j + 1]; k++) {
+            col = P->sw_idx[k];
+            lo = tab->gradient_ptr[j];
+            hi = tab->gradient_ptr[j + 1];
+            while (lo < hi) {                  /* the columns increase in a row */
+                mid = lo + (hi - lo) / 2;
+                if (tab->gradient_idx[mid] < col)
+                    lo = mid + 1;
+                else
+                    hi = mid;
+            }
+            ev->fold_from[k] = lo < tab->gradient_ptr[j + 1]
+                               && tab->gradient_idx[lo] == col ? lo : -1;
+        }
+    }
+    return 0;
 }
 
 static void fill_rows(void *ctx, fcc_engine *e, const double *q, const double *v)
 {
     /* v NULL: the used rows' values on their patterns and their norms at q, zero for
-     * the others; else their targets -(dG/dt) v at (q, v). */
+     * the others; else their targets -(dG/dt) v at (q, v). The values come from the
+     * gradients' structural nonzeros (fcc_ev_gradients), so a fill reads each row's
+     * nonzeros, not n numbers per row; a used row whose nonzeros on free (not pinned)
+     * coordinates are more than those on its pattern read outside it. */
     fcc_events *ev = ctx;
     const fcc_event_spec *c = ev->spec;
+    const fcc_event_table *tab = c->tab;
     fcc_sparse *s = &e->sp;
     const fcc_pattern *P = s->pat;
-    int j, k, inside, n = c->n;
+    int j, k, f, inside, count;
     int live = ev->fold && ev->fold_live && ev->n_used > 0;
-    const double *g;
-    double *val, norm;
+    double *val, norm, x;
     if (v != NULL) {
         if (live)
-            c->tab->quantity_bias(q, v, e->asmb->t, ev->p, ev->rb);
+            tab->quantity_bias(q, v, e->asmb->t, ev->p, ev->rb);
         for (j = 0; j < c->nr; j++)
             s->sw_tgt[j] = live && ev->used[j] ? -ev->rb[j] : 0.0;
         return;
@@ -74,18 +107,28 @@ static void fill_rows(void *ctx, fcc_engine *e, const double *q, const double *v
         clear_rows(e);
         return;
     }
-    c->tab->quantity_gradients(q, NULL, 0.0, ev->p, ev->rg);
+    tab->quantity_gradient_values(q, NULL, 0.0, ev->p, ev->rgv);
     for (j = 0; j < c->nr; j++) {
         val = s->sw_val + P->sw_ptr[j];
+        if (!ev->used[j]) {
+            for (k = P->sw_ptr[j]; k < P->sw_ptr[j + 1]; k++)
+                val[k - P->sw_ptr[j]] = 0.0;
+            s->rnorm[e->m + j] = 0.0;
+            continue;
+        }
         norm = 0.0;
         inside = 0;
-        g = ev->rg + (size_t)j * n;
         for (k = P->sw_ptr[j]; k < P->sw_ptr[j + 1]; k++) {
-            val[k - P->sw_ptr[j]] = ev->used[j] ? g[P->sw_idx[k]] : 0.0;
-            norm += val[k - P->sw_ptr[j]] * val[k - P->sw_ptr[j]];
-            inside += val[k - P->sw_ptr[j]] != 0.0;
+            f = ev->fold_from[k];
+            x = f >= 0 ? ev->rgv[f] : 0.0;
+            val[k - P->sw_ptr[j]] = x;
+            norm += x * x;
+            inside += x != 0.0;
         }
-        if (ev->used[j] && free_nonzeros(P, g, n) != inside) {
+        count = 0;
+        for (k = tab->gradient_ptr[j]; k < tab->gradient_ptr[j + 1]; k++)
+            count += ev->rgv[k] != 0.0 && ev->fold_free[c->n + k];
+        if (count != inside) {
             ev->fold = 0;                     /* outside its pattern: Schur from here */
             ev->n_fold_off++;
             clear_rows(e);
@@ -99,7 +142,7 @@ int fcc_events_fold(fcc_events *ev, fcc_engine *e, int on)
 {
     fcc_sparse *s = &e->sp;
     ev->fold = on && e->sparse && s->pat != NULL && ev->spec->nr > 0
-               && s->pat->n_sw == ev->spec->nr;
+               && s->pat->n_sw == ev->spec->nr && fold_maps(ev, s->pat) == 0;
     ev->fold_live = ev->fold;
     if (ev->fold) {
         s->sw_fill = fill_rows;
