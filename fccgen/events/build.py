@@ -104,8 +104,9 @@ def render(model_name: str, module_name: str, system: EventSystem, names: list[s
            kernels: list[EventKernel], e_hash: str, flags: list[str]) -> dict[str, str]:
     from importlib.resources import files
     env = environment()
-    gradients = next(k for k in kernels if k.name == "quantity_gradients")
-    ptr, idx = gradient_pattern(gradients, len(system.q), len(system.quantities))
+    gradients = next((k for k in kernels if k.name == "quantity_gradients"), None)
+    ptr, idx = (gradient_pattern(gradients, len(system.q), len(system.quantities))
+                if gradients is not None else ([0] * (len(system.quantities) + 1), []))
     ctx = dict(gradient_ptr=ptr, gradient_idx=idx,
                fccgen_version=__version__, model_name=model_name, module_name=module_name,
                event_hash=e_hash, n_q=len(system.q), n_p=len(system.p),
