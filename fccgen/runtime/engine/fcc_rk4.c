@@ -294,7 +294,8 @@ static int events(fcc_engine *e, fcc_rk4 *r, double t0, double h)
         first = k;
         fcc_ev_mark_crossed(ev);
         ip = interpolant(e, r, t0, h, &interp);
-        on_ip = ip != NULL && r->on_interpolant && r->sens == NULL;
+        /* an event function crossed (k < ne: release functions take partial steps) */
+        on_ip = ip != NULL && r->on_interpolant && r->sens == NULL && k < ne;
         if (on_ip) {
             work[0] = r->wsave;              /* before partial steps overwrite them */
             work[1] = r->p[0];
