@@ -230,7 +230,10 @@ def c_project_files(model_path, build_dir="generated", *, progress=None,
     (sensitivities: with the d/dp kernels and every exported key's sensitivity;
     event_location: the project's default way of locating events, simulate's)."""
     from ..runtime.event_settings import check_event_location
-    check_event_location(event_location, True if sensitivities else None)
+    try:
+        check_event_location(event_location, True if sensitivities else None)
+    except ValueError as exc:
+        raise ExportError(str(exc)) from None
     import fccgen
     from ..api import plan_model
     plan = plan_model(model_path)

@@ -13,10 +13,6 @@ def run_export(args, progress) -> int:
                           "chooses them at run time: give --c DIR with --sensitivities "
                           "alone (docs/export.md, \"Sensitivities\")")
     location = getattr(args, "event_location", None) or "steps"
-    if location == "interpolant" and sensitivities:
-        raise ExportError("--event-location interpolant does not carry sensitivities "
-                          "through events (they are located by partial steps): leave "
-                          "it out with --sensitivities")
     if args.c_dir:
         out = export_c(args.model, args.c_dir, args.build_dir, progress=progress,
                        sensitivities=bool(sensitivities), event_location=location)

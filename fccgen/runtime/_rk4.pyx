@@ -13,6 +13,7 @@ from libc.string cimport memset
 import numpy as np
 
 from fccgen.errors import SimulationError
+from fccgen.progress import reads_only
 
 from ._cengine cimport (FCC_RUN_DONE, FCC_RUN_ERROR, fcc_rk4, fcc_rk4_advance,
                         fcc_rk4_record, fcc_rk4_start, fcc_run_finish)
@@ -217,7 +218,7 @@ def _simulate(Engine engine, q0, v0, double t_end, double dt, long n_steps,
             PyErr_CheckSignals()
             if progress is not None:
                 progress(r.k * dt)
-                if not getattr(progress, "reads_only", False):
+                if not reads_only(progress):
                     # the callback may have used the engine; without one (or with one
                     # that only reads, fccgen.progress.reads_only) the factorisation
                     # held stays, so that a run's numbers do not depend on when it
