@@ -51,7 +51,9 @@ def pattern_samples(q0, v0, scale: float) -> np.ndarray:
 # value sigma_r / sigma_1 the rank decision keeps; an augmented-Lagrangian step shrinks
 # that direction's error by 1 / (1 + RHO sigma^2) (RHO 1e7, engine/fcc_sparse.h), 1e-3 at
 # 1e-2. Measured: 4e-2 .. 1 on the examples; the body whose u is 0.6 and 0.1 degrees
-# from r_ij keeps 5e-3 and 1e-3, and a tenth of its sparse solves did not converge.
+# from r_ij keeps 5e-3 and 1e-3: forced onto the sparse path, at 0.1 degrees its run
+# holds the dense one's answers only to 1e-8, and at 0.07 degrees (6e-4) a tenth of
+# its sparse solves do not converge (tests/test_small_model_path.py).
 # MASS_MIN: the smallest eigenvalue of the reduced mass matrix N^T M N (N the null
 # space of the row-scaled B at the decided rank, orthonormal) over the largest diagonal
 # entry of M. A's pivot along that direction is about this over RHO of its diagonal,
