@@ -36,9 +36,15 @@ typedef struct fcc_sens {
     double *out;                   /* records x np x 2n (the caller's; NULL: none) */
     double *S;                     /* per p_j, 10 n: sq sv sqs sv2 sv3 sv4 sa1..sa4 */
     double *lam, *r, *rhs, *b, *gp, *phi, *y, *zero;   /* work */
-    double *lq, *lv, *la, *lsq, *lsv, *llam, *lout;    /* an element's */
+    double *lq, *lv, *la, *lsq, *lsv, *llam, *lout, *lcol;   /* an element's */
     double *W;                     /* the elements' prepared tangents (fcc_dp_prepare) */
     size_t *woff;                  /* n_el + 1: element el's at W + woff[el] */
+    /* the moved parameter columns: the element parameters some p_j moves (dP != 0),
+     * element el's at ccol[cptr[el]] .. ccol[cptr[el + 1] - 1] (a class's parameter
+     * numbers), their columns of J (fcc_dp_column) prepared at WC + coff[k] */
+    int *cptr, *ccol;
+    size_t *coff;
+    double *WC;
     double *warm;                  /* np x (m + 1): the sparse path's last multipliers of
                                       p_j's stage solve, [m]: 1 when they converged */
     double h;                      /* the step being taken */
