@@ -67,7 +67,9 @@ typedef struct fcc_sens {
 } fcc_sens;
 
 /* Allocate for np parameters of the model (dP: np x model->n_p numbers, kept by
- * the caller). Returns FCC_OK, FCC_ERR_MEMORY, or FCC_ERR_ARGUMENT when dp does not
+ * the caller). The element parameters that dP moves here are the ones whose columns
+ * of the tangent are prepared for every run: a dP given later (s->dP before
+ * fcc_sens_start) may move only those (the export gives every key's here). Returns FCC_OK, FCC_ERR_MEMORY, or FCC_ERR_ARGUMENT when dp does not
  * hold the model's classes in its order. */
 int fcc_sens_init(fcc_sens *s, const fcc_model *model, const fcc_dp_table *dp, int np,
                   const double *dP);
