@@ -4,11 +4,12 @@ latch is an event, and runs with events do not carry sensitivities yet).
 
     python benchmarks/sensitivity_cost.py [--units 12] [--t-end 0.5] [--repeats 5]
     python benchmarks/sensitivity_cost.py --method dopri5 [--sensitivity-error]
-    python benchmarks/sensitivity_cost.py --units 4 --instructions [--t-end 0.1]
+    python benchmarks/sensitivity_cost.py --units 7 --instructions [--t-end 0.1]
 
 The parameters are the torsion springs' stiffnesses, then the bars' masses, n_p = 1, 5
-and 20. For each n_p: the median over the repeats of the run's own time (the
-integration, result.info["wall_time"]; warm: the parameter-derivative module is built
+and 20 (capped at the model's keys: n units have 3 n, n springs' and 2 n bars'; 7 units
+and more give all 20). For each n_p: the median over the repeats of the run's own time
+(the integration, result.info["wall_time"]; warm: the parameter-derivative module is built
 before timing), its ratio to the plain run's, the target 1 + 0.5 n_p (issue 25), and
 the whole call's time (the set-up of the parameters' directions and the columns'
 chain rule included). The ratio is taken against the plain run on the model's own path
@@ -143,8 +144,9 @@ def instructions(model: Path, work: Path, solver, keys, args) -> None:
         raise SystemExit("--instructions needs valgrind and callgrind_annotate")
     steps = round(args.t_end / 1e-3)
     plain, _ = counted(model, 0, args.t_end, work / "plain.callgrind")
-    print(f"scissor boom, {args.units} units ({solver.plan.n_q} coordinates), rk4 dt 1e-3, "
-          f"{steps} steps: plain run {plain / 1e6:.1f} M instructions (engine steps, "
+    print(f"scissor boom, {args.units} units ({solver.plan.n_q} coordinates, "
+          f"{len(keys)} keys used), rk4 dt 1e-3, {steps} steps: plain run "
+          f"{plain / 1e6:.1f} M instructions (engine steps, "
           f"{'sparse' if solver.sparse else 'dense'} path)")
     print("| n_p | instructions (M) | ratio | target 1 + 0.5 n_p | tangent kernels |")
     print("| --- | --- | --- | --- | --- |")

@@ -11,7 +11,7 @@
 #ifndef FCC_DP_TABLE_H
 #define FCC_DP_TABLE_H
 
-#define FCC_DP_ABI_VERSION 3
+#define FCC_DP_ABI_VERSION 4
 #define FCC_DP_CAPSULE_NAME "fccgen.dp_table"
 
 enum { FCC_DP_MASS, FCC_DP_H, FCC_DP_F, FCC_DP_G, FCC_DP_B, FCC_DP_BIAS, FCC_DP_N };
@@ -28,14 +28,19 @@ typedef void (*fcc_dp_tangent)(const double *q, const double *v, const double *p
                                const double *a, const double *lam, const double *dq,
                                const double *dv, const double *dp, double *out);
 
-/* The tangent in two parts. Its outputs are linear in the direction: out = J [dq; dv; dp]
- * with J depending on (q, v, p, a, lam) only. prepare evaluates J's entries (n_w
- * numbers) into w once per state; apply forms out from w along one direction, as
- * often as there are directions at that state. tangent is prepare, then apply. */
+/* The tangent in parts. Its outputs are linear in the direction: out = J [dq; dv; dp]
+ * with J depending on (q, v, p, a, lam) only. prepare evaluates the entries of J's
+ * state columns (those of dq and dv: n_w numbers) into w once per state; apply forms
+ * J_state [dq; dv] from w along one direction, as often as there are directions at
+ * that state; column writes parameter c's column J[:, 2 n_q + c] (n_q + 3 n_g numbers),
+ * needed only where some direction's dp_c is not zero (a design parameter moves few
+ * of an element's numbers). tangent is prepare, apply, and dp_c times each column. */
 typedef void (*fcc_dp_prepare)(const double *q, const double *v, const double *p,
                                const double *a, const double *lam, double *w);
 typedef void (*fcc_dp_apply)(const double *w, const double *dq, const double *dv,
-                             const double *dp, double *out);
+                             double *out);
+typedef void (*fcc_dp_column)(const double *q, const double *v, const double *p,
+                              const double *a, const double *lam, int c, double *out);
 
 typedef struct {
     const char *name;                     /* the element class's name */
@@ -45,6 +50,7 @@ typedef struct {
     int n_w;                              /* numbers prepare writes */
     fcc_dp_prepare prepare;               /* never NULL */
     fcc_dp_apply apply;                   /* never NULL */
+    fcc_dp_column column;                 /* never NULL */
 } fcc_dp_class;
 
 typedef struct {

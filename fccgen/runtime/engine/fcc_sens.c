@@ -14,6 +14,50 @@ static double *row(const fcc_sens *s, int j, int which)
     return s->S + ((size_t)j * N_ROWS + (size_t)which) * (size_t)s->n;
 }
 
+static const fcc_dp_class *dp_class(const fcc_sens *s, int el)
+{
+    return &s->dp->classes[s->model->cls[el] - s->model->table->classes];
+}
+
+/* The element parameters some p_j moves (s->dP), element by element, and room for
+ * their columns of J (fcc_sens.h: cptr, ccol, coff, WC). Returns 0, or -1 when out of
+ * memory. */
+static int moved_columns(fcc_sens *s)
+{
+    const fcc_model *md = s->model;
+    int el, c, j, k, count = 0, n_el = md->n_el, np_all = md->n_p;
+    for (k = 0; k < 2; k++) {          /* count, then fill */
+        count = 0;
+        for (el = 0; el < n_el; el++) {
+            const fcc_dp_class *cl = dp_class(s, el);
+            if (k == 1)
+                s->cptr[el] = count;
+            for (c = 0; c < md->pptr[el + 1] - md->pptr[el]; c++) {
+                for (j = 0; j < s->np; j++)
+                    if (s->dP[(size_t)j * np_all + md->pptr[el] + c] != 0.0)
+                        break;
+                if (j == s->np)
+                    continue;
+                if (k == 1) {
+                    s->ccol[count] = c;
+                    s->coff[count + 1] = s->coff[count] + (size_t)(cl->n_q + 3 * cl->n_g);
+                }
+                count++;
+            }
+        }
+        if (k == 0) {
+            s->cptr = calloc((size_t)n_el + 1, sizeof(int));
+            s->ccol = calloc((size_t)count + 1, sizeof(int));
+            s->coff = calloc((size_t)count + 1, sizeof(size_t));
+            if (s->cptr == NULL || s->ccol == NULL || s->coff == NULL)
+                return -1;
+        }
+    }
+    s->cptr[n_el] = count;
+    s->WC = calloc(s->coff[count] + 1, sizeof(double));
+    return s->WC == NULL ? -1 : 0;
+}
+
 int fcc_sens_init(fcc_sens *s, const fcc_model *model, const fcc_dp_table *dp, int np,
                   const double *dP)
 {
@@ -26,7 +70,8 @@ int fcc_sens_init(fcc_sens *s, const fcc_model *model, const fcc_dp_table *dp, i
     for (c = 0; c < dp->n_classes; c++)
         if (strcmp(dp->classes[c].name, model->table->classes[c].name) != 0
             || dp->classes[c].tangent == NULL || dp->classes[c].prepare == NULL
-            || dp->classes[c].apply == NULL || dp->classes[c].n_w < 0)
+            || dp->classes[c].apply == NULL || dp->classes[c].column == NULL
+            || dp->classes[c].n_w < 0)
             return FCC_ERR_ARGUMENT;
     s->dp = dp;
     s->model = model;
@@ -35,7 +80,7 @@ int fcc_sens_init(fcc_sens *s, const fcc_model *model, const fcc_dp_table *dp, i
     s->np = np;
     s->dP = dP;
     total = (size_t)np * N_ROWS * (size_t)n + 4 * (size_t)n + 5 * (size_t)(m + 1)
-            + 5 * (size_t)L + (size_t)(G + 1) + (size_t)(L + 3 * G + 1)
+            + 5 * (size_t)L + (size_t)(G + 1) + 2 * (size_t)(L + 3 * G + 1)
             + (size_t)np * (size_t)(m + 1);
     s->S = calloc(total, sizeof(double));
     s->woff = calloc((size_t)model->n_el + 1, sizeof(size_t));
@@ -47,7 +92,7 @@ int fcc_sens_init(fcc_sens *s, const fcc_model *model, const fcc_dp_table *dp, i
         s->woff[c + 1] = s->woff[c]
             + (size_t)dp->classes[model->cls[c] - model->table->classes].n_w;
     s->W = calloc(s->woff[model->n_el] + 1, sizeof(double));
-    if (s->W == NULL) {
+    if (s->W == NULL || moved_columns(s) != 0) {
         fcc_sens_free(s);
         return FCC_ERR_MEMORY;
     }
@@ -66,7 +111,8 @@ int fcc_sens_init(fcc_sens *s, const fcc_model *model, const fcc_dp_table *dp, i
     s->lsv = s->lsq + L;
     s->llam = s->lsv + L;
     s->lout = s->llam + G + 1;
-    s->warm = s->lout + L + 3 * G + 1;
+    s->lcol = s->lout + L + 3 * G + 1;
+    s->warm = s->lcol + L + 3 * G + 1;
     return FCC_OK;
 }
 
@@ -76,10 +122,18 @@ void fcc_sens_free(fcc_sens *s)
     free(s->E);
     free(s->W);
     free(s->woff);
+    free(s->cptr);
+    free(s->ccol);
+    free(s->coff);
+    free(s->WC);
     s->S = NULL;
     s->E = NULL;
     s->W = NULL;
     s->woff = NULL;
+    s->cptr = NULL;
+    s->ccol = NULL;
+    s->coff = NULL;
+    s->WC = NULL;
 }
 
 double *fcc_sens_sq(const fcc_sens *s, int j)
@@ -118,38 +172,67 @@ static void store_rows(fcc_sens *s, int row0, int nq, int ng)
     }
 }
 
+/* Gather element el's q, v, a (NULL: zeros) and lam (NULL: zeros) into lq, lv, la,
+ * llam. */
+static void gather(const fcc_sens *s, int el, const double *q, const double *v,
+                   const double *a, const double *lam)
+{
+    const fcc_model *md = s->model;
+    const fcc_dp_class *k = dp_class(s, el);
+    const int *idx = md->qidx + md->qptr[el];
+    int i, row0 = md->gptr[el];
+    for (i = 0; i < k->n_q; i++) {
+        s->lq[i] = q[idx[i]];
+        s->lv[i] = v[idx[i]];
+        s->la[i] = a != NULL ? a[idx[i]] : 0.0;
+    }
+    for (i = 0; i < k->n_g; i++)
+        s->llam[i] = lam != NULL ? lam[row0 + i] : 0.0;
+}
+
 /* Prepare the tangents of the elements (with rows only: rows_only) at (q, v, a, lam)
- * into W (a, lam NULL: zeros). */
+ * into W, and the columns of the parameters some p_j moves into WC (a, lam NULL:
+ * zeros). */
 static void prepare(fcc_engine *e, fcc_sens *s, const double *q, const double *v,
                     const double *a, const double *lam, int rows_only)
 {
     const fcc_model *md = s->model;
     const double *params = e->asmb->params;
-    int el, i, nq, ng, row0;
-    const int *idx;
+    int el, c;
     const fcc_dp_class *k;
     for (el = 0; el < md->n_el; el++) {
-        k = &s->dp->classes[md->cls[el] - md->table->classes];
-        nq = k->n_q;
-        ng = k->n_g;
-        if (rows_only && ng == 0)
+        k = dp_class(s, el);
+        if (rows_only && k->n_g == 0)
             continue;
-        idx = md->qidx + md->qptr[el];
-        row0 = md->gptr[el];
-        for (i = 0; i < nq; i++) {
-            s->lq[i] = q[idx[i]];
-            s->lv[i] = v[idx[i]];
-            s->la[i] = a != NULL ? a[idx[i]] : 0.0;
-        }
-        for (i = 0; i < ng; i++)
-            s->llam[i] = lam != NULL ? lam[row0 + i] : 0.0;
+        gather(s, el, q, v, a, lam);
         k->prepare(s->lq, s->lv, params + md->pptr[el], s->la, s->llam,
                    s->W + s->woff[el]);
+        for (c = s->cptr[el]; c < s->cptr[el + 1]; c++)
+            k->column(s->lq, s->lv, params + md->pptr[el], s->la, s->llam, s->ccol[c],
+                      s->WC + s->coff[c]);
+    }
+}
+
+/* Add element el's parameters' part J_p dP_el to lout (nout numbers): from the
+ * prepared columns (WC), which hold every element parameter some p_j moves. */
+static void add_columns(fcc_sens *s, int el, int nout, const double *dPe)
+{
+    int c, r;
+    double d;
+    const double *col;
+    for (c = s->cptr[el]; c < s->cptr[el + 1]; c++) {
+        d = dPe[s->ccol[c]];
+        if (d == 0.0)
+            continue;
+        col = s->WC + s->coff[c];
+        for (r = 0; r < nout; r++)
+            s->lout[r] += d * col[r];
     }
 }
 
 /* fcc_sens_sweep with the tangents prepared at the stage (fcc_sens_stage_begin):
- * along (sq, sv, dP_j), one apply per element. */
+ * along (sq, sv, dP_j), one apply per element and the moved columns (dPj: a row of
+ * s->dP). */
 static void prepared_sweep(fcc_sens *s, const double *sq, const double *sv,
                            const double *dPj)
 {
@@ -159,7 +242,7 @@ static void prepared_sweep(fcc_sens *s, const double *sq, const double *sv,
     const fcc_dp_class *k;
     memset(s->rhs, 0, (size_t)s->n * sizeof(double));
     for (el = 0; el < md->n_el; el++) {
-        k = &s->dp->classes[md->cls[el] - md->table->classes];
+        k = dp_class(s, el);
         nq = k->n_q;
         ng = k->n_g;
         idx = md->qidx + md->qptr[el];
@@ -167,7 +250,8 @@ static void prepared_sweep(fcc_sens *s, const double *sq, const double *sv,
             s->lsq[i] = sq[idx[i]];
             s->lsv[i] = sv[idx[i]];
         }
-        k->apply(s->W + s->woff[el], s->lsq, s->lsv, dPj + md->pptr[el], s->lout);
+        k->apply(s->W + s->woff[el], s->lsq, s->lsv, s->lout);
+        add_columns(s, el, nq + 3 * ng, dPj + md->pptr[el]);
         for (i = 0; i < nq; i++)
             s->rhs[idx[i]] += s->lout[i];
         store_rows(s, md->gptr[el], nq, ng);
@@ -176,15 +260,47 @@ static void prepared_sweep(fcc_sens *s, const double *sq, const double *sv,
 
 /* The tangent kernels of every element along (sq, sv, dP_j) at (q, v) with the
  * accelerations a and multipliers lam: dR1 into rhs, dR2 into b, (dg/dp) dP_j into
- * gp, dPhi into phi. The elements are prepared there (overwriting the stage's
- * prepared entries: the event sweeps call it between steps, and every stage prepares
- * its own), then applied, as each class's one-shot tangent kernel is. */
+ * gp, dPhi into phi. Each element's tangent is prepared there (overwriting the
+ * stage's prepared entries: the event sweeps call it between steps, and every stage
+ * prepares its own) and applied, and its parameters' columns are evaluated where
+ * dP_j moves them (any dP_j), as each class's one-shot tangent kernel does. */
 void fcc_sens_sweep(fcc_engine *e, fcc_sens *s, const double *q, const double *v,
                     const double *a, const double *lam, const double *sq,
                     const double *sv, const double *dPj)
 {
-    prepare(e, s, q, v, a, lam, 0);
-    prepared_sweep(s, sq, sv, dPj);
+    const fcc_model *md = s->model;
+    const double *params = e->asmb->params;
+    int el, i, c, r, nq, ng, nout;
+    const int *idx;
+    const fcc_dp_class *k;
+    double *w;
+    memset(s->rhs, 0, (size_t)s->n * sizeof(double));
+    for (el = 0; el < md->n_el; el++) {
+        k = dp_class(s, el);
+        nq = k->n_q;
+        ng = k->n_g;
+        nout = nq + 3 * ng;
+        idx = md->qidx + md->qptr[el];
+        gather(s, el, q, v, a, lam);
+        w = s->W + s->woff[el];
+        k->prepare(s->lq, s->lv, params + md->pptr[el], s->la, s->llam, w);
+        for (i = 0; i < nq; i++) {
+            s->lsq[i] = sq[idx[i]];
+            s->lsv[i] = sv[idx[i]];
+        }
+        k->apply(w, s->lsq, s->lsv, s->lout);
+        for (c = 0; c < md->pptr[el + 1] - md->pptr[el]; c++) {
+            double d = dPj[md->pptr[el] + c];
+            if (d == 0.0)
+                continue;
+            k->column(s->lq, s->lv, params + md->pptr[el], s->la, s->llam, c, s->lcol);
+            for (r = 0; r < nout; r++)
+                s->lout[r] += d * s->lcol[r];
+        }
+        for (i = 0; i < nq; i++)
+            s->rhs[idx[i]] += s->lout[i];
+        store_rows(s, md->gptr[el], nq, ng);
+    }
 }
 
 /* The projections' sweep along (sq, 0, dP_j) with zero accelerations and multipliers:
@@ -201,7 +317,7 @@ static void rows_sweep(fcc_sens *s, const double *sq, const double *dPj)
     const int *idx;
     const fcc_dp_class *k;
     for (el = 0; el < md->n_el; el++) {
-        k = &s->dp->classes[md->cls[el] - md->table->classes];
+        k = dp_class(s, el);
         ng = k->n_g;
         if (ng == 0)
             continue;
@@ -221,7 +337,8 @@ static void rows_sweep(fcc_sens *s, const double *sq, const double *dPj)
                 s->b[row0 + i] = s->gp[row0 + i] = s->phi[row0 + i] = 0.0;
             continue;
         }
-        k->apply(s->W + s->woff[el], s->lsq, s->zero, dPj + md->pptr[el], s->lout);
+        k->apply(s->W + s->woff[el], s->lsq, s->zero, s->lout);
+        add_columns(s, el, nq + 3 * ng, dPj + md->pptr[el]);
         store_rows(s, row0, nq, ng);
     }
 }

@@ -36,9 +36,15 @@ typedef struct fcc_sens {
     double *out;                   /* records x np x 2n (the caller's; NULL: none) */
     double *S;                     /* per p_j, 10 n: sq sv sqs sv2 sv3 sv4 sa1..sa4 */
     double *lam, *r, *rhs, *b, *gp, *phi, *y, *zero;   /* work */
-    double *lq, *lv, *la, *lsq, *lsv, *llam, *lout;    /* an element's */
+    double *lq, *lv, *la, *lsq, *lsv, *llam, *lout, *lcol;   /* an element's */
     double *W;                     /* the elements' prepared tangents (fcc_dp_prepare) */
     size_t *woff;                  /* n_el + 1: element el's at W + woff[el] */
+    /* the moved parameter columns: the element parameters some p_j moves (dP != 0),
+     * element el's at ccol[cptr[el]] .. ccol[cptr[el + 1] - 1] (a class's parameter
+     * numbers), their columns of J (fcc_dp_column) prepared at WC + coff[k] */
+    int *cptr, *ccol;
+    size_t *coff;
+    double *WC;
     double *warm;                  /* np x (m + 1): the sparse path's last multipliers of
                                       p_j's stage solve, [m]: 1 when they converged */
     double h;                      /* the step being taken */
@@ -61,7 +67,9 @@ typedef struct fcc_sens {
 } fcc_sens;
 
 /* Allocate for np parameters of the model (dP: np x model->n_p numbers, kept by
- * the caller). Returns FCC_OK, FCC_ERR_MEMORY, or FCC_ERR_ARGUMENT when dp does not
+ * the caller). The element parameters that dP moves here are the ones whose columns
+ * of the tangent are prepared for every run: a dP given later (s->dP before
+ * fcc_sens_start) may move only those (the export gives every key's here). Returns FCC_OK, FCC_ERR_MEMORY, or FCC_ERR_ARGUMENT when dp does not
  * hold the model's classes in its order. */
 int fcc_sens_init(fcc_sens *s, const fcc_model *model, const fcc_dp_table *dp, int np,
                   const double *dP);

@@ -19,7 +19,7 @@ from ...progress import Progress, Reporter
 from ...render import environment
 
 DP_HEADER = "fcc_dp.h"
-DP_FORMAT = 3              # bump when the kernels' meaning or layout changes
+DP_FORMAT = 4              # bump when the kernels' meaning or layout changes
 
 
 def dp_hash(classes) -> str:
