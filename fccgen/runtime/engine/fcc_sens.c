@@ -213,21 +213,49 @@ static void prepare(fcc_engine *e, fcc_sens *s, const double *q, const double *v
     }
 }
 
+/* lout (nout numbers) += d col. */
+static void add_column(fcc_sens *s, int nout, double d, const double *col)
+{
+    int r;
+    for (r = 0; r < nout; r++)
+        s->lout[r] += d * col[r];
+}
+
 /* Add element el's parameters' part J_p dP_el to lout (nout numbers): from the
  * prepared columns (WC), which hold every element parameter some p_j moves. */
 static void add_columns(fcc_sens *s, int el, int nout, const double *dPe)
 {
-    int c, r;
-    double d;
-    const double *col;
-    for (c = s->cptr[el]; c < s->cptr[el + 1]; c++) {
-        d = dPe[s->ccol[c]];
-        if (d == 0.0)
-            continue;
-        col = s->WC + s->coff[c];
-        for (r = 0; r < nout; r++)
-            s->lout[r] += d * col[r];
+    int c;
+    for (c = s->cptr[el]; c < s->cptr[el + 1]; c++)
+        if (dPe[s->ccol[c]] != 0.0)
+            add_column(s, nout, dPe[s->ccol[c]], s->WC + s->coff[c]);
+}
+
+/* Element el's state part J_state [sq; sv] into lout, from its prepared entries w. */
+static void apply_state(fcc_sens *s, int el, const double *w, const double *sq,
+                        const double *sv)
+{
+    const fcc_model *md = s->model;
+    const fcc_dp_class *k = dp_class(s, el);
+    const int *idx = md->qidx + md->qptr[el];
+    int i;
+    for (i = 0; i < k->n_q; i++) {
+        s->lsq[i] = sq[idx[i]];
+        s->lsv[i] = sv[idx[i]];
     }
+    k->apply(w, s->lsq, s->lsv, s->lout);
+}
+
+/* Element el's lout into rhs (its coordinates) and into b, gp, phi (its rows). */
+static void scatter(fcc_sens *s, int el)
+{
+    const fcc_model *md = s->model;
+    const fcc_dp_class *k = dp_class(s, el);
+    const int *idx = md->qidx + md->qptr[el];
+    int i;
+    for (i = 0; i < k->n_q; i++)
+        s->rhs[idx[i]] += s->lout[i];
+    store_rows(s, md->gptr[el], k->n_q, k->n_g);
 }
 
 /* fcc_sens_sweep with the tangents prepared at the stage (fcc_sens_stage_begin):
@@ -237,24 +265,14 @@ static void prepared_sweep(fcc_sens *s, const double *sq, const double *sv,
                            const double *dPj)
 {
     const fcc_model *md = s->model;
-    int el, i, nq, ng;
-    const int *idx;
+    int el;
     const fcc_dp_class *k;
     memset(s->rhs, 0, (size_t)s->n * sizeof(double));
     for (el = 0; el < md->n_el; el++) {
         k = dp_class(s, el);
-        nq = k->n_q;
-        ng = k->n_g;
-        idx = md->qidx + md->qptr[el];
-        for (i = 0; i < nq; i++) {
-            s->lsq[i] = sq[idx[i]];
-            s->lsv[i] = sv[idx[i]];
-        }
-        k->apply(s->W + s->woff[el], s->lsq, s->lsv, s->lout);
-        add_columns(s, el, nq + 3 * ng, dPj + md->pptr[el]);
-        for (i = 0; i < nq; i++)
-            s->rhs[idx[i]] += s->lout[i];
-        store_rows(s, md->gptr[el], nq, ng);
+        apply_state(s, el, s->W + s->woff[el], sq, sv);
+        add_columns(s, el, k->n_q + 3 * k->n_g, dPj + md->pptr[el]);
+        scatter(s, el);
     }
 }
 
@@ -270,36 +288,24 @@ void fcc_sens_sweep(fcc_engine *e, fcc_sens *s, const double *q, const double *v
 {
     const fcc_model *md = s->model;
     const double *params = e->asmb->params;
-    int el, i, c, r, nq, ng, nout;
-    const int *idx;
+    int el, c, nout;
     const fcc_dp_class *k;
     double *w;
     memset(s->rhs, 0, (size_t)s->n * sizeof(double));
     for (el = 0; el < md->n_el; el++) {
         k = dp_class(s, el);
-        nq = k->n_q;
-        ng = k->n_g;
-        nout = nq + 3 * ng;
-        idx = md->qidx + md->qptr[el];
+        nout = k->n_q + 3 * k->n_g;
         gather(s, el, q, v, a, lam);
         w = s->W + s->woff[el];
         k->prepare(s->lq, s->lv, params + md->pptr[el], s->la, s->llam, w);
-        for (i = 0; i < nq; i++) {
-            s->lsq[i] = sq[idx[i]];
-            s->lsv[i] = sv[idx[i]];
-        }
-        k->apply(w, s->lsq, s->lsv, s->lout);
+        apply_state(s, el, w, sq, sv);
         for (c = 0; c < md->pptr[el + 1] - md->pptr[el]; c++) {
-            double d = dPj[md->pptr[el] + c];
-            if (d == 0.0)
+            if (dPj[md->pptr[el] + c] == 0.0)
                 continue;
             k->column(s->lq, s->lv, params + md->pptr[el], s->la, s->llam, c, s->lcol);
-            for (r = 0; r < nout; r++)
-                s->lout[r] += d * s->lcol[r];
+            add_column(s, nout, dPj[md->pptr[el] + c], s->lcol);
         }
-        for (i = 0; i < nq; i++)
-            s->rhs[idx[i]] += s->lout[i];
-        store_rows(s, md->gptr[el], nq, ng);
+        scatter(s, el);
     }
 }
 
