@@ -10,7 +10,8 @@ n units (``systems.py``); the same geometry, masses, loads and initial state in 
 tool, the same step dt. fccgen: RK4 with projection (its default); MuJoCo: its RK4,
 loops closed by soft ``connect`` constraints; Exudyn: generalized-alpha with its
 sparse solver. MuJoCo has no model of the boom: its column says so. Time per
-step as in ``timing.py`` (CPU, warm, medians of interleaved repetitions). Prints the
+step as in ``timing.py`` (CPU, warm, medians of interleaved repetitions; the same k
+for every tool where ``systems.TIMED_STEPS`` sets one: the boom). Prints the
 table of times and ratios and the exponent p of time ~ N^p (least squares of log time
 on log N over the sizes >= --fit-from); writes ``STEM.csv`` and ``STEM.png`` (log-log;
 STEM is --name, default ``peers_scaling``) into --out-dir. ``--fccgen-no-projection`` runs
@@ -33,7 +34,8 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from systems import PEERS, ROOT, SYSTEMS, TIMED_SPAN, TITLES, n_coordinates  # noqa: E402
+from systems import (PEERS, ROOT, SYSTEMS, TIMED_SPAN, TIMED_STEPS, TITLES,  # noqa: E402
+                     n_coordinates)
 
 TOOLS = ("fccgen", "mujoco", "exudyn")
 DEFAULT_SIZES = {"a02": (5, 10, 20, 40, 80, 160, 320), "cart": (1, 2, 5, 10, 20, 50, 100, 200),
@@ -60,7 +62,7 @@ def measure(system, sizes, dt, reps, fccgen_solver, log, project=True):
     rows = []
     for n in sizes:
         timings = time_interleaved(make_models(system, n, dt, fccgen_solver, project),
-                                   reps, max_steps)
+                                   reps, max_steps, TIMED_STEPS[system])
         for t in timings.values():
             rows.append(dict(system=system, n=n, n_q=n_coordinates(system, n), tool=t.tool,
                              seconds_per_step=t.per_step, steps=t.steps, setup=t.setup,

@@ -30,6 +30,14 @@ PEERS = {"a02": ("mujoco", "exudyn"), "cart": ("mujoco", "exudyn"), "boom": ("ex
 # The boom swings between its bars' angles of 80 and 20 degrees to x, away from its
 # flat (singular) position at 0: its runs need no cap.
 TIMED_SPAN = {"a02": 1.2, "cart": None, "boom": None}
+# The steps k of every tool's timed runs (k and 2k steps: the steps k+1 .. 2k are
+# timed) where a tool's cost per step changes along the motion, so that each tool's own
+# calibrated k would time a different span. The boom starts at rest and Exudyn's step
+# costs more as it speeds up (100 units, whole runs: 0.66 ms per step in runs of 50
+# steps, 1.45 ms in runs of 4000; fccgen 0.72 and 0.56 ms); the calibration gave 13 to 33
+# steps from 250 units on, the slow start. So every tool times the steps 2001 .. 4000
+# (t = 2 s to 4 s), the span the calibration gives the cheapest sizes (k = 2000).
+TIMED_STEPS = {"a02": None, "cart": None, "boom": 2000}
 
 
 def _module(stem: str):
