@@ -2,7 +2,7 @@
 
     python benchmarks/peers/run.py [--system a02|cart|boom] [--sizes N ...] [--reps R]
                                    [--fccgen-solver auto|dense|sparse] [--dt 1e-3]
-                                   [--fccgen-no-projection] [--name STEM]
+                                   [--fccgen-no-projection] [--name STEM] [--steps K]
 
 Needs the ``peers`` extra (``pip install -e .[peers]``: mujoco, exudyn). Systems: the
 A02 N-four-bar chain (N loops), the n-link pendulum on a cart and the scissor boom of
@@ -11,9 +11,10 @@ tool, the same step dt. fccgen: RK4 with projection (its default); MuJoCo: its R
 loops closed by soft ``connect`` constraints; Exudyn: generalized-alpha with its
 sparse solver. MuJoCo has no model of the boom: its column says so. Time per
 step as in ``timing.py`` (CPU, warm, medians of interleaved repetitions; the same k
-for every tool where ``systems.TIMED_STEPS`` sets one: the boom). Prints the
-table of times and ratios and the exponent p of time ~ N^p (least squares of log time
-on log N over the sizes >= --fit-from); writes ``STEM.csv`` and ``STEM.png`` (log-log;
+for every tool where ``systems.TIMED_STEPS`` sets one, the boom, or ``--steps``
+gives one, within the system's ``TIMED_SPAN``). Prints the table of times and ratios
+and the exponent p of time ~ N^p (least squares of log time on log N over the sizes
+>= --fit-from); writes ``STEM.csv`` and ``STEM.png`` (log-log;
 STEM is --name, default ``peers_scaling``) into --out-dir. ``--fccgen-no-projection`` runs
 fccgen's RK4 without the projection after each step (``project=False``: what that
 projection costs; its constraint drift is then the integrator's). Run with
@@ -55,14 +56,17 @@ def make_models(system, n, dt, fccgen_solver, project=True):
     return models
 
 
-def measure(system, sizes, dt, reps, fccgen_solver, log, project=True):
+def measure(system, sizes, dt, reps, fccgen_solver, log, project=True, steps=None):
     from timing import MAX_STEPS, time_interleaved
+    steps = steps or TIMED_STEPS[system]
     span = TIMED_SPAN[system]
     max_steps = MAX_STEPS if span is None else max(1, min(MAX_STEPS, int(span / (2 * dt))))
+    if steps and span is not None:
+        steps = min(steps, max_steps)      # a given k stays within the span too
     rows = []
     for n in sizes:
         timings = time_interleaved(make_models(system, n, dt, fccgen_solver, project),
-                                   reps, max_steps, TIMED_STEPS[system])
+                                   reps, max_steps, steps)
         for t in timings.values():
             rows.append(dict(system=system, n=n, n_q=n_coordinates(system, n), tool=t.tool,
                              seconds_per_step=t.per_step, steps=t.steps, setup=t.setup,
@@ -155,6 +159,9 @@ def main(argv=None) -> int:
     ap.add_argument("--fit-from", type=int, default=10,
                     help="smallest size in the fit of the exponents")
     ap.add_argument("--out-dir", type=Path, default=ROOT / "docs" / "performance")
+    ap.add_argument("--steps", type=int,
+                    help="k of every tool's timed runs (k and 2k steps from the start), "
+                         "instead of each tool's calibrated k or the system's TIMED_STEPS")
     ap.add_argument("--name", default="peers_scaling",
                     help="stem of the written .csv and .png (default peers_scaling)")
     args = ap.parse_args(argv)
@@ -166,8 +173,9 @@ def main(argv=None) -> int:
     rows = []
     for system in systems:
         rows += measure(system, args.sizes or DEFAULT_SIZES[system], args.dt, args.reps,
-                        args.fccgen_solver, log, not args.fccgen_no_projection)
+                        args.fccgen_solver, log, not args.fccgen_no_projection, args.steps)
     note = (f"dt {args.dt:g} s, fccgen linear_solver {args.fccgen_solver}"
+            f"{f', k = {args.steps} steps' if args.steps else ''}"
             f"{', no projection' if args.fccgen_no_projection else ''}, "
             f"{args.reps} reps; {platform.machine()} {platform.system()}, "
             f"{os.cpu_count()} CPUs, Python {platform.python_version()}, "
