@@ -13,6 +13,15 @@ B_i and B_(i+1): 2N + 1 bodies and 3N + 1 hinges (6N + 2 equations on 6N + 3
 coordinates: 1 degree of freedom, no redundant equation in the plane). At the flat
 position the Jacobian loses rank; Exudyn's sparse LU is told to go on through it
 (``ignoreSingularJacobian``), as the chain passes it 20 times in the benchmark.
+
+Scissor boom of n units: bars a_k and b_k are planar rigid bodies (uniform bars, 2n
+bodies, 6n coordinates); every end node shared by two bars a ``RevoluteJoint2D``,
+every crossing pivot X_k a ``RevoluteJoint2D`` between the bars' middles; at the base
+T_0 and B_0 slide on the line x = 0 and X_0 on y = 0, each a ``PrismaticJoint2D`` to
+ground that leaves the rotation free (one equation: the point's distance from the
+line). 6n - 1 equations on 6n coordinates, no redundant one (fccgen's model has n + 1
+redundant z rows, which the plane leaves out). The torsion spring of pivot X_k is a
+``CoordinateSpringDamper`` on the two bars' angle coordinates (see ``build_boom``).
 """
 from __future__ import annotations
 
@@ -20,12 +29,13 @@ import math
 
 import exudyn as exu
 import numpy as np
-from exudyn.itemInterface import (CoordinateConstraint, MarkerBodyPosition,
-                                  MarkerNodeCoordinate, MassPoint2D, NodePoint2D,
-                                  NodePointGround, NodeRigidBody2D, ObjectGround, RevoluteJoint2D,
-                                  RigidBody2D, SensorBody)
+from exudyn.itemInterface import (CoordinateConstraint, CoordinateSpringDamper,
+                                  MarkerBodyPosition, MarkerBodyRigid, MarkerNodeCoordinate,
+                                  MassPoint2D, NodePoint2D, NodePointGround, NodeRigidBody2D,
+                                  ObjectGround, PrismaticJoint2D, RevoluteJoint2D, RigidBody2D,
+                                  SensorBody)
 
-from systems import CART, FOUR_BAR
+from systems import BOOM, CART, FOUR_BAR
 
 
 class ExudynModel:
@@ -128,6 +138,56 @@ def build_cart(mbs, n: int):
     return rods[-1], [h, 0.0, 0.0]
 
 
+def _on_line(mbs, ground, point, body, local, normal):
+    """The body's point ``local`` kept on the line through ``point`` (on ground) whose
+    unit normal is ``normal`` (global): (p_ground - p_body) . normal = 0, the rotation
+    left free."""
+    m_body = mbs.AddMarker(MarkerBodyRigid(bodyNumber=body, localPosition=local))
+    m_ground = mbs.AddMarker(MarkerBodyRigid(bodyNumber=ground, localPosition=point))
+    # Exudyn's normal is in the second marker's frame: ground's, so it stays global.
+    mbs.AddObject(PrismaticJoint2D(markerNumbers=[m_body, m_ground], normalMarker1=normal,
+                                   constrainRotation=False))
+
+
+def build_boom(mbs, n: int):
+    """The unlatched scissor boom of n units, at rest at its folded angle, no gravity;
+    returns (body, local position) of the tip node T_n (the far end of bar a_(n-1)).
+
+    Bar a_k runs from B_k to T_(k+1) at the angle +beta to x, b_k from T_k to B_(k+1)
+    at -beta (beta = FOLDED), both centred on the pivot X_k = ((k + 1/2) w, 0), each
+    along its body's x axis. fccgen's torsion spring at X_k turns b_k relative to a_k:
+    theta = (phi_b - phi_a) - (phi_b - phi_a)(0), torque k (theta - free) with
+    free = 2 (FOLDED - FREE): the potential k/2 (theta - free)^2. Exudyn's coordinate
+    spring is k/2 (q_1 - q_0 - offset)^2 on node coordinates, which are displacements
+    from the reference (the initial angles here): q_0 = phi_a - phi_a(0),
+    q_1 = phi_b - phi_b(0), so q_1 - q_0 = theta and offset = free."""
+    L, h, m = BOOM.LENGTH, BOOM.LENGTH / 2, BOOM.MASS
+    beta = math.radians(BOOM.FOLDED)
+    w = L * math.cos(beta)
+    free = 2.0 * math.radians(BOOM.FOLDED - BOOM.FREE)
+    ground = mbs.AddObject(ObjectGround())
+    a, b = [], []
+    for k in range(n):
+        center = ((k + 0.5) * w, 0.0)
+        a.append(_rod(mbs, center, beta, (0.0, 0.0), 0.0, m, L))
+        b.append(_rod(mbs, center, -beta, (0.0, 0.0), 0.0, m, L))
+        _hinge(mbs, a[k], [0.0, 0.0, 0.0], b[k], [0.0, 0.0, 0.0])          # X_k
+        angle_a = mbs.AddMarker(MarkerNodeCoordinate(
+            nodeNumber=mbs.GetObject(a[k])["nodeNumber"], coordinate=2))
+        angle_b = mbs.AddMarker(MarkerNodeCoordinate(
+            nodeNumber=mbs.GetObject(b[k])["nodeNumber"], coordinate=2))
+        mbs.AddObject(CoordinateSpringDamper(markerNumbers=[angle_a, angle_b],
+                                             stiffness=BOOM.STIFFNESS, damping=0.0,
+                                             offset=free))
+    for k in range(1, n):
+        _hinge(mbs, a[k - 1], [h, 0.0, 0.0], b[k], [-h, 0.0, 0.0])        # T_k
+        _hinge(mbs, b[k - 1], [h, 0.0, 0.0], a[k], [-h, 0.0, 0.0])        # B_k
+    _on_line(mbs, ground, [0.0, 0.0, 0.0], b[0], [-h, 0.0, 0.0], [1.0, 0.0, 0.0])  # T_0
+    _on_line(mbs, ground, [0.0, 0.0, 0.0], a[0], [-h, 0.0, 0.0], [1.0, 0.0, 0.0])  # B_0
+    _on_line(mbs, ground, [0.0, 0.0, 0.0], a[0], [0.0, 0.0, 0.0], [0.0, 1.0, 0.0])  # X_0
+    return a[-1], [h, 0.0, 0.0]
+
+
 def _gravity(mbs, bodies, mass, g):
     from exudyn.itemInterface import Force
     for body in bodies:
@@ -135,7 +195,7 @@ def _gravity(mbs, bodies, mass, g):
         mbs.AddLoad(Force(markerNumber=marker, loadVector=[0.0, -mass * g, 0.0]))
 
 
-BUILDERS = {"a02": build_a02, "cart": build_cart}
+BUILDERS = {"a02": build_a02, "cart": build_cart, "boom": build_boom}
 
 
 def make(system: str, n: int, dt: float, **options) -> ExudynModel:

@@ -43,11 +43,18 @@ def calibrate(model, probe: int = 10, max_steps: int = MAX_STEPS) -> int:
     return int(min(max_steps, max(MIN_STEPS, round(TARGET_SECONDS / per_step))))
 
 
-def time_interleaved(models: dict, reps: int, max_steps: int = MAX_STEPS
-                     ) -> dict[str, Timing]:
+def time_interleaved(models: dict, reps: int, max_steps: int = MAX_STEPS,
+                     fixed_steps: int | None = None) -> dict[str, Timing]:
     """{tool: Timing} of models {tool: model with advance(n_steps)}; k at most
-    max_steps (the long runs: 2 max_steps steps)."""
-    steps = {tool: calibrate(m, max_steps=max_steps) for tool, m in models.items()}
+    max_steps (the long runs: 2 max_steps steps), or k = fixed_steps for every tool
+    (after a warm-up run of a few steps): then all of them time the same span of the
+    motion, steps k+1 .. 2k."""
+    if fixed_steps is None:
+        steps = {tool: calibrate(m, max_steps=max_steps) for tool, m in models.items()}
+    else:
+        for m in models.values():
+            m.advance(MIN_STEPS)
+        steps = dict.fromkeys(models, fixed_steps)
     short = {tool: [] for tool in models}
     long = {tool: [] for tool in models}
     for _ in range(reps):
