@@ -98,13 +98,14 @@ int fcc_events_init(fcc_events *ev, const fcc_event_spec *c, const double *const
     ev->rested = FCC_CALLOC(ne + 1, sizeof(int));
     ev->tie = FCC_CALLOC(2 * ne + 1, sizeof(int));
     ev->s_prev = FCC_CALLOC(2 * ne + 1, sizeof(double));
+    ev->s_left = FCC_CALLOC(4 * ne + 1, sizeof(double));
     ev->rel_sign = FCC_CALLOC(ne + 1, sizeof(double));
     ev->acc = FCC_CALLOC(n + 1, sizeof(double));
     ev->log = FCC_CALLOC((size_t)c->cap_log * FCC_LOG_COLS + 1, sizeof(double));
     if (!ev->p || !ev->s0 || !ev->s1 || !ev->sg || !ev->r || !ev->rg || !ev->rb
             || !ev->z || !ev->gz || !ev->mu || !ev->held || !ev->active || !ev->used
             || !ev->rested || !ev->rel_sign || !ev->acc || !ev->log || !ev->tie
-            || !ev->s_prev || !ev->rgv || !ev->fold_free) {
+            || !ev->s_prev || !ev->s_left || !ev->rgv || !ev->fold_free) {
         fcc_events_free(ev);
         return FCC_ERR_MEMORY;
     }
@@ -119,7 +120,7 @@ int fcc_events_init(fcc_events *ev, const fcc_event_spec *c, const double *const
 void fcc_events_free(fcc_events *ev)
 {
     FCC_FREE(ev->p); FCC_FREE(ev->s0); FCC_FREE(ev->s1); FCC_FREE(ev->sg);
-    FCC_FREE(ev->tie); FCC_FREE(ev->s_prev);
+    FCC_FREE(ev->tie); FCC_FREE(ev->s_prev); FCC_FREE(ev->s_left);
     FCC_FREE(ev->r); FCC_FREE(ev->rg); FCC_FREE(ev->rb); FCC_FREE(ev->z);
     FCC_FREE(ev->gz); FCC_FREE(ev->mu); FCC_FREE(ev->held); FCC_FREE(ev->active);
     FCC_FREE(ev->used); FCC_FREE(ev->rested); FCC_FREE(ev->rel_sign); FCC_FREE(ev->acc);

@@ -71,6 +71,8 @@ typedef struct fcc_events {
     int *tie;                 /* per watched value (2 ne): TIE_ marks of the step's
                                  crossings (fcc_ev_mark_crossed, fcc_ev_next_tie) */
     double *s_prev;           /* 2 ne: the watched values before the located instant */
+    double *s_left;           /* 4 ne: the watched values at the left end of a location's
+                                 bracket, then of the earliest location's (rk4) */
     double *rel_sign;         /* per event: the sign making its release function > 0
                                  when the resting contact's multiplier pulls */
     double *acc;              /* n: accelerations for the release functions */
