@@ -381,6 +381,7 @@ cdef extern from "fcc_events.h":
         int max_turn_j
         int fold
         long n_fold_off
+        long n_switch_solves
 
     ctypedef struct fcc_bracket:
         double a, b

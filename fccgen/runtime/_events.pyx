@@ -179,6 +179,12 @@ cdef class EventSet:
         return self.c.n_fold_off
 
     @property
+    def switch_solves(self):
+        """The last run's constrained solves for the rows' responses in the
+        decisions of its switches (on the sparse path; one per row and instant)."""
+        return self.c.n_switch_solves
+
+    @property
     def tol(self):
         return self.spec.tol
 

@@ -452,7 +452,7 @@ class CompiledSolver:
         finally:
             if events is not None:
                 log, turn, dropped = events.log(), events.largest_turn, events.dropped
-                folded = (events.folded, events.fold_left)
+                folded = (events.folded, events.fold_left, events.switch_solves)
                 events.restore()          # direct kernel calls: references as planned
         result.info["setup"] = self.setup_store.report()
         if report is not None:
@@ -462,6 +462,8 @@ class CompiledSolver:
             # else a Schur complement; fold_left: it fell back (a row's pattern)
             result.info["event_rows_folded"] = bool(folded[0])
             result.info["event_fold_left"] = int(folded[1])
+            # the switches' responses to the held rows (one per row and instant)
+            result.info["event_switch_solves"] = int(folded[2])
         if events is not None:
             turn_check(result, self.plan, self.events_module, events,
                        turn if m.name in REBASING else None)

@@ -98,13 +98,14 @@ int fcc_events_init(fcc_events *ev, const fcc_event_spec *c, const double *const
     ev->rested = FCC_CALLOC(ne + 1, sizeof(int));
     ev->tie = FCC_CALLOC(2 * ne + 1, sizeof(int));
     ev->s_prev = FCC_CALLOC(2 * ne + 1, sizeof(double));
+    ev->s_left = FCC_CALLOC(4 * ne + 1, sizeof(double));
     ev->rel_sign = FCC_CALLOC(ne + 1, sizeof(double));
     ev->acc = FCC_CALLOC(n + 1, sizeof(double));
     ev->log = FCC_CALLOC((size_t)c->cap_log * FCC_LOG_COLS + 1, sizeof(double));
     if (!ev->p || !ev->s0 || !ev->s1 || !ev->sg || !ev->r || !ev->rg || !ev->rb
             || !ev->z || !ev->gz || !ev->mu || !ev->held || !ev->active || !ev->used
             || !ev->rested || !ev->rel_sign || !ev->acc || !ev->log || !ev->tie
-            || !ev->s_prev || !ev->rgv || !ev->fold_free) {
+            || !ev->s_prev || !ev->s_left || !ev->rgv || !ev->fold_free) {
         fcc_events_free(ev);
         return FCC_ERR_MEMORY;
     }
@@ -119,13 +120,14 @@ int fcc_events_init(fcc_events *ev, const fcc_event_spec *c, const double *const
 void fcc_events_free(fcc_events *ev)
 {
     FCC_FREE(ev->p); FCC_FREE(ev->s0); FCC_FREE(ev->s1); FCC_FREE(ev->sg);
-    FCC_FREE(ev->tie); FCC_FREE(ev->s_prev);
+    FCC_FREE(ev->tie); FCC_FREE(ev->s_prev); FCC_FREE(ev->s_left);
     FCC_FREE(ev->r); FCC_FREE(ev->rg); FCC_FREE(ev->rb); FCC_FREE(ev->z);
     FCC_FREE(ev->gz); FCC_FREE(ev->mu); FCC_FREE(ev->held); FCC_FREE(ev->active);
     FCC_FREE(ev->used); FCC_FREE(ev->rested); FCC_FREE(ev->rel_sign); FCC_FREE(ev->acc);
     FCC_FREE(ev->log); FCC_FREE(ev->aug); FCC_FREE(ev->svm); FCC_FREE(ev->sig);
     FCC_FREE(ev->svw); FCC_FREE(ev->mslot); FCC_FREE(ev->mang); FCC_FREE(ev->mkeep);
     FCC_FREE(ev->zlam); FCC_FREE(ev->zlam_ok); FCC_FREE(ev->rgv);
+    FCC_FREE(ev->zslot); FCC_FREE(ev->zc); FCC_FREE(ev->zc_ok); FCC_FREE(ev->zq);
     FCC_FREE(ev->fold_from); FCC_FREE(ev->fold_free);
     memset(ev, 0, sizeof(*ev));
 }
@@ -156,12 +158,32 @@ int fcc_events_rank_work(fcc_events *ev, const fcc_lapack *lapack, int m)
 
 int fcc_events_sparse_work(fcc_events *ev, int m)
 {
+    const fcc_event_spec *c = ev->spec;
+    int i, k, rows = 0, nr = c->nr;
     FCC_FREE(ev->zlam); FCC_FREE(ev->zlam_ok);
+    FCC_FREE(ev->zslot); FCC_FREE(ev->zc); FCC_FREE(ev->zc_ok); FCC_FREE(ev->zq);
     ev->mz = 0;
-    ev->zlam = FCC_CALLOC((size_t)ev->spec->nr * m + 1, sizeof(double));
-    ev->zlam_ok = FCC_CALLOC((size_t)ev->spec->nr + 1, sizeof(int));
-    if (!ev->zlam || !ev->zlam_ok)
+    ev->nzc = 0;
+    ev->zc_valid = 0;
+    ev->zlam = FCC_CALLOC((size_t)nr * m + 1, sizeof(double));
+    ev->zlam_ok = FCC_CALLOC((size_t)nr + 1, sizeof(int));
+    ev->zslot = FCC_CALLOC((size_t)nr + 1, sizeof(int));
+    if (!ev->zlam || !ev->zlam_ok || !ev->zslot)
         return FCC_ERR_MEMORY;
+    for (i = 0; i < nr; i++)
+        ev->zslot[i] = -1;
+    for (k = 0; k < c->ne; k++) {             /* the rows a lock or a rest can hold */
+        if (c->row[k] >= 0 && ev->zslot[c->row[k]] < 0)
+            ev->zslot[c->row[k]] = rows++;
+        if (c->row2[k] >= 0 && ev->zslot[c->row2[k]] < 0)
+            ev->zslot[c->row2[k]] = rows++;
+    }
+    ev->zc = FCC_CALLOC((size_t)rows * c->n + 1, sizeof(double));
+    ev->zc_ok = FCC_CALLOC((size_t)rows + 1, sizeof(int));
+    ev->zq = FCC_CALLOC((size_t)c->n + 1, sizeof(double));
+    if (!ev->zc || !ev->zc_ok || !ev->zq)
+        return FCC_ERR_MEMORY;
+    ev->nzc = rows;
     ev->mz = m;
     return FCC_OK;
 }
@@ -182,6 +204,8 @@ void fcc_events_reset(fcc_events *ev)
     memset(ev->rested, 0, (size_t)c->ne * sizeof(int));
     if (ev->zlam_ok != NULL)
         memset(ev->zlam_ok, 0, (size_t)c->nr * sizeof(int));
+    ev->zc_valid = 0;
+    ev->n_switch_solves = 0;
     ev->n_log = 0;
     ev->stop = 0;
 }

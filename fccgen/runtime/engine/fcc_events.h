@@ -71,6 +71,8 @@ typedef struct fcc_events {
     int *tie;                 /* per watched value (2 ne): TIE_ marks of the step's
                                  crossings (fcc_ev_mark_crossed, fcc_ev_next_tie) */
     double *s_prev;           /* 2 ne: the watched values before the located instant */
+    double *s_left;           /* 4 ne: the watched values at the left end of a location's
+                                 bracket, then of the earliest location's (rk4) */
     double *rel_sign;         /* per event: the sign making its release function > 0
                                  when the resting contact's multiplier pulls */
     double *acc;              /* n: accelerations for the release functions */
@@ -81,6 +83,15 @@ typedef struct fcc_events {
     int mz;                   /* the sparse engine's rows (0: no warm starts) */
     double *zlam;             /* nr x mz: each row's response's last multipliers */
     int *zlam_ok;             /* per quantity row: zlam holds converged ones */
+    /* the sparse decision's responses kept at one q (decide_pivots): a tie of many
+     * locks at one instant computes each row's response once, not once per lock */
+    int *zslot;               /* per quantity row: its row of zc (-1: never locked) */
+    double *zc;               /* (lockable rows) x n: the responses at zq */
+    int *zc_ok;               /* per lockable row: zc holds its response at zq */
+    int nzc;                  /* the lockable rows */
+    double *zq;               /* n: the q of those responses */
+    int zc_valid;             /* zq holds a q (0: nothing kept) */
+    long n_switch_solves;     /* the run's responses solved for those decisions */
     int note;                 /* FCC_NOTE_ bits of the last switch */
     double note_sigma;        /* the smallest relative singular value in the band */
     int stop;                 /* a stop event happened */

@@ -158,6 +158,7 @@ static int locate(fcc_engine *e, fcc_rk4 *r, int k, double t0, double h,
     double c, fc, g = 0.0;
     int rc, have = 0;
     fcc_ev_bracket(ev, k, &br, h);
+    memcpy(ev->s_left, ev->s0, 2 * (size_t)ne * sizeof(double));
     if (ip != NULL && k < ne)
         have = fcc_ev_guess(ev, k, ip, &br, 0.0, &g);
     while (fcc_ev_bracket_open(ev, &br, 1.0)) {
@@ -173,6 +174,8 @@ static int locate(fcc_engine *e, fcc_rk4 *r, int k, double t0, double h,
             return -1;
         fc = ev->s1[2 * ne + k];
         fcc_ev_bracket_update(ev, k, &br, c, fc);
+        if (br.a == c)                    /* every value at the bracket's left end */
+            memcpy(ev->s_left, ev->s1 + 2 * ne, 2 * (size_t)ne * sizeof(double));
         if (have && fcc_ev_bracket_open(ev, &br, 1.0)) {   /* the offset at c */
             fc -= fcc_ev_interp_value(ev, k, ip, c);
             have = fcc_ev_guess(ev, k, ip, &br, fc, &g);
@@ -309,6 +312,12 @@ static int events(fcc_engine *e, fcc_rk4 *r, double t0, double h)
         for (j = k; j < 2 * ne; j++) {           /* the earliest of those that crossed */
             if (j > k && !fcc_ev_watched(ev, j, ev->s0, ev->s1))   /* a held lock */
                 continue;
+            /* one that had not crossed by the left end of the earliest bracket
+             * located crosses within it (a tie: acted at its instant, below) or
+             * after it: no location needed (a mast's 200 latches crossing together
+             * were located 200 times) */
+            if (j > k && !from_ip && !fcc_ev_watched(ev, j, ev->s0, ev->s_left + 2 * ne))
+                continue;
             found = on_ip && j < ne && fcc_ev_interp_locate(ev, j, ip, &tau);
             if (!found && locate(e, r, j, t0, h, ip, &tau) < 0)
                 return -1;
@@ -316,6 +325,9 @@ static int events(fcc_engine *e, fcc_rk4 *r, double t0, double h)
                 best = tau;
                 first = j;
                 from_ip = found;
+                if (!found)
+                    memcpy(ev->s_left + 2 * ne, ev->s_left,
+                           2 * (size_t)ne * sizeof(double));
             }
         }
         if (from_ip)

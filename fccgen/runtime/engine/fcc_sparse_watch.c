@@ -159,13 +159,18 @@ void fcc_sp_watch_rank(fcc_engine *e)
     int collapsed;
     if (k <= 0)
         return;
-    for (j = 0; j < k; j++) {
+    /* With held rows folded into A (fcc_sparse_fold.c), A^{-1} M takes the null-space
+     * directions those rows hold, which B's rank does not (the locked 24-bay mast:
+     * ||B_s N|| 3e-4 after one update, and an SVD of B): N stays as it was while they
+     * are held, its bound as valid (any orthonormal N of k columns), only no longer
+     * following the motion. */
+    for (j = 0; j < k && !s->sw_live; j++) {
         col = s->track + j * n;
         fcc_sp_mult_m(e, col, s->xw, 0);
         fcc_sp_solve_a(e, s->xw);
         memcpy(col, s->xw, (size_t)n * sizeof(double));
     }
-    collapsed = !orthonormalise(e);
+    collapsed = !s->sw_live && !orthonormalise(e);
     if (collapsed) {
         bound = INFINITY;
     } else {
