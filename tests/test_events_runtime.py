@@ -377,3 +377,34 @@ def test_gradient_rows_are_the_dense_kernels_nonzeros(model, floating, build_dir
         assert np.array_equal(dense, events.quantity_kernels(q, init.v)[1])
         assert np.count_nonzero(values) > 0                          # not vacuous
     assert model == "floating" or len(idx) < nr * n
+
+
+def test_kernels_printed_in_parts_give_the_same_values(build_dir, tmp_path, monkeypatch):
+    """Each event kernel is printed in parts of PART_ROWS rows, each its own C function
+    with its own common subexpressions (fccgen.events.build: one function of all rows
+    took over 20 minutes to compile for a mast of 200 latched bays). The solar array's
+    kernels printed one row per part (every kernel split) give the values of the
+    default print (one part at its size) at random states: the same expressions, so
+    equal to rounding (1e-15 of each kernel's largest value)."""
+    import fccgen.events.build as events_build
+    whole = api.load(EXAMPLES / "solar_array.yaml", build_dir)
+    monkeypatch.setattr(events_build, "PART_ROWS", 1)
+    split = api.load(EXAMPLES / "solar_array.yaml", tmp_path / "split")
+    kernels = events_build.print_kernels(
+        events_build.event_system(whole.plan))
+    assert all(len(k.parts) > 1 for k in kernels if len(k.outputs) > 1)
+    sets = [s._event_set(1e-12, 1e-6) for s in (whole, split)]
+    for events in sets:
+        events.reset(None)
+    init = whole.initial_state()
+    rng = np.random.default_rng(11)
+    for _ in range(3):
+        q = init.q + 0.05 * rng.standard_normal(init.q.shape)
+        v = rng.standard_normal(init.q.shape)
+        a, b = (events.quantity_kernels(q, v) for events in sets)
+        a += (sets[0].values(q, v, 0.3), sets[0].gradient_rows(q)[2])
+        b += (sets[1].values(q, v, 0.3), sets[1].gradient_rows(q)[2])
+        for x, y in zip(a, b):
+            x, y = np.asarray(x), np.asarray(y)
+            assert x.shape == y.shape
+            assert np.max(np.abs(x - y)) <= 1e-15 * max(1.0, np.max(np.abs(x)))

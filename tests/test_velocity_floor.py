@@ -36,7 +36,10 @@ def _locked_stats(locked_boom, monkeypatch, schur: bool) -> dict:
     result = solver.simulate(t_end=0.2, dt=1e-3, output_dt=0.01, reactions=False,
                              method="rk4")
     assert result.info["event_rows_folded"] is (not schur)
-    return solver._engine.rank_statistics()
+    stats = solver._engine.rank_statistics()
+    for key in ("sparse_solves", "sparse_iterations", "sparse_most_iterations"):
+        assert result.info[key] == stats[key], key       # the run reports them too
+    return stats
 
 
 def test_locked_projection_stops_at_the_runs_scale(locked_boom, monkeypatch):

@@ -3,9 +3,10 @@ into one small extension module, cached by a hash of the event expressions.
 
 Kernels (fccgen_events.h): event_values s_k(q, v, t), event_gradients ds_k/dq,
 quantity_values r_j(q) (joint angles and slides that events read or lock),
-quantity_gradients dr_j/dq and quantity_bias (d/dt dr_j/dq) v. Common subexpressions
-are eliminated over all outputs of a kernel together; structurally zero entries of the
-dense gradients are not printed (the kernel clears out first).
+quantity_gradients dr_j/dq and quantity_bias (d/dt dr_j/dq) v. Each kernel is printed
+in parts of PART_ROWS rows, common subexpressions eliminated over a part's outputs
+together; structurally zero entries of the dense gradients are not printed (the kernel
+clears out first).
 
 The quantities' Jacobian is also printed packed (quantity_gradient_values): only its
 structural nonzeros, row by row, with their columns (gradient_ptr, gradient_idx) in
@@ -31,48 +32,79 @@ from .symbolic import EventSystem, event_system
 EVENT_HEADER = "fccgen_events.h"
 
 
+# Rows (event functions or quantities) per part of a kernel. Common subexpressions are
+# eliminated within a part, and each part is its own C function: one function of all
+# rows made the compiler's time grow faster than the rows (the mast of 200 bays with a
+# latch per bay, 800 quantities: 5.4 MB of C, over 20 minutes at -O1), and SymPy's
+# elimination too. Rows of different parts rarely share a subexpression (each reads
+# its own joint's bodies).
+PART_ROWS = 32
+
+
+@dataclass(frozen=True)
+class KernelPart:
+    temporaries: tuple[tuple[str, str], ...]
+    outputs: tuple[tuple[int, int, str], ...]  # (slot, packed index, C expression)
+
+
 @dataclass(frozen=True)
 class EventKernel:
     name: str
     equation: str
     size: int
     sparse: bool                               # zero entries left out (out cleared)
-    temporaries: tuple[tuple[str, str], ...]
-    outputs: tuple[tuple[int, str], ...]       # (slot, C expression)
+    parts: tuple[KernelPart, ...]
     n_ops: int
     packed: bool = False                       # printed as <name>_values (out[k]: the
                                                # k-th output) and scattered to its slots
 
+    @property
+    def outputs(self) -> tuple[tuple[int, str], ...]:
+        """(slot, C expression) of every output, in order."""
+        return tuple((slot, expr) for part in self.parts for slot, _, expr in part.outputs)
+
 
 def _print(name: str, equation: str, exprs: list, system: EventSystem,
-           sparse: bool, packed: bool = False) -> EventKernel:
-    keep = [(k, e) for k, e in enumerate(exprs) if not (sparse and e == 0)]
-    values = [e for _, e in keep]
-    used = set().union(*(e.free_symbols for e in values)) if values else set()
-    temps, reduced = sympy.cse(values, symbols=sympy.numbered_symbols("x", exclude=used))
+           sparse: bool, packed: bool = False, width: int = 1) -> EventKernel:
+    """The kernel of exprs (rows of width outputs each), in parts of PART_ROWS rows."""
     slots = slot_map(system.q, system.v, system.p)
     slots[system.t] = "t"
     printer = KernelPrinter(slots)
-    n_ops = (sum(sympy.count_ops(e) for _, e in temps)
-             + sum(sympy.count_ops(e) for e in reduced))
-    return EventKernel(name, equation, len(exprs), sparse,
-                       tuple((str(s), printer.doprint(e)) for s, e in temps),
-                       tuple((k, printer.doprint(e)) for (k, _), e in zip(keep, reduced)),
-                       int(n_ops), packed and sparse)
+    parts, n_ops, index, step = [], 0, 0, PART_ROWS * max(width, 1)
+    for start in range(0, len(exprs), step):
+        keep = [(k, e) for k, e in enumerate(exprs[start:start + step], start)
+                if not (sparse and e == 0)]
+        if not keep:
+            continue
+        values = [e for _, e in keep]
+        used = set().union(*(e.free_symbols for e in values))
+        temps, reduced = sympy.cse(values,
+                                   symbols=sympy.numbered_symbols("x", exclude=used))
+        n_ops += (sum(sympy.count_ops(e) for _, e in temps)
+                  + sum(sympy.count_ops(e) for e in reduced))
+        parts.append(KernelPart(
+            tuple((str(s), printer.doprint(e)) for s, e in temps),
+            tuple((k, index + i, printer.doprint(e))
+                  for i, ((k, _), e) in enumerate(zip(keep, reduced)))))
+        index += len(keep)
+    return EventKernel(name, equation, len(exprs), sparse, tuple(parts), int(n_ops),
+                       packed and sparse)
 
 
 def print_kernels(system: EventSystem) -> list[EventKernel]:
     qty = [x.expr for x in system.quantities]
     grad = lambda exprs: [g for e in exprs for g in system.gradient(e)]   # noqa: E731
     zero = [sympy.S.Zero] * len(system.q)
+    width = len(system.q)
     return [
         _print("event_values", "s_k(q, v, t)", system.functions, system, False),
-        _print("event_gradients", "ds_k/dq", grad(system.functions), system, True),
+        _print("event_gradients", "ds_k/dq", grad(system.functions), system, True,
+               width=width),
         _print("quantity_values", "r_j(q)", qty, system, False),
         _print("quantity_gradients", "dr_j/dq",
                [g for x in system.quantities
                 for g in (system.gradient(x.expr) if x.lockable else zero)], system, True,
-               packed=True),
+               packed=True, width=width),
         _print("quantity_bias", "(d/dt dr_j/dq) v",
                [system.quantity_bias(x) if x.lockable else sympy.S.Zero
                 for x in system.quantities], system, False),

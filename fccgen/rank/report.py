@@ -31,7 +31,9 @@ def run_findings(decision: RankDecision, stats: dict,
         info.update(sparse_solves=int(stats["sparse_solves"]),
                     sparse_unconverged_solves=int(stats["sparse_unconverged"]),
                     sparse_dense_fallbacks=int(stats["sparse_dense_fallbacks"]),
-                    sparse_beyond_rank_solves=int(stats.get("sparse_beyond_rank", 0)))
+                    sparse_beyond_rank_solves=int(stats.get("sparse_beyond_rank", 0)),
+                    sparse_iterations=int(stats.get("sparse_iterations", 0)),
+                    sparse_most_iterations=int(stats.get("sparse_most_iterations", 0)))
         text = sparse_solve_warning(info)
         if text:
             warnings.append(text)
