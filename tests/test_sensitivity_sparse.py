@@ -146,7 +146,7 @@ def test_linear_directions_are_found_once_per_solver(paths, monkeypatch):
         parameters.directions(other, BOOM_KEYS[:1])
 
 
-def test_stage_solves_start_near_their_answer(build_dir):
+def test_stage_solves_start_near_their_answer(build_dir, tmp_path):
     """The sensitivities' solves on the sparse path (6 per step and key: 4 stages, 2
     projections) take about 2 solves with the factor each, the refinement's least
     (a first pass and the one that shows it converged): the stages half a step after
@@ -157,7 +157,7 @@ def test_stage_solves_start_near_their_answer(build_dir):
     boom of 7 units). Counts, not times: the bound 2.1 holds them to rounding's
     changes in when a refinement stops."""
     import fccgen
-    path = build_dir / "sens_sparse_boom3.yaml"
+    path = tmp_path / "sens_sparse_boom3.yaml"
     path.write_text(boom_text(units=3))
     solver = fccgen.load(path, build_dir, linear_solver="sparse")
     solver.simulate(**RUN, reactions=False)
