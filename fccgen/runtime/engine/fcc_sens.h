@@ -47,6 +47,10 @@ typedef struct fcc_sens {
     double *WC;
     double *warm;                  /* np x (m + 1): the sparse path's last multipliers of
                                       p_j's stage solve, [m]: 1 when they converged */
+    double *lam1, *lam3;           /* np x (m + 1) each, RK4 on the sparse path: p_j's
+                                      multipliers of the step's stage 1 and of the last
+                                      stage 3 (t + h3 / 2), [m] as warm's */
+    double h3;                     /* the step whose stage 3 lam3 holds */
     double h;                      /* the step being taken */
     /* events (fcc_sens_events.c; all NULL/0 without fcc_sens_events_init) */
     struct fcc_events *ev;         /* the run's events (not owned) */
