@@ -322,18 +322,29 @@ def test_latch_at_180_degrees_then_unlock(build_dir, tmp_path):
     assert result["H.angle"][-1] > math.pi + 0.05
 
 
+def _event_set(solver):
+    """The solver's compiled event state, reset (angle references 0, no rows held)."""
+    events = solver._event_set(1e-12, 1e-6)
+    events.reset(None)
+    return events
+
+
+def _random_states(solver, seed: int, count: int = 3):
+    """count states (q, v) near the solver's initial q: q moved by 0.05 times a
+    standard normal draw, v a standard normal draw."""
+    q0 = solver.initial_state().q
+    rng = np.random.default_rng(seed)
+    for _ in range(count):
+        yield q0 + 0.05 * rng.standard_normal(q0.shape), rng.standard_normal(q0.shape)
+
+
 def test_lock_row_kernels_match_finite_differences(floating):
     """The compiled joint-quantity kernels of the hinge between two moving bodies: G
     against central differences of r, and the bias (dG/dt) v against central
     differences of G v along v, at random states near the initial one. Step 1e-5:
     truncation ~1e-10 |r'''|, rounding ~1e-16 / 1e-5; checked at 1e-7 relative."""
-    events = floating._event_set(1e-12, 1e-6)
-    events.reset(None)
-    init = floating.initial_state()
-    rng = np.random.default_rng(5)
-    for _ in range(3):
-        q = init.q + 0.05 * rng.standard_normal(init.q.shape)
-        v = rng.standard_normal(init.q.shape)
+    events = _event_set(floating)
+    for q, v in _random_states(floating, 5):
         r, g, b = events.quantity_kernels(q, v)
         h = 1e-5
         fd_g = np.array([(events.quantity_kernels(q + h * e, v)[0]
@@ -358,12 +369,8 @@ def test_gradient_rows_are_the_dense_kernels_nonzeros(model, floating, build_dir
     array's latch rows a few of its 18."""
     solver = (floating if model == "floating"
               else api.load(EXAMPLES / "solar_array.yaml", build_dir))
-    events = solver._event_set(1e-12, 1e-6)
-    events.reset(None)
-    init = solver.initial_state()
-    rng = np.random.default_rng(7)
-    for _ in range(3):
-        q = init.q + 0.05 * rng.standard_normal(init.q.shape)
+    events = _event_set(solver)
+    for q, v in _random_states(solver, 7):
         ptr, idx, values, dense = events.gradient_rows(q)
         nr, n = dense.shape
         assert not np.isnan(dense).any()
@@ -374,7 +381,7 @@ def test_gradient_rows_are_the_dense_kernels_nonzeros(model, floating, build_dir
             assert np.all(np.diff(cols) > 0)
             scattered[j, cols] = values[ptr[j]:ptr[j + 1]]
         assert np.array_equal(scattered, dense)
-        assert np.array_equal(dense, events.quantity_kernels(q, init.v)[1])
+        assert np.array_equal(dense, events.quantity_kernels(q, v)[1])
         assert np.count_nonzero(values) > 0                          # not vacuous
     assert model == "floating" or len(idx) < nr * n
 
@@ -393,14 +400,8 @@ def test_kernels_printed_in_parts_give_the_same_values(build_dir, tmp_path, monk
     kernels = events_build.print_kernels(
         events_build.event_system(whole.plan))
     assert all(len(k.parts) > 1 for k in kernels if len(k.outputs) > 1)
-    sets = [s._event_set(1e-12, 1e-6) for s in (whole, split)]
-    for events in sets:
-        events.reset(None)
-    init = whole.initial_state()
-    rng = np.random.default_rng(11)
-    for _ in range(3):
-        q = init.q + 0.05 * rng.standard_normal(init.q.shape)
-        v = rng.standard_normal(init.q.shape)
+    sets = [_event_set(s) for s in (whole, split)]
+    for q, v in _random_states(whole, 11):
         a, b = (events.quantity_kernels(q, v) for events in sets)
         a += (sets[0].values(q, v, 0.3), sets[0].gradient_rows(q)[2])
         b += (sets[1].values(q, v, 0.3), sets[1].gradient_rows(q)[2])
