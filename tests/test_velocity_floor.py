@@ -31,6 +31,7 @@ def _locked_stats(locked_boom, monkeypatch, schur: bool) -> dict:
     from fccgen.runtime import CompiledSolver
     if schur:
         monkeypatch.setattr(CompiledSolver, "_switchable_patterns", None)
+    monkeypatch.setattr(CompiledSolver, "_fold_trial", False)     # the fold itself
     solver = CompiledSolver(locked_boom.plan, locked_boom.module, linear_solver="sparse",
                             events_module=locked_boom.events_module)
     result = solver.simulate(t_end=0.2, dt=1e-3, output_dt=0.01, reactions=False,

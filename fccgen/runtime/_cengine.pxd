@@ -382,6 +382,9 @@ cdef extern from "fcc_events.h":
         int fold
         long n_fold_off
         long n_switch_solves
+        int fold_trial
+        long n_trials
+        long n_trials_folded
 
     ctypedef struct fcc_bracket:
         double a, b

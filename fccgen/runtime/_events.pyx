@@ -173,6 +173,22 @@ cdef class EventSet:
         return self.was_folded
 
     @property
+    def fold_trial(self):
+        """Whether runs choose between the fold and the Schur complement after each
+        switch by measuring both (engine/fcc_events_fold.c, "Which is cheaper"; the
+        default), or keep the fold."""
+        return bool(self.c.fold_trial)
+
+    @fold_trial.setter
+    def fold_trial(self, bint on):
+        self.c.fold_trial = on
+
+    @property
+    def fold_trials(self):
+        """(trials decided in the last run, of which the fold won)."""
+        return self.c.n_trials, self.c.n_trials_folded
+
+    @property
     def fold_left(self):
         """Runs that left the fold for the Schur complement (a row read a
         coordinate outside its pattern)."""

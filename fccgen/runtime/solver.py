@@ -268,6 +268,11 @@ class CompiledSolver:
                            sparse, at=at,
                            switchable=self._switchable_patterns if fold else None)
 
+    # Folded runs choose between the fold and the Schur complement after each switch,
+    # by measuring a few steps of each (engine/fcc_events_fold.c, "Which is cheaper");
+    # False keeps the fold (tests of the fold itself).
+    _fold_trial = True
+
     @functools.cached_property
     def _switchable_patterns(self):
         """Per joint quantity of the model's events, the coordinates its gradient reads
@@ -452,7 +457,8 @@ class CompiledSolver:
         finally:
             if events is not None:
                 log, turn, dropped = events.log(), events.largest_turn, events.dropped
-                folded = (events.folded, events.fold_left, events.switch_solves)
+                folded = (events.folded, events.fold_left, events.switch_solves,
+                          events.fold_trials)
                 events.restore()          # direct kernel calls: references as planned
         result.info["setup"] = self.setup_store.report()
         if report is not None:
@@ -464,6 +470,9 @@ class CompiledSolver:
             result.info["event_fold_left"] = int(folded[1])
             # the switches' responses to the held rows (one per row and instant)
             result.info["event_switch_solves"] = int(folded[2])
+            # the fold against the Schur complement, measured after each switch
+            result.info["event_fold_trials"] = int(folded[3][0])
+            result.info["event_fold_trials_folded"] = int(folded[3][1])
         if events is not None:
             turn_check(result, self.plan, self.events_module, events,
                        turn if m.name in REBASING else None)
@@ -534,6 +543,7 @@ class CompiledSolver:
                           max_log=settings.LOG_ROWS, constants=st.constants)
         if st.mirror_slots:
             events.mirror(self._asm, st.mirror_slots, st.mirror_angles)
+        events.fold_trial = self._fold_trial
         return events
 
     @functools.cached_property

@@ -386,6 +386,8 @@ int fcc_ev_apply(fcc_engine *e, fcc_events *ev, int k, double *q, double *v, dou
     rc = apply(e, ev, k, q, v, t);
     ev->fold_live = live;
     e->factor_valid = 0;
+    if (rc == 0)
+        fcc_ev_trial_switch(e, ev);           /* fold or Schur: measured afresh */
     return rc;
 }
 

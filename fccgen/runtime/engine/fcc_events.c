@@ -80,6 +80,7 @@ int fcc_events_init(fcc_events *ev, const fcc_event_spec *c, const double *const
     int j;
     memset(ev, 0, sizeof(*ev));
     ev->spec = c;
+    ev->fold_trial = 1;
     ev->p = FCC_CALLOC((size_t)c->np + 1, sizeof(double));
     ev->s0 = FCC_CALLOC(2 * ne + 1, sizeof(double));
     ev->s1 = FCC_CALLOC(4 * ne + n + 1, sizeof(double));
@@ -206,6 +207,7 @@ void fcc_events_reset(fcc_events *ev)
         memset(ev->zlam_ok, 0, (size_t)c->nr * sizeof(int));
     ev->zc_valid = 0;
     ev->n_switch_solves = 0;
+    ev->n_trials = ev->n_trials_folded = 0;
     ev->n_log = 0;
     ev->stop = 0;
 }
@@ -417,8 +419,11 @@ int fcc_ev_correct(fcc_engine *e, fcc_events *ev, double *q, double *v)
     if (ev->n_used == 0)
         return 0;
     i = fcc_ev_fold_correct(e, ev, q);
-    if (i != 0)
+    if (i != 0) {
+        if (i > 0)
+            fcc_ev_trial_step(e, ev);
         return i < 0 ? -1 : 0;                /* folded: one solve (fold.c) */
+    }
     m = fcc_ev_responses(e, ev, q);
     c->tab->quantity_values(q, NULL, 0.0, ev->p, ev->r);
     for (i = 0; i < c->nr; i++) {
@@ -433,6 +438,7 @@ int fcc_ev_correct(fcc_engine *e, fcc_events *ev, double *q, double *v)
     if (fcc_ev_hold(e, ev, m, v, NULL, v) < 0)
         return -1;
     e->factor_valid = 0;                   /* q moved: the next stage refactors */
+    fcc_ev_trial_step(e, ev);
     return 0;
 }
 

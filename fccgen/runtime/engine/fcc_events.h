@@ -117,7 +117,25 @@ typedef struct fcc_events {
     int fold_cap;             /* ... room for this many */
     int *fold_free;           /* n + n_gradient_nz: work, then per entry of rgv: its
                                  coordinate is not pinned (fcc_events_fold.c) */
+    /* the choice between the fold and the Schur complement, made from the steps after
+     * each switch (fcc_events_fold.c, "Which is cheaper") */
+    int fold_able;            /* the rows can be folded in this run */
+    int fold_trial;           /* choose after each switch (1, the default) or keep
+                                 the fold (0) */
+    int trial_phase;          /* 0: none under way; 1: steps folded; 2: steps with the
+                                 Schur complement; -1: starts at the next step's end */
+    int trial_steps;          /* steps counted in the phase, or since the choice */
+    double trial_start;       /* the solves' cost at the phase's start */
+    double trial_cost[2];     /* the folded, the Schur complement's steps' cost */
+    double w_factor, w_iteration;  /* a factorisation's, a refinement step's cost */
+    long n_trials;            /* trials decided in the run */
+    long n_trials_folded;     /* ... that kept the fold */
 } fcc_events;
+
+/* Steps each way of a trial, and steps without a switch after which the choice is
+ * measured again (fcc_events_fold.c, "Which is cheaper"). */
+#define FCC_FOLD_TRIAL_STEPS 4
+#define FCC_FOLD_RETRIAL_STEPS 1000
 
 /* Illinois (modified regula falsi) on one watched value. */
 typedef struct fcc_bracket {
@@ -223,6 +241,10 @@ int fcc_events_fold(fcc_events *ev, fcc_engine *e, int on);
  * not folded now, the Schur complement instead; -1: failed). */
 int fcc_ev_fold_constrain(fcc_engine *e, fcc_events *ev);
 int fcc_ev_fold_correct(fcc_engine *e, fcc_events *ev, double *q);
+/* The trial's bookkeeping: after a switch (fcc_ev_apply) and at each step's end
+ * (fcc_ev_correct, after its correction). */
+void fcc_ev_trial_switch(fcc_engine *e, fcc_events *ev);
+void fcc_ev_trial_step(fcc_engine *e, fcc_events *ev);
 double fcc_ev_leaving(fcc_events *ev, int k, const double *q, const double *v,
                       double t);
 

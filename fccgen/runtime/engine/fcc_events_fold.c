@@ -23,6 +23,20 @@
  * pattern (on a free coordinate) turns the fold off for the rest of the run (counted
  * in n_fold_off), and its stages take the Schur complement from there, which reads the
  * whole row.
+ *
+ * Which is cheaper depends on the model, not on its size: on the scissor boom of 12
+ * units the fold's solves take half the refinement steps of the Schur complement's,
+ * on the scissor mast with a latch per bay (one DOF, every latch but one redundant)
+ * the folded row makes every solve slow and the Schur complement's solves, at 0 DOF,
+ * converge in two steps. So a run measures both after each switch that leaves rows
+ * used (fold_trial): FCC_FOLD_TRIAL_STEPS steps folded, then as many with the Schur
+ * complement, each step's cost counted from the sparse engine's statistics, which do
+ * not depend on the machine or its load (factorisations times a factorisation's
+ * multiply-adds over the pattern of L, refinement steps times a solve's and a
+ * product's), and keeps the cheaper until the next switch, or for
+ * FCC_FOLD_RETRIAL_STEPS steps, after which it measures again (the motion may have
+ * changed which is cheaper). The step after the switch itself is left out of both.
+ * The same run always makes the same choices.
  */
 #include <math.h>
 #include <string.h>
@@ -130,6 +144,8 @@ static void fill_rows(void *ctx, fcc_engine *e, const double *q, const double *v
             count += ev->rgv[k] != 0.0 && ev->fold_free[c->n + k];
         if (count != inside) {
             ev->fold = 0;                     /* outside its pattern: Schur from here */
+            ev->fold_able = 0;
+            ev->trial_phase = 0;
             ev->n_fold_off++;
             clear_rows(e);
             return;
@@ -138,13 +154,32 @@ static void fill_rows(void *ctx, fcc_engine *e, const double *q, const double *v
     }
 }
 
+/* The trial's weights: a factorisation's multiply-adds (sum over the columns of L of
+ * their entries squared, the up-looking LDL^T's work, and the assembly of A) and a
+ * refinement step's (one solve with L, D and L^T, and a product with A). */
+static void trial_weights(fcc_events *ev, const fcc_pattern *P)
+{
+    double f = 0.0, c;
+    int k;
+    for (k = 0; k < P->n; k++) {
+        c = (double)(P->Lp[k + 1] - P->Lp[k]);
+        f += c * c;
+    }
+    ev->w_factor = f + (double)P->nnz_a;
+    ev->w_iteration = 2.0 * (double)P->nnz_l + 2.0 * (double)P->nnz_a + (double)P->n;
+}
+
 int fcc_events_fold(fcc_events *ev, fcc_engine *e, int on)
 {
     fcc_sparse *s = &e->sp;
     ev->fold = on && e->sparse && s->pat != NULL && ev->spec->nr > 0
                && s->pat->n_sw == ev->spec->nr && fold_maps(ev, s->pat) == 0;
     ev->fold_live = ev->fold;
+    ev->fold_able = ev->fold;
+    ev->trial_phase = 0;
+    ev->trial_steps = 0;
     if (ev->fold) {
+        trial_weights(ev, s->pat);
         s->sw_fill = fill_rows;
         s->sw_ctx = ev;
     } else if (e->sparse && s->sw_ctx == ev) {
@@ -201,4 +236,56 @@ int fcc_ev_fold_correct(fcc_engine *e, fcc_events *ev, double *q)
         return fcc_fail(e, FCC_ERR_NONFINITE_RESULT, 0, 0);
     e->factor_valid = 0;                      /* q moved: the next stage refactors */
     return 1;
+}
+
+/* -- Which is cheaper: the trial after each switch --------------------------------- */
+
+static double solves_cost(const fcc_engine *e, const fcc_events *ev)
+{
+    return ev->w_factor * (double)e->sp.n_factor
+           + ev->w_iteration * (double)e->sp.n_iterations;
+}
+
+void fcc_ev_trial_switch(fcc_engine *e, fcc_events *ev)
+{
+    /* After a switch: rows used, a trial starts (folded) at the next step's end; none,
+     * nothing to choose. */
+    if (!(ev->fold_able && ev->fold_trial))
+        return;
+    ev->fold = 1;
+    ev->trial_phase = ev->n_used > 0 ? -1 : 0;
+    ev->trial_steps = 0;
+    e->factor_valid = 0;
+}
+
+void fcc_ev_trial_step(fcc_engine *e, fcc_events *ev)
+{
+    /* At a step's end, after its correction (the factor at q is the step's own, with
+     * or without the rows: a change of way takes effect from the next step on). */
+    double now;
+    int phase = ev->trial_phase;
+    if (!(ev->fold_able && ev->fold_trial && ev->n_used > 0))
+        return;
+    if (phase == 0 && ++ev->trial_steps < FCC_FOLD_RETRIAL_STEPS)
+        return;
+    if (phase == 0)
+        phase = -1;                           /* long since the choice: again */
+    now = solves_cost(e, ev);
+    if (phase < 0 || ++ev->trial_steps == FCC_FOLD_TRIAL_STEPS) {
+        if (phase > 0)
+            ev->trial_cost[phase - 1] = now - ev->trial_start;
+        ev->trial_phase = phase < 0 ? 1 : phase == 1 ? 2 : 0;
+        ev->trial_steps = 0;
+        ev->trial_start = now;
+        if (ev->trial_phase == 0) {
+            ev->n_trials++;
+            ev->fold = ev->trial_cost[0] <= ev->trial_cost[1];
+            ev->n_trials_folded += ev->fold;
+        } else {
+            ev->fold = ev->trial_phase == 1;
+        }
+        if (!ev->fold)
+            clear_rows(e);                    /* out of the next factorisation */
+        e->factor_valid = 0;
+    }
 }
