@@ -374,24 +374,39 @@ static void rest_sign(fcc_events *ev, int k, const double *q, const double *v, d
     ev->rel_sign[k] = d * (cz > 0.0 ? 1.0 : -1.0);
 }
 
-static int apply(fcc_engine *e, fcc_events *ev, int k, double *q, double *v, double t);
+static int apply(fcc_engine *e, fcc_events *ev, int k, double *q, double *v, double t,
+                 int held);
 
 int fcc_ev_apply(fcc_engine *e, fcc_events *ev, int k, double *q, double *v, double t)
 {
     /* apply, with the folded rows out of the factor (fcc_events_fold.c: the impacts
      * and the rank decision need the engine's own responses); the next stage factors
-     * with the rows folded again. */
+     * with the rows folded again. On the sparse path a switch at the q of the last
+     * one, with no factorisation since (the next of a tie of events at one instant:
+     * an impact changes v, not q), starts from the factor that switch left, which is
+     * the engine's own at q, instead of assembling and factoring the same matrix
+     * again. */
     int rc, live = ev->fold_live;
+    int held = e->sparse && ev->tie_valid && ev->tie_factors == e->sp.n_factor
+               && ev->tie_assembled == e->sp.n_assembled
+               && memcmp(ev->tie_q, q, (size_t)ev->spec->n * sizeof(double)) == 0;
     ev->fold_live = 0;
-    rc = apply(e, ev, k, q, v, t);
+    rc = apply(e, ev, k, q, v, t, held);
     ev->fold_live = live;
     e->factor_valid = 0;
+    ev->tie_valid = e->sparse && ev->tie_q != NULL && rc >= 0;
+    if (ev->tie_valid) {
+        memcpy(ev->tie_q, q, (size_t)ev->spec->n * sizeof(double));
+        ev->tie_factors = e->sp.n_factor;
+        ev->tie_assembled = e->sp.n_assembled;
+    }
     if (rc == 0)
         fcc_ev_trial_switch(e, ev);           /* fold or Schur: measured afresh */
     return rc;
 }
 
-static int apply(fcc_engine *e, fcc_events *ev, int k, double *q, double *v, double t)
+static int apply(fcc_engine *e, fcc_events *ev, int k, double *q, double *v, double t,
+                 int held)
 {
     /* Act on event k at the located state (q, v, t), in place, and log it. A bounce
      * with |s'| < v_rest, or k < 0 (the Zeno guard: -1 - k is the event), rests;
@@ -412,7 +427,8 @@ static int apply(fcc_engine *e, fcc_events *ev, int k, double *q, double *v, dou
     } else {
         act = c->action[k];
     }
-    if (fcc_project_velocities(e, q, v, 0) < 0)       /* factorisation at q, B v = 0 */
+    /* factorisation at q (held: the last switch's, at this q), B v = 0 */
+    if (fcc_project_velocities(e, q, v, held ? FCC_FACTOR_HELD : 0) < 0)
         return -1;
     ke0 = fcc_ev_kinetic(e, q, v);
     if (act == FCC_ACT_STOP) {
