@@ -72,10 +72,7 @@ int fcc_baumgarte(fcc_engine *e, const double *q, const double *v, double *a,
                   double alpha, double beta);
 /* Newton on g(q) = 0 in place: 0 converged, 1 not within max_newton, -1 error. */
 int fcc_project_positions(fcc_engine *e, double *q, int *iterations, int reuse);
-/* v <- the M-orthogonal projection of v onto B v = -dg/dt, in place. have_B: B is
- * assembled at q already; FCC_FACTOR_HELD (sparse path): M, B and the factorisation
- * held are those at q, nothing is assembled or factored. */
-#define FCC_FACTOR_HELD 2
+/* v <- the M-orthogonal projection of v onto B v = -dg/dt, in place. */
 int fcc_project_velocities(fcc_engine *e, const double *q, double *v, int have_B);
 /* max_k |g_k| / ||B_k|| with the g and B assembled last. */
 double fcc_constraint_residual(fcc_engine *e);

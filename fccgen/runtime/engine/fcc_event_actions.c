@@ -427,8 +427,10 @@ static int apply(fcc_engine *e, fcc_events *ev, int k, double *q, double *v, dou
     } else {
         act = c->action[k];
     }
-    /* factorisation at q (held: the last switch's, at this q), B v = 0 */
-    if (fcc_project_velocities(e, q, v, held ? FCC_FACTOR_HELD : 0) < 0)
+    /* factorisation at q, B v = 0; held (the next switch of a tie): the factor the
+     * last switch left at this q, and the v its impact left, which B v = 0 holds
+     * already (the impact adds responses z with B z = 0) */
+    if (!held && fcc_project_velocities(e, q, v, 0) < 0)
         return -1;
     ke0 = fcc_ev_kinetic(e, q, v);
     if (act == FCC_ACT_STOP) {

@@ -305,11 +305,9 @@ static double velocity_floor(fcc_engine *e, const double *v)
 int fcc_sp_project_velocities(fcc_engine *e, const double *q, double *v, int have_B)
 {
     fcc_sparse *s = &e->sp;
-    if (have_B != FCC_FACTOR_HELD) {
-        fcc_sp_assemble_mb(e, q, have_B ? FCC_ASM_M : FCC_ASM_M | FCC_ASM_B);
-        if (fcc_sp_factor(e, q) < 0)
-            return -1;
-    }
+    fcc_sp_assemble_mb(e, q, have_B ? FCC_ASM_M : FCC_ASM_M | FCC_ASM_B);
+    if (fcc_sp_factor(e, q) < 0)
+        return -1;
     velocity_targets(e, q, e->nb);
     if (pinned_still(e, v))                    /* M v on the view is enough */
         fcc_sp_mult_m(e, v, s->mv, 0);
