@@ -128,25 +128,24 @@ static void uncertain(fcc_engine *e, fcc_events *ev, double ratio)
 static void response_at(fcc_engine *e, fcc_events *ev, int i, const double *q, double *z)
 {
     size_t n = (size_t)ev->spec->n;
-    int slot = ev->zslot != NULL ? ev->zslot[i] : -1;
-    if (slot < 0 || ev->fold_live) {
-        fcc_ev_row_response(e, ev, i, z);
-        ev->n_switch_solves++;
-        return;
-    }
-    if (!ev->zc_valid || memcmp(ev->zq, q, n * sizeof(double)) != 0) {
-        memcpy(ev->zq, q, n * sizeof(double));
-        memset(ev->zc_ok, 0, (size_t)ev->nzc * sizeof(int));
-        ev->zc_valid = 1;
-    }
-    if (ev->zc_ok[slot]) {
-        memcpy(z, ev->zc + (size_t)slot * n, n * sizeof(double));
-        return;
+    int slot = ev->zslot != NULL && !ev->fold_live ? ev->zslot[i] : -1;
+    if (slot >= 0) {
+        if (!ev->zc_valid || memcmp(ev->zq, q, n * sizeof(double)) != 0) {
+            memcpy(ev->zq, q, n * sizeof(double));
+            memset(ev->zc_ok, 0, (size_t)ev->nzc * sizeof(int));
+            ev->zc_valid = 1;
+        }
+        if (ev->zc_ok[slot]) {
+            memcpy(z, ev->zc + (size_t)slot * n, n * sizeof(double));
+            return;
+        }
     }
     fcc_ev_row_response(e, ev, i, z);
     ev->n_switch_solves++;
-    memcpy(ev->zc + (size_t)slot * n, z, n * sizeof(double));
-    ev->zc_ok[slot] = 1;
+    if (slot >= 0) {
+        memcpy(ev->zc + (size_t)slot * n, z, n * sizeof(double));
+        ev->zc_ok[slot] = 1;
+    }
 }
 
 /* The sparse path's decision (the file's docstring): ev->used, ev->n_used, and the
