@@ -156,6 +156,37 @@ def test_a_tie_of_locks_solves_each_rows_response_once(mast3):
     assert sparse.info["event_switch_solves"] == 3
 
 
+def test_a_tie_of_locks_factors_once(mast3, build_dir, tmp_path):
+    """The next lock of a tie acts at the q of the one before, with no factorisation
+    in between: it starts from that lock's factor and from the v its impact left,
+    which B v = 0 holds already (engine/fcc_event_actions.c, fcc_ev_apply), instead
+    of assembling and factoring the same matrix again and projecting v once more. So
+    the first step of the mast whose three latches lock at one instant takes as many
+    factorisations as the same mast with one latch (measured 20 and 20; 24 latches
+    took 43 against 20 before: one more per lock and the slow solves' boosted
+    factors), and one more solve per extra lock, its row's response (two before,
+    with the velocity projection); the states are those of the dense path
+    (test_a_tie_of_locks_solves_each_rows_response_once)."""
+    head, events = latched_mast_text(3).split("events:\n")
+    kept = [line for line in events.splitlines()[1:] if not line.startswith("  - ")]
+    path = tmp_path / "mast3_one_latch.yaml"
+    path.write_text(head + "events:\n" + events.splitlines()[0] + "\n"
+                    + "\n".join(kept) + "\n")
+    one = api.load(path, build_dir, linear_solver="sparse")
+    counts = {}
+    for name, solver in (("three", mast3), ("one", one)):
+        fresh = CompiledSolver(solver.plan, solver.module, linear_solver="sparse",
+                               events_module=solver.events_module)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RunWarning)
+            result = fresh.simulate(t_end=1e-3, dt=1e-3, method="rk4", reactions=False)
+        counts[name] = (len(result.events), fresh._engine.rank_statistics()["factorisations"],
+                        result.info["sparse_solves"])
+    assert counts["three"][0] == 3 and counts["one"][0] == 1
+    assert counts["three"][1] == counts["one"][1], counts
+    assert counts["three"][2] == counts["one"][2] + 2, counts
+
+
 def test_held_rows_folded_do_not_start_an_svd_of_b(mast3, monkeypatch):
     """The rank-growth watch (engine/fcc_sparse_watch.c) tracks the null space of B
     through the factor; with the locked rows folded into it, that factor takes the

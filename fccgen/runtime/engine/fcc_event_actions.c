@@ -128,25 +128,24 @@ static void uncertain(fcc_engine *e, fcc_events *ev, double ratio)
 static void response_at(fcc_engine *e, fcc_events *ev, int i, const double *q, double *z)
 {
     size_t n = (size_t)ev->spec->n;
-    int slot = ev->zslot != NULL ? ev->zslot[i] : -1;
-    if (slot < 0 || ev->fold_live) {
-        fcc_ev_row_response(e, ev, i, z);
-        ev->n_switch_solves++;
-        return;
-    }
-    if (!ev->zc_valid || memcmp(ev->zq, q, n * sizeof(double)) != 0) {
-        memcpy(ev->zq, q, n * sizeof(double));
-        memset(ev->zc_ok, 0, (size_t)ev->nzc * sizeof(int));
-        ev->zc_valid = 1;
-    }
-    if (ev->zc_ok[slot]) {
-        memcpy(z, ev->zc + (size_t)slot * n, n * sizeof(double));
-        return;
+    int slot = ev->zslot != NULL && !ev->fold_live ? ev->zslot[i] : -1;
+    if (slot >= 0) {
+        if (!ev->zc_valid || memcmp(ev->zq, q, n * sizeof(double)) != 0) {
+            memcpy(ev->zq, q, n * sizeof(double));
+            memset(ev->zc_ok, 0, (size_t)ev->nzc * sizeof(int));
+            ev->zc_valid = 1;
+        }
+        if (ev->zc_ok[slot]) {
+            memcpy(z, ev->zc + (size_t)slot * n, n * sizeof(double));
+            return;
+        }
     }
     fcc_ev_row_response(e, ev, i, z);
     ev->n_switch_solves++;
-    memcpy(ev->zc + (size_t)slot * n, z, n * sizeof(double));
-    ev->zc_ok[slot] = 1;
+    if (slot >= 0) {
+        memcpy(ev->zc + (size_t)slot * n, z, n * sizeof(double));
+        ev->zc_ok[slot] = 1;
+    }
 }
 
 /* The sparse path's decision (the file's docstring): ev->used, ev->n_used, and the
@@ -374,24 +373,39 @@ static void rest_sign(fcc_events *ev, int k, const double *q, const double *v, d
     ev->rel_sign[k] = d * (cz > 0.0 ? 1.0 : -1.0);
 }
 
-static int apply(fcc_engine *e, fcc_events *ev, int k, double *q, double *v, double t);
+static int apply(fcc_engine *e, fcc_events *ev, int k, double *q, double *v, double t,
+                 int held);
 
 int fcc_ev_apply(fcc_engine *e, fcc_events *ev, int k, double *q, double *v, double t)
 {
     /* apply, with the folded rows out of the factor (fcc_events_fold.c: the impacts
      * and the rank decision need the engine's own responses); the next stage factors
-     * with the rows folded again. */
+     * with the rows folded again. On the sparse path a switch at the q of the last
+     * one, with no factorisation since (the next of a tie of events at one instant:
+     * an impact changes v, not q), starts from the factor that switch left, which is
+     * the engine's own at q, instead of assembling and factoring the same matrix
+     * again. */
     int rc, live = ev->fold_live;
+    int held = e->sparse && ev->tie_valid && ev->tie_factors == e->sp.n_factor
+               && ev->tie_assembled == e->sp.n_assembled
+               && memcmp(ev->tie_q, q, (size_t)ev->spec->n * sizeof(double)) == 0;
     ev->fold_live = 0;
-    rc = apply(e, ev, k, q, v, t);
+    rc = apply(e, ev, k, q, v, t, held);
     ev->fold_live = live;
     e->factor_valid = 0;
+    ev->tie_valid = e->sparse && ev->tie_q != NULL && rc >= 0;
+    if (ev->tie_valid) {
+        memcpy(ev->tie_q, q, (size_t)ev->spec->n * sizeof(double));
+        ev->tie_factors = e->sp.n_factor;
+        ev->tie_assembled = e->sp.n_assembled;
+    }
     if (rc == 0)
         fcc_ev_trial_switch(e, ev);           /* fold or Schur: measured afresh */
     return rc;
 }
 
-static int apply(fcc_engine *e, fcc_events *ev, int k, double *q, double *v, double t)
+static int apply(fcc_engine *e, fcc_events *ev, int k, double *q, double *v, double t,
+                 int held)
 {
     /* Act on event k at the located state (q, v, t), in place, and log it. A bounce
      * with |s'| < v_rest, or k < 0 (the Zeno guard: -1 - k is the event), rests;
@@ -412,7 +426,10 @@ static int apply(fcc_engine *e, fcc_events *ev, int k, double *q, double *v, dou
     } else {
         act = c->action[k];
     }
-    if (fcc_project_velocities(e, q, v, 0) < 0)       /* factorisation at q, B v = 0 */
+    /* factorisation at q, B v = 0; held (the next switch of a tie): the factor the
+     * last switch left at this q, and the v its impact left, which B v = 0 holds
+     * already (the impact adds responses z with B z = 0) */
+    if (!held && fcc_project_velocities(e, q, v, 0) < 0)
         return -1;
     ke0 = fcc_ev_kinetic(e, q, v);
     if (act == FCC_ACT_STOP) {

@@ -129,6 +129,7 @@ void fcc_events_free(fcc_events *ev)
     FCC_FREE(ev->svw); FCC_FREE(ev->mslot); FCC_FREE(ev->mang); FCC_FREE(ev->mkeep);
     FCC_FREE(ev->zlam); FCC_FREE(ev->zlam_ok); FCC_FREE(ev->rgv);
     FCC_FREE(ev->zslot); FCC_FREE(ev->zc); FCC_FREE(ev->zc_ok); FCC_FREE(ev->zq);
+    FCC_FREE(ev->tie_q);
     FCC_FREE(ev->fold_from); FCC_FREE(ev->fold_free);
     memset(ev, 0, sizeof(*ev));
 }
@@ -163,7 +164,9 @@ int fcc_events_sparse_work(fcc_events *ev, int m)
     int i, k, rows = 0, nr = c->nr;
     FCC_FREE(ev->zlam); FCC_FREE(ev->zlam_ok);
     FCC_FREE(ev->zslot); FCC_FREE(ev->zc); FCC_FREE(ev->zc_ok); FCC_FREE(ev->zq);
+    FCC_FREE(ev->tie_q);
     ev->mz = 0;
+    ev->tie_valid = 0;
     ev->nzc = 0;
     ev->zc_valid = 0;
     ev->zlam = FCC_CALLOC((size_t)nr * m + 1, sizeof(double));
@@ -182,7 +185,8 @@ int fcc_events_sparse_work(fcc_events *ev, int m)
     ev->zc = FCC_CALLOC((size_t)rows * c->n + 1, sizeof(double));
     ev->zc_ok = FCC_CALLOC((size_t)rows + 1, sizeof(int));
     ev->zq = FCC_CALLOC((size_t)c->n + 1, sizeof(double));
-    if (!ev->zc || !ev->zc_ok || !ev->zq)
+    ev->tie_q = FCC_CALLOC((size_t)c->n + 1, sizeof(double));
+    if (!ev->zc || !ev->zc_ok || !ev->zq || !ev->tie_q)
         return FCC_ERR_MEMORY;
     ev->nzc = rows;
     ev->mz = m;
@@ -206,6 +210,7 @@ void fcc_events_reset(fcc_events *ev)
     if (ev->zlam_ok != NULL)
         memset(ev->zlam_ok, 0, (size_t)c->nr * sizeof(int));
     ev->zc_valid = 0;
+    ev->tie_valid = 0;
     ev->n_switch_solves = 0;
     ev->n_trials = ev->n_trials_folded = 0;
     ev->n_log = 0;

@@ -92,6 +92,11 @@ typedef struct fcc_events {
     double *zq;               /* n: the q of those responses */
     int zc_valid;             /* zq holds a q (0: nothing kept) */
     long n_switch_solves;     /* the run's responses solved for those decisions */
+    double *tie_q;            /* n: the q of the last switch (sparse path) */
+    long tie_factors;         /* the engine's factorisations and assemblies of the */
+    long tie_assembled;       /* blocks at its end */
+    int tie_valid;            /* tie_q holds it: a switch at the same q with no
+                                 factorisation since reuses its factor (fcc_ev_apply) */
     int note;                 /* FCC_NOTE_ bits of the last switch */
     double note_sigma;        /* the smallest relative singular value in the band */
     int stop;                 /* a stop event happened */

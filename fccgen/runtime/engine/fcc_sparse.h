@@ -108,6 +108,7 @@ typedef struct fcc_sparse {
     double *Ax, *lb, *Lx, *Dinv, *Y;
     double *tperm;              /* n: the permuted right-hand side of a solve */
     long n_factor;
+    long n_assembled;           /* assemblies of the blocks (fcc_sp_assemble_blocks) */
     long n_boosted;             /* factorisations with FCC_AL_BOOST */
     int boost_hold;             /* factorisations left to make with FCC_AL_BOOST at
                                    once (fcc_al_refine.c, "Near a singular

@@ -68,6 +68,7 @@ void fcc_sp_assemble_blocks(fcc_engine *e, const double *q, const double *v, int
     double *dst;
     double *o = as->out, *lv = as->lv, *hv = as->h, *fv = as->f, *cv = as->c;
     int vec = flags & (FCC_ASM_H | FCC_ASM_F | FCC_ASM_C);
+    s->n_assembled++;
     if (flags & FCC_ASM_H) memset(hv, 0, (size_t)e->n * sizeof(double));
     if (flags & FCC_ASM_F) memset(fv, 0, (size_t)e->n * sizeof(double));
     if (flags & FCC_ASM_C) memset(cv, 0, (size_t)e->m * sizeof(double));
