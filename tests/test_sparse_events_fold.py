@@ -42,10 +42,12 @@ def latched_mast_text(n: int) -> str:
     return module.variants(module.latched_mast(n))[0]
 
 
-def run(solver, t_end, schur=False, patterns=None, monkeypatch=None, trial=False):
+def run(solver, t_end, schur=False, patterns=None, monkeypatch=None, trial=False,
+        engine=None):
     """A sparse RK4 run of a fresh solver of solver's model: folded (the set-up's
     patterns, or patterns), or with the Schur complement (no rows in the pattern);
-    trial: choosing between them after each switch (the default of simulate)."""
+    trial: choosing between them after each switch (the default of simulate).
+    engine: a dict that receives the fresh solver's engine statistics."""
     if schur or patterns is not None:
         monkeypatch.setattr(CompiledSolver, "_switchable_patterns",
                             None if schur else patterns)
@@ -54,7 +56,10 @@ def run(solver, t_end, schur=False, patterns=None, monkeypatch=None, trial=False
     fresh._fold_trial = trial
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RunWarning)
-        return fresh.simulate(t_end=t_end, dt=1e-3, method="rk4", reactions=False)
+        result = fresh.simulate(t_end=t_end, dt=1e-3, method="rk4", reactions=False)
+    if engine is not None:
+        engine.update(fresh._engine.rank_statistics())
+    return result
 
 
 @pytest.fixture(scope="module")
@@ -74,7 +79,7 @@ def mast12(build_dir, tmp_path_factory):
 
 
 @pytest.mark.parametrize("bays", [3, 12])
-def test_each_switch_keeps_the_cheaper_way(bays, mast3, mast12, monkeypatch):
+def test_each_switch_keeps_the_cheaper_way(bays, request, monkeypatch):
     """After the latches lock (in the first step), a run takes 4 steps folded and 4
     with the Schur complement, keeps the one whose solves cost less, and measures
     again 1000 steps later: two choices in 1.2 s. Which is cheaper depends on the
@@ -86,7 +91,7 @@ def test_each_switch_keeps_the_cheaper_way(bays, mast3, mast12, monkeypatch):
     chooses keeps the cheaper of the two every time (13,339 and 24,309 steps: the
     trials' 8 steps twice cost under 5 % more), and equals both forced runs to
     test_sparse_events.py's tolerances."""
-    solver = mast3 if bays == 3 else mast12
+    solver = request.getfixturevalue(f"mast{bays}")
     chosen = run(solver, 1.2, trial=True)
     folded = run(solver, 1.2)
     schur = run(solver, 1.2, schur=True, monkeypatch=monkeypatch)
@@ -175,12 +180,9 @@ def test_a_tie_of_locks_factors_once(mast3, build_dir, tmp_path):
     one = api.load(path, build_dir, linear_solver="sparse")
     counts = {}
     for name, solver in (("three", mast3), ("one", one)):
-        fresh = CompiledSolver(solver.plan, solver.module, linear_solver="sparse",
-                               events_module=solver.events_module)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RunWarning)
-            result = fresh.simulate(t_end=1e-3, dt=1e-3, method="rk4", reactions=False)
-        counts[name] = (len(result.events), fresh._engine.rank_statistics()["factorisations"],
+        stats = {}
+        result = run(solver, 1e-3, engine=stats)
+        counts[name] = (len(result.events), stats["factorisations"],
                         result.info["sparse_solves"])
     assert counts["three"][0] == 3 and counts["one"][0] == 1
     assert counts["three"][1] == counts["one"][1], counts
