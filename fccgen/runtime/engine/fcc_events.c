@@ -423,26 +423,25 @@ int fcc_ev_correct(fcc_engine *e, fcc_events *ev, double *q, double *v)
     int m, i, k = 0;
     if (ev->n_used == 0)
         return 0;
-    i = fcc_ev_fold_correct(e, ev, q);
-    if (i != 0) {
-        if (i > 0)
-            fcc_ev_trial_step(e, ev);
-        return i < 0 ? -1 : 0;                /* folded: one solve (fold.c) */
-    }
-    m = fcc_ev_responses(e, ev, q);
-    c->tab->quantity_values(q, NULL, 0.0, ev->p, ev->r);
-    for (i = 0; i < c->nr; i++) {
-        if (ev->used[i]) {
-            ev->mu[k] = ev->held[i] - ev->r[i];
-            k++;
+    i = fcc_ev_fold_correct(e, ev, q);      /* folded: one solve (fold.c) */
+    if (i < 0)
+        return -1;
+    if (i == 0) {                           /* the Schur complement's responses */
+        m = fcc_ev_responses(e, ev, q);
+        c->tab->quantity_values(q, NULL, 0.0, ev->p, ev->r);
+        for (i = 0; i < c->nr; i++) {
+            if (ev->used[i]) {
+                ev->mu[k] = ev->held[i] - ev->r[i];
+                k++;
+            }
         }
+        if (fcc_ev_multipliers(e, ev, m) < 0)
+            return -1;
+        add_responses(ev, m, q);
+        if (fcc_ev_hold(e, ev, m, v, NULL, v) < 0)
+            return -1;
+        e->factor_valid = 0;               /* q moved: the next stage refactors */
     }
-    if (fcc_ev_multipliers(e, ev, m) < 0)
-        return -1;
-    add_responses(ev, m, q);
-    if (fcc_ev_hold(e, ev, m, v, NULL, v) < 0)
-        return -1;
-    e->factor_valid = 0;                   /* q moved: the next stage refactors */
     fcc_ev_trial_step(e, ev);
     return 0;
 }

@@ -248,7 +248,7 @@ int fcc_ev_fold_constrain(fcc_engine *e, fcc_events *ev);
 int fcc_ev_fold_correct(fcc_engine *e, fcc_events *ev, double *q);
 /* The trial's bookkeeping: after a switch (fcc_ev_apply) and at each step's end
  * (fcc_ev_correct, after its correction). */
-void fcc_ev_trial_switch(fcc_engine *e, fcc_events *ev);
+void fcc_ev_trial_switch(fcc_events *ev);
 void fcc_ev_trial_step(fcc_engine *e, fcc_events *ev);
 double fcc_ev_leaving(fcc_events *ev, int k, const double *q, const double *v,
                       double t);

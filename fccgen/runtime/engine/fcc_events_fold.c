@@ -246,16 +246,16 @@ static double solves_cost(const fcc_engine *e, const fcc_events *ev)
            + ev->w_iteration * (double)e->sp.n_iterations;
 }
 
-void fcc_ev_trial_switch(fcc_engine *e, fcc_events *ev)
+void fcc_ev_trial_switch(fcc_events *ev)
 {
     /* After a switch: rows used, a trial starts (folded) at the next step's end; none,
-     * nothing to choose. */
+     * nothing to choose. fcc_ev_apply, the caller, has dropped the factor already:
+     * the next stage factors with or without the rows. */
     if (!(ev->fold_able && ev->fold_trial))
         return;
     ev->fold = 1;
     ev->trial_phase = ev->n_used > 0 ? -1 : 0;
     ev->trial_steps = 0;
-    e->factor_valid = 0;
 }
 
 void fcc_ev_trial_step(fcc_engine *e, fcc_events *ev)
