@@ -400,7 +400,7 @@ int fcc_ev_apply(fcc_engine *e, fcc_events *ev, int k, double *q, double *v, dou
         ev->tie_assembled = e->sp.n_assembled;
     }
     if (rc == 0)
-        fcc_ev_trial_switch(ev);           /* fold or Schur: measured afresh */
+        fcc_ev_trial_switch(ev);              /* fold or Schur: measured afresh */
     return rc;
 }
 
