@@ -156,3 +156,30 @@ def test_held_segments_follow_the_event_table(tmp_path):
     assert got == [(0, 3, []), (3, 4, held), (4, 5, []), (5, 7, held), (7, 10, [])]
     assert [joint_kinds(k) for k in ("revolute", "prismatic", "cylindrical")] == [
         ("angle",), ("position",), ("angle", "position")]
+
+
+def test_a_full_event_log_leaves_the_unknown_records_without_forces(tmp_path):
+    """A run whose event log dropped events (its rows full) does not know what its
+    locks held after the last logged event: its reactions and driver forces are NaN
+    from there on, with a warning each, never computed as if nothing were held; the
+    records before keep theirs."""
+    from fccgen.errors import RunWarning
+    from fccgen.mechanism.driver_forces import add_driver_columns
+    from fccgen.mechanism.reactions import add_reactions
+    from fccgen.runs.held_rows import of_run
+    solver = fccgen.load(write(tmp_path, DRIVEN_LATCH))
+    full = solver.simulate()
+    result = solver.simulate(reactions=False)
+    (latch,) = result.events
+    rows = solver._held_quantities(solver._event_set(1e-12, 1e-6))
+    held = of_run(solver, result, rows, dropped=1)
+    known = int(np.searchsorted(result.t, latch["t"]))
+    assert held.known == known and 0 < known < len(result.t)
+    with pytest.warns(RunWarning, match="driver forces are NaN"):
+        add_driver_columns(solver, result, held)
+    with pytest.warns(RunWarning, match="joint reactions are NaN .* event log is full"):
+        add_reactions(solver, result, held)
+    for c in ("motor.torque", "A.tz", "O.fx"):
+        assert np.array_equal(result[c][:known], full[c][:known]), c
+        assert np.isnan(result[c][known:]).all(), c
+    assert result.info["reactions"]["unknown_from"] == result.t[known]

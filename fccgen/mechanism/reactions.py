@@ -261,18 +261,17 @@ def reactions(solver, result, sparse: bool | None = None,
     its rows held and the joint's reaction gains the held direction's torque (force)."""
     plan = solver.plan
     check_attributable(plan)
-    if held is not None and held.unknown_reason(result.t):
-        raise SimulationError(held.unknown_reason(result.t))
     index = {name: k for k, (name, _) in enumerate(plan.bodies)}
     drivers = _coordinate_drivers(plan)
     names = [name for name, _ in plan.triples]
     n = len(result.t)
     chunk = chunk_records(plan, len(index))
-    cols = {f"{jl.joint.name}.{c}": np.empty(n)
+    cols = {f"{jl.joint.name}.{c}": np.full(n, np.nan)
             for jl in plan.model.mechanism.joints for c in COMPONENTS}
     turns: dict[int, float] = {}
     ranks, unknowns, dense, worst, patterns, missing = [], 0, 0, 0.0, {}, 0
-    for rows, keys in _chunks(n, chunk, held):
+    known = n if held is None else held.known     # records whose held rows are known
+    for rows, keys in _chunks(known, chunk, held):
         q = np.column_stack([result.columns[f"{t}.{c}"][rows] for t in names for c in "xyz"])
         v = np.column_stack([result.columns[f"{t}.v{c}"][rows] for t in names
                              for c in "xyz"])
@@ -298,13 +297,17 @@ def reactions(solver, result, sparse: bool | None = None,
                 rank=int(rank.min()) if len(rank) else 0, undetermined=missing,
                 unique=missing == 0, residual=worst,
                 dense_records=int(dense), records=int(n))
+    if known < n:
+        info["unknown_from"] = float(result.t[known])
+        info["unknown_reason"] = held.unknown_reason(result.t)
     return cols, info
 
 
 def _chunks(n: int, chunk: int, held):
-    """(slice of records, held rows) in chunks of at most ``chunk`` records, each
-    within one segment of constant held rows."""
+    """(slice of records, held rows) of the first n records, in chunks of at most
+    ``chunk`` records, each within one segment of constant held rows."""
     for start, stop, keys in held.segments if held is not None else [(0, n, frozenset())]:
+        stop = min(stop, n)
         for first in range(start, stop, chunk):
             yield slice(first, min(stop, first + chunk)), keys
 
@@ -369,5 +372,10 @@ def add_reactions(solver, result, held=None):
     result.columns.update(cols)
     if not info["unique"]:
         info["note"] = minimum_norm_note(info)
+    if "unknown_reason" in info:
+        text = (f"the joint reactions are NaN from t = {info['unknown_from']:.9g} s on: "
+                + info["unknown_reason"])
+        result.info.setdefault("warnings", []).append(text)
+        warnings.warn(text, RunWarning, stacklevel=3)
     result.info["reactions"] = info
     return result
