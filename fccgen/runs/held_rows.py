@@ -31,6 +31,9 @@ from ..errors import SimulationError
 
 # Relative singular values of G Z (its largest = 1) below this are redundant locks.
 RCOND = 1e-10
+# Coordinates up to which A = M + s B^T B is formed and solved dense (SciPy's sparse
+# LU costs more than the dense solve below a few hundred).
+DENSE_MAX = 300
 # Largest |G a + (dG/dt) q'| of the held accelerations relative to |G a0| + |bias|:
 # the Schur solve leaves rounding; a larger residual means rows that cannot hold.
 RESIDUAL_TOL = 1e-7
@@ -142,12 +145,17 @@ class HeldRows:
     def _responses(self, q, G: np.ndarray) -> np.ndarray:
         """(n, k): the constrained responses z_j to the forces G_j^T."""
         s = self.solver
-        M = sp.csr_matrix(s.mass_matrix(q))
-        B = sp.csr_matrix(s.constraint_jacobian_sparse(q))
-        scale = (M.diagonal().max() / max(B.multiply(B).sum(axis=1).max(), 1e-300)
-                 if B.shape[0] else 0.0)
-        A = (M + scale * (B.T @ B)).tocsc()
-        w = splu(A).solve(np.ascontiguousarray(G.T))
+        if len(q) <= DENSE_MAX:
+            M, B = s.mass_matrix(q), s.constraint_jacobian(q)
+            scale = (np.diag(M).max() / max(np.einsum("ij,ij->i", B, B).max(), 1e-300)
+                     if B.shape[0] else 0.0)
+            w = np.linalg.solve(M + scale * (B.T @ B), G.T)
+        else:
+            M = sp.csr_matrix(s.mass_matrix(q))
+            B = sp.csr_matrix(s.constraint_jacobian_sparse(q))
+            scale = (M.diagonal().max() / max(B.multiply(B).sum(axis=1).max(), 1e-300)
+                     if B.shape[0] else 0.0)
+            w = splu((M + scale * (B.T @ B)).tocsc()).solve(np.ascontiguousarray(G.T))
         zero = s.project_velocities(q, np.zeros(len(q)))
         return np.column_stack([s.project_velocities(q, w[:, j]) - zero
                                 for j in range(G.shape[0])])
