@@ -119,21 +119,35 @@ def test_pendulum_bounces_on_its_limit_and_rests(pendulum):
 
 
 
+REACTIONS = (".fx", ".fy", ".fz", ".tx", ".ty", ".tz")
+
+
 def test_events_past_the_logs_rows_are_counted_and_said(pendulum, monkeypatch):
     """A log of 4 rows on the run above (10 and more bounces, then rest): the run goes
     through every event, result.events holds the first 4 of the full run's table, and
-    the rest are counted in info and said in a warning, never dropped silently."""
+    the rest are counted in info and said in a warning, never dropped silently. What
+    the later bounces held (their rest) is not known, so the reactions are NaN from
+    the last logged event on, with a warning (fccgen.runs.held_rows)."""
     from fccgen.errors import RunWarning
     from fccgen.runtime import event_settings
     full = pendulum.simulate(t_end=2.0, dt=1e-3, method="rk4")
     monkeypatch.setattr(event_settings, "LOG_ROWS", 4)
-    with pytest.warns(RunWarning, match=f"{len(full.events) - 4} events after the "
-                                        "first 4 are not in result.events"):
+    with pytest.warns(RunWarning) as said:
         cut = pendulum.simulate(t_end=2.0, dt=1e-3, method="rk4")
+    texts = [str(w.message) for w in said]
+    assert any(f"{len(full.events) - 4} events after the first 4 are not in "
+               "result.events" in t for t in texts), texts
+    assert any("joint reactions are NaN" in t for t in texts), texts
     assert cut.events == full.events[:4]
     assert cut.info["events_dropped"] == len(full.events) - 4
     assert cut.info["energy_check"]["until"] == full.events[3]["t"]
-    assert np.array_equal(cut.table(), full.table())       # the motion is the same
+    def table(result, reactions):
+        return np.column_stack([result[c] for c in full.columns
+                                if c.endswith(REACTIONS) == reactions])
+    assert np.array_equal(table(cut, False), table(full, False))  # the motion is the same
+    known = cut.t < full.events[3]["t"]
+    assert np.array_equal(table(cut, True)[known], table(full, True)[known])
+    assert np.isnan(table(cut, True)[~known]).all() and (~known).any()
 
 @pytest.mark.parametrize("suffix", [".csv", ".npz"])
 def test_event_table_is_in_every_result_file(pendulum, tmp_path, suffix):

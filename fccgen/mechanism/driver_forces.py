@@ -17,8 +17,11 @@ driver's row d.d - f^2 has the derivative 2 s = 2 f along the distance s, so its
 """
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
+from ..errors import RunWarning
 from .lowering import driver_column, driver_label
 
 # Singular values of B^T below this fraction of the largest count as zero in the
@@ -46,16 +49,27 @@ def driver_rows(plan) -> dict[str, tuple[int, object]]:
     return rows
 
 
-def multipliers(solver, t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """The minimum-norm multipliers lambda at (t, q, q') (module docstring)."""
+def multipliers(solver, t: float, q: np.ndarray, v: np.ndarray, held=None,
+                keys=frozenset()) -> np.ndarray:
+    """The minimum-norm multipliers lambda of B's rows at (t, q, q') (module
+    docstring). held, keys: the rows that the run's events hold at this record
+    (fccgen.runs.held_rows): the accelerations hold them, and their multipliers join
+    the least-squares solve (a driver's row is no combination of a lock's: a driven
+    joint takes no lock, fccgen.model.events)."""
     solver.set_time(t)
-    a = solver.accelerations(q, v)
+    B = solver.constraint_jacobian(q)
+    if keys:
+        a = held.accelerations(q, v, keys)
+        B = np.vstack([B, held.rows(q, v, sorted(keys))[0]])
+    else:
+        a = solver.accelerations(q, v)
     rhs = solver.applied_forces(q, v) - solver.h_vector(q, v) - solver.mass_matrix(q) @ a
-    return np.linalg.lstsq(solver.constraint_jacobian(q).T, rhs, rcond=RCOND)[0]
+    return np.linalg.lstsq(B.T, rhs, rcond=RCOND)[0]
 
 
-def add_driver_columns(solver, result) -> None:
-    """Append the drivers' generalized forces to ``result`` (in place)."""
+def add_driver_columns(solver, result, held=None) -> None:
+    """Append the drivers' generalized forces to ``result`` (in place); held: the
+    rows the run's events held (:func:`multipliers`)."""
     rows = driver_rows(solver.plan)
     if not rows or len(result.t) == 0:
         return
@@ -64,9 +78,18 @@ def add_driver_columns(solver, result) -> None:
                          for c in "xyz"])
     v = np.column_stack([result.columns[f"{name}.v{c}"] for name, _ in plan.triples
                          for c in "xyz"])
-    values = {col: np.empty(len(result.t)) for col in rows}
-    for k, t in enumerate(result.t):
-        lam = multipliers(solver, float(t), q[k], v[k])
+    values = {col: np.full(len(result.t), np.nan) for col in rows}
+    keys = [frozenset()] * len(result.t)
+    for start, stop, held_keys in held.segments if held is not None else ():
+        keys[start:stop] = [held_keys] * (stop - start)
+    known = len(result.t) if held is None else held.known
+    for k, t in enumerate(result.t[:known]):
+        lam = multipliers(solver, float(t), q[k], v[k], held, keys[k])
         for col, (row, slope) in rows.items():
             values[col][k] = -slope(float(t)) * lam[row]
     result.columns.update(values)
+    if known < len(result.t):
+        text = (f"the driver forces are NaN from t = {result.t[known]:.9g} s on: "
+                + held.unknown_reason(result.t))
+        result.info.setdefault("warnings", []).append(text)
+        warnings.warn(text, RunWarning, stacklevel=3)

@@ -51,12 +51,13 @@ class System:
 
 
 def system(plan, motion: Motion, index: dict[str, int], applied: np.ndarray,
-           drivers) -> System:
+           drivers, held=frozenset()) -> System:
     """The balance rows of the records of ``motion`` (module docstring;
     fccgen.mechanism.reactions for the rows' meaning). applied: (n, 6 n_b) applied
     forces and torques about the mass centres; drivers: (body, direction e, arm from
     its mass centre (n, 3)) of each coordinate driver, whose force acts along e at its
-    point on that body."""
+    point on that body; held: the (joint, quantity) pairs that events hold at these
+    records (a lock widens its joint's subspace as a driver does)."""
     n, nb = motion.n, len(index)
     blocks: list[tuple[int, int, np.ndarray]] = []     # (row0, col0, (n, 6, w))
     spans, col = [], 0
@@ -64,6 +65,8 @@ def system(plan, motion: Motion, index: dict[str, int], applied: np.ndarray,
     driven: dict[str, set[str]] = {}
     for d in lowering.drivers:
         driven.setdefault(d.joint, set()).add(d.quantity)
+    for joint, kind in held:
+        driven.setdefault(joint, set()).add(kind)
     for jl in lowering.joints:
         p, Pf, Pt = bases(jl, motion, driven.get(jl.joint.name, frozenset()))
         nf, nt = Pf.shape[2], Pt.shape[2]

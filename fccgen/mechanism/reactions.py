@@ -248,14 +248,17 @@ def _joint_bodies(plan, point_a: str) -> tuple[str, str]:
                 if jl.joint.name == joint)
 
 
-def reactions(solver, result, sparse: bool | None = None) -> tuple[dict[str, np.ndarray],
-                                                                     dict]:
+def reactions(solver, result, sparse: bool | None = None,
+              held=None) -> tuple[dict[str, np.ndarray], dict]:
     """(columns, info) of the joint reactions over the rows of ``result``; ModelError
     when a load or constraint cannot be attributed to a body (module docstring).
 
     The records are taken a chunk at a time (CHUNK_BYTES of working arrays) and each
     record's E x = b is solved on its own (fccgen.mechanism.reaction_solve; sparse:
-    None picks the way by size, True/False forces the sparse or the dense way)."""
+    None picks the way by size, True/False forces the sparse or the dense way).
+    held: the rows the run's events held (fccgen.runs.held_rows.HeldRows; None: no
+    events): at a record where a lock holds a joint, the accelerations are those with
+    its rows held and the joint's reaction gains the held direction's torque (force)."""
     plan = solver.plan
     check_attributable(plan)
     index = {name: k for k, (name, _) in enumerate(plan.bodies)}
@@ -263,33 +266,50 @@ def reactions(solver, result, sparse: bool | None = None) -> tuple[dict[str, np.
     names = [name for name, _ in plan.triples]
     n = len(result.t)
     chunk = chunk_records(plan, len(index))
-    cols = {f"{jl.joint.name}.{c}": np.empty(n)
+    cols = {f"{jl.joint.name}.{c}": np.full(n, np.nan)
             for jl in plan.model.mechanism.joints for c in COMPONENTS}
     turns: dict[int, float] = {}
-    ranks, unknowns, dense, worst, patterns = [], 0, 0, 0.0, {}
-    for start in range(0, n, chunk):
-        rows = slice(start, min(n, start + chunk))
+    ranks, unknowns, dense, worst, patterns, missing = [], 0, 0, 0.0, {}, 0
+    known = n if held is None else held.known     # records whose held rows are known
+    for rows, keys in _chunks(known, chunk, held):
         q = np.column_stack([result.columns[f"{t}.{c}"][rows] for t in names for c in "xyz"])
         v = np.column_stack([result.columns[f"{t}.v{c}"][rows] for t in names
                              for c in "xyz"])
         a = np.empty_like(q)
         for k, t in enumerate(result.t[rows]):
             solver.set_time(float(t))          # a driven model's q'' depends on t
-            a[k] = solver.accelerations(q[k], v[k])
+            a[k] = (held.accelerations(q[k], v[k], keys) if keys
+                    else solver.accelerations(q[k], v[k]))
         motion = Motion(plan, q, v, a)
         at = [(body, e, motion.triple(point)[0] - motion.centre(body)[0])
               for body, e, point in drivers]
-        balance = system(plan, motion, index, applied(plan, motion, index, turns), at)
+        balance = system(plan, motion, index, applied(plan, motion, index, turns), at,
+                         keys)
         x, rank, solved_dense, res = solve_records(balance, sparse, patterns)
         ranks.append(rank)
-        unknowns, dense, worst = balance.shape[1], dense + solved_dense, max(worst, res)
+        unknowns, dense, worst = (max(unknowns, balance.shape[1]), dense + solved_dense,
+                                  max(worst, res))
+        # a lock adds unknowns to its records: each record against its own count
+        missing = max(missing, int(np.max(balance.shape[1] - rank)) if len(rank) else 0)
         _fill(cols, plan, balance.spans, x, rows)
     rank = np.concatenate(ranks) if ranks else np.zeros(0, int)
     info = dict(computed=True, unknowns=int(unknowns),
-                rank=int(rank.min()) if len(rank) else 0,
-                unique=bool(np.all(rank == unknowns)), residual=worst,
+                rank=int(rank.min()) if len(rank) else 0, undetermined=missing,
+                unique=missing == 0, residual=worst,
                 dense_records=int(dense), records=int(n))
+    if known < n:
+        info["unknown_from"] = float(result.t[known])
+        info["unknown_reason"] = held.unknown_reason(result.t)
     return cols, info
+
+
+def _chunks(n: int, chunk: int, held):
+    """(slice of records, held rows) of the first n records, in chunks of at most
+    ``chunk`` records, each within one segment of constant held rows."""
+    for start, stop, keys in held.segments if held is not None else [(0, n, frozenset())]:
+        stop = min(stop, n)
+        for first in range(start, stop, chunk):
+            yield slice(first, min(stop, first + chunk)), keys
 
 
 def chunk_records(plan, n_bodies: int) -> int:
@@ -326,17 +346,18 @@ def _coordinate_drivers(plan) -> list[tuple[str, np.ndarray, str]]:
 
 def minimum_norm_note(info: dict) -> str:
     return ("the joint reactions are not unique (redundant constraints: "
-            f"{info['unknowns'] - info['rank']} of {info['unknowns']} reaction components "
+            f"{info['undetermined']} of {info['unknowns']} reaction components "
             "are undetermined); the minimum-norm set is reported")
 
 
-def add_reactions(solver, result):
+def add_reactions(solver, result, held=None):
     """Add the reaction columns to ``result`` of a mechanism-level model (in place);
-    ``result.info["reactions"]`` says whether they are unique, or why they are absent."""
+    ``result.info["reactions"]`` says whether they are unique, or why they are absent.
+    held: the rows the run's events held (:func:`reactions`)."""
     if getattr(solver.plan.model, "mechanism", None) is None or len(result.t) == 0:
         return result
     try:
-        cols, info = reactions(solver, result)
+        cols, info = reactions(solver, result, held=held)
     except (ModelError, SimulationError, np.linalg.LinAlgError, MemoryError,
             RuntimeError, ValueError) as exc:
         # the run itself succeeded: keep it, and say why it has no reactions
@@ -351,5 +372,10 @@ def add_reactions(solver, result):
     result.columns.update(cols)
     if not info["unique"]:
         info["note"] = minimum_norm_note(info)
+    if "unknown_reason" in info:
+        text = (f"the joint reactions are NaN from t = {info['unknown_from']:.9g} s on: "
+                + info["unknown_reason"])
+        result.info.setdefault("warnings", []).append(text)
+        warnings.warn(text, RunWarning, stacklevel=3)
     result.info["reactions"] = info
     return result

@@ -24,6 +24,7 @@ from ..progress import run_reporter
 from ..plan import Plan
 from ..results.result import InitialState, Result, timed_run
 from .constrained import RankKeeper, constrained_solve, scaled_residual
+from ..runs import held_rows
 from ..runs.energy_check import check_energy, kinetic_peak
 from ..runs.guards import check_constraint_drift, divergence_bounds
 from ..runs.inputs import input_run
@@ -389,7 +390,9 @@ class NumericSolver:
             report.finish(result.t[-1])          # the run's end: 100%
         if ctx.events is not None:
             finish_events(result, ctx.events)
-        add_driver_columns(self, result)
+        locks = None if ctx.events is None else held_rows.of_run(
+            self, result, held_quantities(ctx.events))
+        add_driver_columns(self, result, locks)
         check_driver_branches(self.plan, result)
         rank_rule.report_run(result, decision, self._rank.stats,
                              driven=bool(driver_rows(self.plan)))
@@ -399,7 +402,7 @@ class NumericSolver:
         check_constraint_drift(self, result, project)
         check_energy(result, self.plan, kinetic_peak(self, result, None), kept.get("work"),
                      untracked)
-        return add_reactions(self, result) if reactions else result
+        return add_reactions(self, result, locks) if reactions else result
 
     def _context(self, m, sched, project, q0, v0, event_tol, rest_speed):
         """(the numeric.runs.RunContext of a run of method m, why its work is not
@@ -449,6 +452,16 @@ INTEGRATORS = {"rk4": simulate_rk4, "dopri5": simulate_dopri5,
                "baumgarte": simulate_baumgarte,
                **{f"scipy-{m}": simulate_scipy(m)
                   for m in ("RK45", "DOP853", "Radau", "BDF", "LSODA")}}
+
+
+def held_quantities(events):
+    """rows(q, v, keys) of fccgen.runs.held_rows.HeldRows: the gradients and biases
+    of the joint quantities ``keys`` (the NumPy events' own)."""
+    def rows(q, v, keys):
+        out = [events.quantities[key].gradient_rate_bias(q, v) for key in keys]
+        return (np.array([g for g, _, _ in out]).reshape(len(out), len(q)),
+                np.array([b for _, _, b in out]))
+    return rows
 
 
 def finish_events(result, events) -> None:

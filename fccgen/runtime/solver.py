@@ -33,6 +33,7 @@ from ._dopri5 import simulate_dopri5
 from .paths import (SPARSE_MIN_COORDINATES, make_engine, pattern_samples,
                     reduced_mass_spread, small_model_path, use_sparse)
 from ._rk4 import simulate_baumgarte, simulate_rk4
+from ..runs import held_rows
 from ..runs.energy_check import check_energy, kinetic_peak
 from ..runs.guards import check_constraint_drift
 from .assembler import make_assembler, time_slots
@@ -490,11 +491,15 @@ class CompiledSolver:
             (result.info["energy_drift"],
              result.info["event_energy_loss"]) = energy_balance(result.t, result["energy"],
                                                                 result.events)
-        add_driver_columns(self, result)
-        check_driver_branches(self.plan, result)
+        # the run's own statistics: the solves after it (driver forces, held rows'
+        # responses) are not the run's, and their projections are no steps
         used = self.dense_engine() if m.name == "ali3p" else (
             self._engine if sens is None else sens_engine)
         stats = used.rank_statistics()
+        locks = (None if events is None or not events.n_events else
+                 held_rows.of_run(self, result, self._held_quantities(events), dropped))
+        add_driver_columns(self, result, locks)
+        check_driver_branches(self.plan, result)
         rank_rule.report_run(result, decision, stats,
                              driven=bool(driver_rows(self.plan)))
         if events is not None and events.n_events:
@@ -508,7 +513,7 @@ class CompiledSolver:
             sensitivity_run.attach(self, result, keys, sens, m.name)
             if m.name == "dopri5":
                 result.info["sensitivity_error_control"] = bool(sens_error)
-        return add_reactions(self, result) if reactions else result
+        return add_reactions(self, result, locks) if reactions else result
 
     def dense_engine(self):
         """The dense path's engine (the solver's own unless it takes the sparse one)."""
@@ -545,6 +550,17 @@ class CompiledSolver:
             events.mirror(self._asm, st.mirror_slots, st.mirror_angles)
         events.fold_trial = self._fold_trial
         return events
+
+    def _held_quantities(self, events):
+        """rows(q, v, keys) of fccgen.runs.held_rows.HeldRows: the gradients and
+        biases of the joint quantities ``keys`` from the event module's kernels."""
+        names = list(self.events_module.QUANTITY_NAMES)
+
+        def rows(q, v, keys):
+            _, G, bias = events.quantity_kernels(q, v)
+            at = [names.index(f"{joint}.{kind}") for joint, kind in keys]
+            return G[at], bias[at]
+        return rows
 
     @functools.cached_property
     def _event_settings(self):
