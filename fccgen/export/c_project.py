@@ -52,13 +52,34 @@ def environment():
     return env
 
 
+# the simulate: methods the exported engine runs, and their codes in NAME_data.h (METHOD)
+EXPORTED_METHODS = {"rk4": 0, "baumgarte": 1}
+
+
 def refusal(plan) -> str:
     """Why the export cannot take this model ("" if it can)."""
     method = plan.model.simulate.method
-    if method != "rk4":
-        return (f"its simulate: method is {method}; the export runs rk4 (set "
-                "simulate: {method: rk4} in the model file)")
+    if method not in EXPORTED_METHODS:
+        return (f"its simulate: method is {method}; the export runs "
+                f"{', '.join(EXPORTED_METHODS)} (set e.g. simulate: {{method: rk4}} in "
+                "the model file)")
     return ""
+
+
+def method_constants(plan) -> tuple[str, object]:
+    """The run's method as NAME_data.h defines (METHOD, its options) and its schedule:
+    the model's simulate: section with the method's defaults, as simulate takes them."""
+    from ..settings import methods as registry
+    from ..runtime.solver import METHODS
+    d = plan.model.simulate
+    method = registry.get(d.method, METHODS)
+    opts = registry.options_for(method)
+    sched = registry.schedule(method, d, options=opts)
+    out = [c_data.define("METHOD", EXPORTED_METHODS[method.name])]
+    if method.name == "baumgarte":
+        out += [c_data.define("BAUMGARTE_ALPHA", float(opts["alpha"])),
+                c_data.define("BAUMGARTE_BETA", float(opts["beta"]))]
+    return "".join(out), sched
 
 
 def python_run(solver, event_location="steps"):
@@ -102,15 +123,12 @@ def names_header(name: str, table: str, events_table: str | None = None,
 
 def data_header(solver, result, table: OutputTable, keys, inputs, found=None) -> str:
     """<name>_data.h: the constants of one export."""
-    from ..settings import methods as registry
-    from ..runtime.solver import METHODS
     plan = solver.plan
-    d = plan.model.simulate
-    sched = registry.schedule(registry.get("rk4", METHODS), d)
+    method, sched = method_constants(plan)
     engine = solver._engine
     out = [f"/* The constants of the model {plan.model.name}, exported by fccgen "
            f"{__version__}.\n * Generated file; do not edit. */\n",
-           c_data.engine_constants(solver)]
+           c_data.engine_constants(solver), method]
     basis = np.asarray(getattr(engine, "start_basis", None) if
                        getattr(engine, "start_key", None) is not None else [], float)
     n_track = int(getattr(engine, "start_n_track", 0) or 0) if basis.size else 0
@@ -238,6 +256,10 @@ def c_project_files(model_path, build_dir="generated", *, progress=None,
     from ..api import plan_model
     plan = plan_model(model_path)
     why = refusal(plan)
+    if not why and sensitivities and plan.model.simulate.method != "rk4":
+        why = (f"its simulate: method is {plan.model.simulate.method}; the export "
+               "carries sensitivities through rk4 runs only (export it without "
+               "--sensitivities, or with simulate: {method: rk4})")
     if why:
         raise ExportError(f"{plan.model.source}: cannot export {plan.model.name}: {why}")
     solver = fccgen.load(model_path, build_dir, linear_solver="sparse", progress=progress)
@@ -320,7 +342,8 @@ def render_files(solver, name, result, table, keys, inputs, found=None,
                outputs=[c for c, _, _ in table.columns], n_steps=None,
                sens_keys=None if found is None else [k for k, _, _ in found],
                dp_table=c_sens.table_symbol(solver.plan.model.name),
-               on_interpolant=bool(on_interpolant))
+               on_interpolant=bool(on_interpolant),
+               method=solver.plan.model.simulate.method)
     files = {f"{name}.h": env.get_template("api.h.jinja").render(ctx),
              f"{name}_api.c": env.get_template("api.c.jinja").render(ctx),
              f"{name}_data.h": data_header(solver, result, table, keys, inputs, found),
