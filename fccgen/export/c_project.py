@@ -53,7 +53,7 @@ def environment():
 
 
 # the simulate: methods the exported engine runs, and their codes in NAME_data.h (METHOD)
-EXPORTED_METHODS = {"rk4": 0, "baumgarte": 1}
+EXPORTED_METHODS = {"rk4": 0, "baumgarte": 1, "dopri5": 2}
 
 
 def refusal(plan) -> str:
@@ -66,9 +66,12 @@ def refusal(plan) -> str:
     return ""
 
 
-def method_constants(plan) -> tuple[str, object]:
-    """The run's method as NAME_data.h defines (METHOD, its options) and its schedule:
-    the model's simulate: section with the method's defaults, as simulate takes them."""
+def method_constants(plan) -> str:
+    """The run's method and schedule as NAME_data.h defines: the model's simulate:
+    section with the method's defaults, as simulate takes them. METHOD, its options,
+    and DT, T_END, N_STEPS, EVERY: the records are at k DT for k = 0, EVERY, 2 EVERY,
+    ... below N_STEPS, then T_END (a fixed-step method: its steps of DT; dopri5: DT is
+    output_dt, its records' spacing, and EVERY 1)."""
     from ..settings import methods as registry
     from ..runtime.solver import METHODS
     d = plan.model.simulate
@@ -79,7 +82,21 @@ def method_constants(plan) -> tuple[str, object]:
     if method.name == "baumgarte":
         out += [c_data.define("BAUMGARTE_ALPHA", float(opts["alpha"])),
                 c_data.define("BAUMGARTE_BETA", float(opts["beta"]))]
-    return "".join(out), sched
+    if method.kind == "adaptive":
+        from ..runtime._dopri5 import output_times
+        times = output_times(sched.t_end, sched.output_dt)
+        # simulate takes dt as the first step only when it is given to the run, not
+        # from the model file: 0, Hairer's automatic first step
+        out += [c_data.define("DOPRI5_RTOL", float(opts["rtol"])),
+                c_data.define("DOPRI5_ATOL", float(opts["atol"])),
+                c_data.define("DOPRI5_H0", float(sched.dt or 0.0)),
+                c_data.define("DT", sched.output_dt), c_data.define("T_END", sched.t_end),
+                c_data.define("N_STEPS", len(times) - 1), c_data.define("EVERY", 1)]
+    else:
+        out += [c_data.define("DT", sched.dt), c_data.define("T_END", sched.t_end),
+                c_data.define("N_STEPS", sched.n_steps),
+                c_data.define("EVERY", sched.every)]
+    return "".join(out)
 
 
 def python_run(solver, event_location="steps"):
@@ -124,18 +141,15 @@ def names_header(name: str, table: str, events_table: str | None = None,
 def data_header(solver, result, table: OutputTable, keys, inputs, found=None) -> str:
     """<name>_data.h: the constants of one export."""
     plan = solver.plan
-    method, sched = method_constants(plan)
     engine = solver._engine
     out = [f"/* The constants of the model {plan.model.name}, exported by fccgen "
            f"{__version__}.\n * Generated file; do not edit. */\n",
-           c_data.engine_constants(solver), method]
+           c_data.engine_constants(solver), method_constants(plan)]
     basis = np.asarray(getattr(engine, "start_basis", None) if
                        getattr(engine, "start_key", None) is not None else [], float)
     n_track = int(getattr(engine, "start_n_track", 0) or 0) if basis.size else 0
     out += [c_data.define("N_TRACK", n_track),
             c_data.c_array("double", "WATCH_BASIS", basis.ravel()[:n_track * plan.n_q]),
-            c_data.define("DT", sched.dt), c_data.define("T_END", sched.t_end),
-            c_data.define("N_STEPS", sched.n_steps), c_data.define("EVERY", sched.every),
             c_data.define("N_Q_ALLOC", max(plan.n_q, 1))]
     q0, v0 = result_state(result, plan)
     out += [c_data.c_array("double", "Q0", q0), c_data.c_array("double", "V0", v0)]
