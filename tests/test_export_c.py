@@ -14,7 +14,7 @@ Each model is exported once per session, built with make under
   link time), while the set-up's allocations are counted;
 * two exported models link into one program (every external symbol carries the
   model's prefix, checked with nm) and run interleaved;
-* models the export cannot take (a method other than rk4) are refused with the reason; nothing of the model
+* models the export cannot take (method ali3p) are refused with the reason; nothing of the model
   file or the folder's path reaches the generated files unchecked.
 """
 from __future__ import annotations

@@ -52,13 +52,51 @@ def environment():
     return env
 
 
+# the simulate: methods the exported engine runs, and their codes in NAME_data.h (METHOD)
+EXPORTED_METHODS = {"rk4": 0, "baumgarte": 1, "dopri5": 2}
+
+
 def refusal(plan) -> str:
     """Why the export cannot take this model ("" if it can)."""
     method = plan.model.simulate.method
-    if method != "rk4":
-        return (f"its simulate: method is {method}; the export runs rk4 (set "
-                "simulate: {method: rk4} in the model file)")
+    if method not in EXPORTED_METHODS:
+        return (f"its simulate: method is {method}; the export runs "
+                f"{', '.join(EXPORTED_METHODS)} (set e.g. simulate: {{method: rk4}} in "
+                "the model file)")
     return ""
+
+
+def method_constants(plan) -> str:
+    """The run's method and schedule as NAME_data.h defines: the model's simulate:
+    section with the method's defaults, as simulate takes them. METHOD, its options,
+    and DT, T_END, N_STEPS, EVERY: the records are at k DT for k = 0, EVERY, 2 EVERY,
+    ... below N_STEPS, then T_END (a fixed-step method: its steps of DT; dopri5: DT is
+    output_dt, its records' spacing, and EVERY 1)."""
+    from ..settings import methods as registry
+    from ..runtime.solver import METHODS
+    d = plan.model.simulate
+    method = registry.get(d.method, METHODS)
+    opts = registry.options_for(method)
+    sched = registry.schedule(method, d, options=opts)
+    out = [c_data.define("METHOD", EXPORTED_METHODS[method.name])]
+    if method.name == "baumgarte":
+        out += [c_data.define("BAUMGARTE_ALPHA", float(opts["alpha"])),
+                c_data.define("BAUMGARTE_BETA", float(opts["beta"]))]
+    if method.kind == "adaptive":
+        from ..runtime._dopri5 import output_times
+        times = output_times(sched.t_end, sched.output_dt)
+        # simulate takes dt as the first step only when it is given to the run, not
+        # from the model file: 0, Hairer's automatic first step
+        out += [c_data.define("DOPRI5_RTOL", float(opts["rtol"])),
+                c_data.define("DOPRI5_ATOL", float(opts["atol"])),
+                c_data.define("DOPRI5_H0", float(sched.dt or 0.0)),
+                c_data.define("DT", sched.output_dt), c_data.define("T_END", sched.t_end),
+                c_data.define("N_STEPS", len(times) - 1), c_data.define("EVERY", 1)]
+    else:
+        out += [c_data.define("DT", sched.dt), c_data.define("T_END", sched.t_end),
+                c_data.define("N_STEPS", sched.n_steps),
+                c_data.define("EVERY", sched.every)]
+    return "".join(out)
 
 
 def python_run(solver, event_location="steps"):
@@ -102,22 +140,16 @@ def names_header(name: str, table: str, events_table: str | None = None,
 
 def data_header(solver, result, table: OutputTable, keys, inputs, found=None) -> str:
     """<name>_data.h: the constants of one export."""
-    from ..settings import methods as registry
-    from ..runtime.solver import METHODS
     plan = solver.plan
-    d = plan.model.simulate
-    sched = registry.schedule(registry.get("rk4", METHODS), d)
     engine = solver._engine
     out = [f"/* The constants of the model {plan.model.name}, exported by fccgen "
            f"{__version__}.\n * Generated file; do not edit. */\n",
-           c_data.engine_constants(solver)]
+           c_data.engine_constants(solver), method_constants(plan)]
     basis = np.asarray(getattr(engine, "start_basis", None) if
                        getattr(engine, "start_key", None) is not None else [], float)
     n_track = int(getattr(engine, "start_n_track", 0) or 0) if basis.size else 0
     out += [c_data.define("N_TRACK", n_track),
             c_data.c_array("double", "WATCH_BASIS", basis.ravel()[:n_track * plan.n_q]),
-            c_data.define("DT", sched.dt), c_data.define("T_END", sched.t_end),
-            c_data.define("N_STEPS", sched.n_steps), c_data.define("EVERY", sched.every),
             c_data.define("N_Q_ALLOC", max(plan.n_q, 1))]
     q0, v0 = result_state(result, plan)
     out += [c_data.c_array("double", "Q0", q0), c_data.c_array("double", "V0", v0)]
@@ -238,6 +270,10 @@ def c_project_files(model_path, build_dir="generated", *, progress=None,
     from ..api import plan_model
     plan = plan_model(model_path)
     why = refusal(plan)
+    if not why and sensitivities and plan.model.simulate.method != "rk4":
+        why = (f"its simulate: method is {plan.model.simulate.method}; the export "
+               "carries sensitivities through rk4 runs only (export it without "
+               "--sensitivities, or with simulate: {method: rk4})")
     if why:
         raise ExportError(f"{plan.model.source}: cannot export {plan.model.name}: {why}")
     solver = fccgen.load(model_path, build_dir, linear_solver="sparse", progress=progress)
@@ -320,7 +356,8 @@ def render_files(solver, name, result, table, keys, inputs, found=None,
                outputs=[c for c, _, _ in table.columns], n_steps=None,
                sens_keys=None if found is None else [k for k, _, _ in found],
                dp_table=c_sens.table_symbol(solver.plan.model.name),
-               on_interpolant=bool(on_interpolant))
+               on_interpolant=bool(on_interpolant),
+               method=solver.plan.model.simulate.method)
     files = {f"{name}.h": env.get_template("api.h.jinja").render(ctx),
              f"{name}_api.c": env.get_template("api.c.jinja").render(ctx),
              f"{name}_data.h": data_header(solver, result, table, keys, inputs, found),

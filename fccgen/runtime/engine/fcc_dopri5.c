@@ -15,6 +15,11 @@
  * evaluated at the projected state (FSAL only holds without projection), reusing the
  * velocity projection's factorisation. Outputs interpolated from the dense output are
  * projected the same way.
+ *
+ * A caller that asks for its records one at a time (the exported API's step_to) sets
+ * hold: a step that writes the last record asked for waits before its end's
+ * projection, so that a record asked for next in the same step is written in the same
+ * order, from the same state of the engine, as when all were asked for at the start.
  */
 #include <math.h>
 #include <string.h>
@@ -345,11 +350,30 @@ static int record(fcc_engine *e, fcc_dopri5 *r)
     return 0;
 }
 
-/* Take the accepted step y -> y1: outputs in (t, t + h], projection, next K1. */
+/* The records of the accepted step in (t0, t] (before its event's time, with an
+ * event: a record at an event's time shows the state after it, as RK4's do; the next
+ * step, starting there, writes it, or flush() at the end of the run). Returns 1 when
+ * the step holds after writing the last requested record (hold), 0 when its end
+ * follows, -1 on an error. */
+static int step_records(fcc_engine *e, fcc_dopri5 *r)
+{
+    long before = r->n_out;
+    int k = r->step_event;
+    while (r->n_out < r->n_req && (k >= 0 ? r->out.t[r->n_out] < r->t
+                                          : r->out.t[r->n_out] <= r->t * (1 + 4 * UROUND)))
+        if (record(e, r) < 0)
+            return -1;
+    if (r->n_out > before)
+        r->step_recorded = 1;
+    r->held = r->hold && r->n_out > before && r->n_out == r->n_req;
+    return r->held;
+}
+
+/* Take the accepted step y -> y1: its continuous extension, its event, then its
+ * records (step_records; 1: held there). */
 static int accept(fcc_engine *e, fcc_dopri5 *r, double h)
 {
-    int n = r->n2 / 2, k = -1;
-    long recorded;
+    int k = -1;
     double th = 1.0, t1;
     dense(r, h);
     if (r->pw != NULL)
@@ -367,13 +391,19 @@ static int accept(fcc_engine *e, fcc_dopri5 *r, double h)
     }
     r->t = t1;
     r->accepted++;
-    recorded = r->n_out;
-    /* a record at an event's time shows the state after it (as RK4's do): the next
-     * step, starting there, writes it (flush() at the end of the run) */
-    while (r->n_out < r->n_req && (k >= 0 ? r->out.t[r->n_out] < r->t
-                                          : r->out.t[r->n_out] <= r->t * (1 + 4 * UROUND)))
-        if (record(e, r) < 0)
-            return -1;
+    r->step_event = k;
+    r->step_th = th;
+    r->step_recorded = 0;
+    return step_records(e, r);
+}
+
+/* The accepted step's end, after its records: the state there (or at its event),
+ * projection, the event acted on and the next K1. */
+static int finish_step(fcc_engine *e, fcc_dopri5 *r)
+{
+    int n = r->n2 / 2, k = r->step_event;
+    double th = r->step_th;
+    r->held = 0;
     memcpy(r->y, r->y1, (size_t)r->n2 * sizeof(double));
     if (r->sens.s != NULL)                    /* s at the step's end (or the event) */
         fcc_sens_dp5_take(&r->sens, th);
@@ -392,7 +422,7 @@ static int accept(fcc_engine *e, fcc_dopri5 *r, double h)
         fcc_put_time(e->asmb, r->t);
         /* stage 7's M, B and factorisation are at y1, unless a record projected since
          * (or an event function moved y1: with events, a set with some) */
-        if (project(e, r, r->y, r->n_out == recorded
+        if (project(e, r, r->y, !r->step_recorded
                     && (r->ev == NULL || r->ev->spec->ne == 0)) < 0)
             return -1;
         if (r->ev != NULL) {
@@ -434,6 +464,18 @@ static void flush(fcc_engine *e, fcc_dopri5 *r)
 int fcc_dopri5_advance(fcc_engine *e, fcc_dopri5 *r)
 {
     double h, err, fac;
+    int rc;
+    if (r->held) {                /* a step held after its records: more, or its end */
+        rc = step_records(e, r);
+        if (rc != 0)
+            return rc < 0 ? FCC_RUN_ERROR : FCC_RUN_PAUSE;
+        if (finish_step(e, r) < 0)
+            return FCC_RUN_ERROR;
+        if (r->stopped)
+            return FCC_RUN_DONE;
+        r->h = r->h_next;
+        r->last_rejected = 0;
+    }
     while (r->t < r->t_end) {
         h = fmin(r->h, r->t_end - r->t);
         if (0.1 * h <= fabs(r->t) * UROUND || h <= 0.0) {
@@ -452,11 +494,15 @@ int fcc_dopri5_advance(fcc_engine *e, fcc_dopri5 *r)
             if (r->last_rejected && fac > 1.0)
                 fac = 1.0;
             r->h = h;
-            if (accept(e, r, h) < 0)
+            r->h_next = h * fac;
+            rc = accept(e, r, h);
+            if (rc != 0)
+                return rc < 0 ? FCC_RUN_ERROR : FCC_RUN_PAUSE;
+            if (finish_step(e, r) < 0)
                 return FCC_RUN_ERROR;
             if (r->stopped)
                 return FCC_RUN_DONE;
-            r->h = h * fac;
+            r->h = r->h_next;
             r->last_rejected = 0;
         } else {
             /* NaN fails "err <= 1" too and shrinks the step by FACMIN */
@@ -510,6 +556,9 @@ int fcc_dopri5_start(fcc_dopri5 *r, fcc_engine *e, const double *q0, const doubl
     r->t = 0.0;
     r->h = r->h0;
     r->last_rejected = 0;
+    r->held = r->step_recorded = 0;
+    r->step_event = -1;
+    r->step_th = 1.0;
     r->accepted = r->rejected = r->n_rhs = r->newton_total = r->failures = 0;
     r->max_cerr = 0.0;
     r->n_out = 0;

@@ -22,6 +22,12 @@ typedef struct fcc_dopri5 {
     double *work;             /* FCC_DOPRI5_WORK x 2 n numbers */
     fcc_pause_fn pause;
     void *pause_ctx;
+    int hold;                 /* a step that writes the last requested record holds
+                                 there (FCC_RUN_PAUSE) before its end's projection and
+                                 events: the caller may request more records, at times
+                                 in the step (written by the next advance) or past it
+                                 (the step ends, the run goes on); records requested
+                                 one at a time then equal those requested at once */
     /* state and statistics */
     int n2;                   /* 2 n: length of y = (q, v) */
     double t, h;
@@ -33,6 +39,11 @@ typedef struct fcc_dopri5 {
     double *k[7];             /* stages K1..K7 (each 2 n: velocity then acceleration) */
     double *rc[5];            /* dense output coefficients of the last accepted step */
     double t0;                /* start of the last accepted step */
+    int held;                 /* the last accepted step is held after its records */
+    int step_event;           /* its event (-1: none), ... */
+    double step_th;           /* ... where in the step (1: none) ... */
+    int step_recorded;        /* ... whether it wrote records, ... */
+    double h_next;            /* ... and the next step's size */
     int stopped;              /* a stop event ended the run at t_stop */
     double t_stop;
     /* the work of the forces without potential (settings: pw NULL, none; w_out, W at
@@ -51,14 +62,15 @@ typedef struct fcc_dopri5 {
 /* Start a run from (q0, v0) with the settings in r: the first record, the first
  * stage and (h0 = 0) the starting step, the divergence bounds (fcc_divergence_bounds
  * without a speed bound). The settings are project, rtol, atol, t_end, h0, n_req,
- * out, ev, work, pause, pause_ctx, pw, w_out and sens (zero the struct first: NULL pointers
+ * out, ev, work, pause, pause_ctx, hold, pw, w_out and sens (zero the struct first: NULL pointers
  * are "none"). The events are reset by the caller (fcc_events_reset); events without
  * event functions (ne = 0) only re-base the angle references after every step, with
  * event functions they need project. A record at an event's time shows the state
  * after the event. Returns 0 or FCC_RUN_ERROR (the engine's error record). */
 int fcc_dopri5_start(fcc_dopri5 *r, fcc_engine *e, const double *q0, const double *v0);
 /* Steps until the end (FCC_RUN_DONE), an error (FCC_RUN_ERROR, FCC_RUN_UNDERFLOW:
- * e->err_t, err_h say where) or a pause (FCC_RUN_PAUSE). */
+ * e->err_t, err_h say where) or a pause (FCC_RUN_PAUSE: pause, or a step held after
+ * its records with hold). */
 int fcc_dopri5_advance(fcc_engine *e, fcc_dopri5 *r);
 
 #endif
