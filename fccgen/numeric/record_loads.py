@@ -94,7 +94,7 @@ class RecordLoads:
                                                         self.sources):
                 guess = a0 + r0 * dt
                 angle = raw + TURN * round((guess - raw) / TURN)
-                if abs(angle - (a0 + 0.5 * (r0 + rate) * dt)) > 0.25 * math.pi:
+                if abs(angle - (a0 + 0.5 * (r0 + rate) * dt)) > 0.5 * math.pi:
                     name = prefix.split(".")[0] or self.plan.elements[e].label
                     raise ValueError(
                         f"the angle of {name} moved {abs(angle - a0):.3g} rad between "
