@@ -244,3 +244,24 @@ def test_records_too_far_apart_to_count_turns_leave_no_reactions(tmp_path):
     assert "record more often" in r.info["reactions"]["reason"]
     assert "H.fx" not in r.columns
     assert solver.simulate(t_end=1.0).info["reactions"]["computed"]
+
+
+def test_a_static_equilibrium_on_a_load_of_the_angle_has_its_reactions(tmp_path):
+    """fccgen statics of the arm whose torque k (a0 - H.angle) is not its weight's
+    moment at the start: at the equilibrium angle theta (k (a0 - theta) = m g D cos
+    theta, checked here) the hinge carries the weight, F = (0, m g, 0), and across the
+    axis the weight's moment about the hinge point, T = (-H m g, 0, 0); along the axis
+    the load's value balances the weight's moment, which a revolute cannot carry, so
+    the balance's residual is at rounding only with the load's value right. 1e-8
+    (the equilibrium is solved to about 1e-10)."""
+    k, a0 = 30.0, 0.6
+    path = model(tmp_path, f'  - {{type: torque, body: arm, value: [0, 0, '
+                 f'"{k}*({a0} - H.angle)"]}}', "static_arm")
+    for numeric in (False, True):
+        eq, r = fccgen.api.equilibrium(path, numeric=numeric)
+        theta = float(r["H.angle"][0])
+        assert abs(k * (a0 - theta) - MASS * G * D * np.cos(theta)) < 1e-8
+        assert abs(theta) > 0.1                            # away from the start
+        assert r.info["reactions"]["computed"] and r.info["reactions"]["residual"] < 1e-8
+        assert np.abs(vec(r, "H", "f") - [0.0, MASS * G, 0.0]).max() < 1e-8
+        assert np.abs(vec(r, "H", "t") - [-H * MASS * G, 0.0, 0.0]).max() < 1e-8

@@ -111,7 +111,7 @@ def check_attributable(plan, loads=None) -> None:
             why = (f"it reads the input {inputs[0]}, whose values over the run"
                    if inputs else "its value is an expression, whose values at the "
                    "records (joint angles counted over turns)")
-            why += " only the run knows: simulate computes these reactions"
+            why += " only the run knows (simulate and statics compute these reactions)"
             raise _refuse(ld.where, f"loads[{k}]", why,
                           expressions_of(ld.function.split("|")[-1]))
 

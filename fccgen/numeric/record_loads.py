@@ -131,8 +131,9 @@ class RecordLoads:
             names = el.cls.param_names
             p = np.array(el.params, float)
             p[names.index("t")] = t
-            for name in el.cls.inputs:
-                p[names.index(input_parameter(name))] = row[name]
+            for name in el.cls.inputs:          # not given: the planned start value
+                if name in row:
+                    p[names.index(input_parameter(name))] = row[name]
             for (source, prefix), angle in refs.items():
                 if source == e:
                     j = names.index(prefix + REFERENCE_SCALARS[0])

@@ -194,6 +194,11 @@ class CompiledSolver:
         """Partial dg/dt at the time of :meth:`set_time` (zero without drivers)."""
         return self._get("constraint_rate", q)
 
+    def put_params(self, slots, values) -> None:
+        """Write values[i] into the concatenated element parameters at slots[i]: later
+        kernel calls read them (the model's inputs, angle references)."""
+        self._asm.put_params(slots, values)
+
     def set_time(self, t) -> None:
         """Evaluate the kernels at the time t from now on (models with drivers; the
         integrators set it at every stage)."""
@@ -517,7 +522,7 @@ class CompiledSolver:
         if not reactions:
             return result
         return add_reactions(self, result, locks, record_loads.of_run(
-            self.plan, self._asm.put_params, held, sched, m.name in REBASING))
+            self.plan, self.put_params, held, sched, m.name in REBASING))
 
     def dense_engine(self):
         """The dense path's engine (the solver's own unless it takes the sparse one)."""
