@@ -30,7 +30,7 @@ from ..events.references import element_angles
 from ..plan.classes import REFERENCE_SCALARS, input_parameter
 from ..runs.inputs import input_slots, record_times
 from .elements import element_kernels
-from .joint_loads import _angle
+from .joint_loads import angle_rate
 from .kinematics import Local
 
 EXPRESSION_KINDS = ("force_t", "torque_t", "force_q", "torque_q")
@@ -78,8 +78,7 @@ class RecordLoads:
         k = el.cls.param_names.index(prefix + REFERENCE_SCALARS[0])
         p[k:k + 3] = 0.0, 1.0, 0.0
         idx = el.q_index()
-        angle, rate, _, _ = _angle(Local(el.cls, q[idx], v[idx], p), prefix)
-        return angle, rate
+        return angle_rate(Local(el.cls, q[idx], v[idx], p), prefix)
 
     def _angles(self, t: float, q, v) -> list[float]:
         """The references of this record: each angle counted over turns."""
