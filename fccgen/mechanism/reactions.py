@@ -281,9 +281,10 @@ def reactions(solver, result, sparse: bool | None = None, held=None,
     events): at a record where a lock holds a joint, the accelerations are those with
     its rows held and the joint's reaction gains the held direction's torque (force).
     loads: what the run held at each record (fccgen.numeric.record_loads.RecordLoads;
-    None: loads whose value is an expression are refused): ``loads.hold(t, q, v)``
-    sets the solver's parameters to the record's (inputs, angle references counted
-    over turns) and returns the expression loads' values there, ``loads.restore()``
+    None: loads whose value is an expression are refused): ``loads.chunk(t, q, v)``
+    takes a chunk of records (their angles counted over turns), ``loads.hold(k, q,
+    v)`` sets the solver's parameters to those of its record k (inputs, angle
+    references) and returns the expression loads' values there, ``loads.restore()``
     the planned parameters again."""
     plan = solver.plan
     check_attributable(plan, loads)
@@ -313,10 +314,12 @@ def _reactions(solver, result, sparse, held, loads):
                              for c in "xyz"])
         a = np.empty_like(q)
         values = {}
+        if loads is not None:
+            loads.chunk(result.t[rows], q, v)
         for k, t in enumerate(result.t[rows]):
             solver.set_time(float(t))          # a driven model's q'' depends on t
             if loads is not None:              # and the run's inputs, turns, loads
-                for j, value in loads.hold(float(t), q[k], v[k]).items():
+                for j, value in loads.hold(k, q[k], v[k]).items():
                     values.setdefault(j, np.empty((len(a), 3)))[k] = value
             a[k] = (held.accelerations(q[k], v[k], keys) if keys
                     else solver.accelerations(q[k], v[k]))

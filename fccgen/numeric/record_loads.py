@@ -16,13 +16,16 @@ follow the records instead. Each record's angle is taken on the branch nearest t
 previous angle advanced by its rate (a rotor turning fast between records keeps its
 turns), and checked against the trapezoid of the two rates: a record where they differ
 by more than a quarter turn cannot be placed on a turn, and the reactions are refused
-(record more often). A method that does not re-base (ali3p) measures its angles
-within half a turn of the planned references: they are left as planned.
+(record more often). The angles of a chunk of records are measured at once
+(:func:`fccgen.numeric.joint_loads.angle_rate` on stacks of records). A method that
+does not re-base (ali3p) measures its angles within half a turn of the planned
+references: they are left as planned.
 """
 from __future__ import annotations
 
 import math
 import re
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -31,7 +34,6 @@ from ..plan.classes import REFERENCE_SCALARS, input_parameter
 from ..runs.inputs import input_slots, record_times
 from .elements import element_kernels
 from .joint_loads import angle_rate
-from .kinematics import Local
 
 EXPRESSION_KINDS = ("force_t", "torque_t", "force_q", "torque_q")
 TURN = 2.0 * math.pi
@@ -56,7 +58,12 @@ class RecordLoads:
                         if turns else [])
         self.inputs, self.times = inputs, times
         self.input_slots = input_slots(plan)
+        self.reference_slots = np.array(
+            [self.starts[e] + plan.elements[e].cls.param_names.index(
+                prefix + REFERENCE_SCALARS[0]) + i
+             for e, prefix in self.sources for i in range(3)], np.intc)
         self.previous = None           # (t, angles, rates) of the last record
+        self.t, self.angles = np.zeros(0), np.zeros((len(self.sources), 0))
         self.touched: set[int] = set()
 
     def _input_row(self, t: float) -> dict[str, float]:
@@ -71,61 +78,90 @@ class RecordLoads:
                                                         side="right")) - 1)]
         return dict(zip(held.names, (float(x) for x in row)))
 
-    def _measure(self, e: int, prefix: str, q, v) -> tuple[float, float]:
-        """(angle within half a turn of 0, rate) of (element e, prefix) at q, v."""
+    def _stack(self, e: int, q, v):
+        """Element e's inputs over the records (q, v: n x n_q of the plan), with
+        its references 0: scalars, and the triples as stacks (3, n)."""
         el = self.plan.elements[e]
-        p = np.array(el.params, float)
-        k = el.cls.param_names.index(prefix + REFERENCE_SCALARS[0])
-        p[k:k + 3] = 0.0, 1.0, 0.0
+        cls, p = el.cls, np.array(el.params, float)
+        s = dict(zip(cls.scalar_names, p[:len(cls.scalar_names)].tolist()))
         idx = el.q_index()
-        return angle_rate(Local(el.cls, q[idx], v[idx], p), prefix)
+        ql, vl = q[:, idx].T, v[:, idx].T
+        pos, vel, k_q, k_p = {}, {}, 0, len(cls.scalar_names)
+        for name, fixed in zip(cls.triple_names, cls.fixed):
+            if fixed:
+                pos[name], vel[name] = p[k_p:k_p + 3, None], np.zeros((3, 1))
+                k_p += 3
+            else:
+                pos[name], vel[name] = ql[k_q:k_q + 3], vl[k_q:k_q + 3]
+                k_q += 3
+        return SimpleNamespace(s=s, pos=pos, vel=vel)
 
-    def _angles(self, t: float, q, v) -> list[float]:
-        """The references of this record: each angle counted over turns."""
-        measured = [self._measure(e, prefix, q, v) for e, prefix in self.sources]
-        if self.previous is None:                # the run's start: references 0
-            angles = [a for a, _ in measured]
+    def chunk(self, t, q, v) -> None:
+        """Take the records (t, q, v: one row each, in order of time, following the
+        previous chunk's) whose :meth:`hold` comes next: their angles counted over
+        turns (module docstring)."""
+        self.t = np.asarray(t, float)
+        n = len(self.t)
+        raw, rate = np.empty((len(self.sources), n)), np.empty((len(self.sources), n))
+        for j, (e, prefix) in enumerate(self.sources):
+            x = self._stack(e, np.asarray(q, float), np.asarray(v, float))
+            for name in REFERENCE_SCALARS:
+                x.s[prefix + name] = 0.0 if name != "cr" else 1.0
+            raw[j], rate[j] = angle_rate(x, prefix)
+        if self.previous is None:                  # the run's start: references 0
+            angles = raw.copy()
+            t0, a0, r0 = self.t[:1], raw[:, :1], rate[:, :1]
         else:
-            t0, before, rates = self.previous
-            dt = t - t0
-            angles = []
-            for (raw, rate), a0, r0, (e, prefix) in zip(measured, before, rates,
-                                                        self.sources):
-                guess = a0 + r0 * dt
-                angle = raw + TURN * round((guess - raw) / TURN)
-                if abs(angle - (a0 + 0.5 * (r0 + rate) * dt)) > 0.5 * math.pi:
-                    name = prefix.split(".")[0] or self.plan.elements[e].label
-                    raise ValueError(
-                        f"the angle of {name} moved {abs(angle - a0):.3g} rad between "
-                        f"the records at t = {t0:.9g} and {t:.9g} s, too far to count "
-                        "its turns from the records; record more often (output_dt)")
-                angles.append(angle)
-        self.previous = (t, angles, [r for _, r in measured])
-        return angles
+            t0, a0, r0 = self.previous
+            angles = np.empty_like(raw)
+        if n and self.sources:
+            # each increment on the branch nearest the rate's advance ...
+            ts = np.concatenate([t0, self.t])
+            before = np.concatenate([a0, raw], axis=1)
+            rates = np.concatenate([r0, rate], axis=1)
+            dt, w = np.diff(ts), np.diff(before, axis=1)
+            step = w + TURN * np.round((rates[:, :-1] * dt - w) / TURN)
+            if self.previous is None:
+                step[:, 0] = 0.0
+            angles = a0 + np.cumsum(step, axis=1)
+            # ... and checked against the trapezoid of the rates
+            counted = np.concatenate([a0, angles], axis=1)
+            trapezoid = 0.5 * (rates[:, :-1] + rates[:, 1:]) * dt
+            off = np.abs(np.diff(counted, axis=1) - trapezoid)
+            far = off > 0.5 * math.pi
+            if far.any():                          # the first record, then its angle
+                k = int(np.argmax(far.any(axis=0)))
+                j = int(np.argmax(far[:, k]))
+                e, prefix = self.sources[j]
+                name = prefix.split(".")[0] or self.plan.elements[e].label
+                raise ValueError(
+                    f"the angle of {name} moved {abs(step[j, k]):.3g} rad between the "
+                    f"records at t = {ts[k]:.9g} and {ts[k + 1]:.9g} s, too far to count "
+                    "its turns from the records; record more often (output_dt)")
+        if n:
+            self.previous = (self.t[-1:], angles[:, -1:], rate[:, -1:])
+        self.angles = angles
 
-    def hold(self, t: float, q, v) -> dict[int, np.ndarray]:
-        """The values (global force or torque) of the expression loads at the record
-        (t, q, v); the solver's parameters set to the record's (inputs, references).
-        Records must come in order of time."""
+    def hold(self, k: int, q, v) -> dict[int, np.ndarray]:
+        """The values (global force or torque) of the expression loads at record k of
+        the chunk (q, v its coordinates and speeds); the solver's parameters set to the
+        record's (inputs, references)."""
+        t = float(self.t[k])
         q, v = np.asarray(q, float), np.asarray(v, float)
-        slots, values = [], []
-        refs = {}
-        for (e, prefix), angle in zip(self.sources, self._angles(t, q, v)):
-            refs[(e, prefix)] = angle
-            el = self.plan.elements[e]
-            k = el.cls.param_names.index(prefix + REFERENCE_SCALARS[0])
-            slots += range(self.starts[e] + k, self.starts[e] + k + 3)
-            values += [angle, math.cos(angle), math.sin(angle)]
+        angles = self.angles[:, k]
+        values = [np.column_stack([angles, np.cos(angles), np.sin(angles)]).ravel()]
         row = self._input_row(t)
+        slots = [self.reference_slots]
         for name, found in self.input_slots.items():
             if name in row:
-                slots += found
-                values += [row[name]] * len(found)
-        if slots:
-            self.put(np.array(slots, np.intc), np.array(values, float))
-            self.touched.update(slots)
+                slots.append(np.asarray(found, np.intc))
+                values.append(np.full(len(found), row[name]))
+        slots = np.concatenate(slots).astype(np.intc)
+        if len(slots):
+            self.put(slots, np.concatenate(values))
+            self.touched.update(slots.tolist())
         out = {}
-        for k, e in self.loads.items():
+        for j, e in self.loads.items():
             el = self.plan.elements[e]
             names = el.cls.param_names
             p = np.array(el.params, float)
@@ -133,13 +169,13 @@ class RecordLoads:
             for name in el.cls.inputs:          # not given: the planned start value
                 if name in row:
                     p[names.index(input_parameter(name))] = row[name]
-            for (source, prefix), angle in refs.items():
-                if source == e:
-                    j = names.index(prefix + REFERENCE_SCALARS[0])
-                    p[j:j + 3] = angle, math.cos(angle), math.sin(angle)
+            for source, (own, prefix) in enumerate(self.sources):
+                if own == e:
+                    i = names.index(prefix + REFERENCE_SCALARS[0])
+                    p[i:i + 3] = values[0][3 * source:3 * source + 3]
             idx = el.q_index()
             kernels = element_kernels(el.cls, q[idx], v[idx], p)
-            out[k] = np.array([kernels.x.s[n] for n in kernels.names])
+            out[j] = np.array([kernels.x.s[n] for n in kernels.names])
         return out
 
     def restore(self) -> None:
