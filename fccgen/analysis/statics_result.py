@@ -22,6 +22,7 @@ def equilibrium_result(solver, eq):
     ``solver``)."""
     from ..mechanism.driver_forces import add_driver_columns
     from ..mechanism.reactions import add_reactions
+    from ..numeric.record_loads import RecordLoads
     from ..results.provenance import provenance
     from ..results.result import _with_joint_columns, result_from_arrays
     q = np.asarray(eq.q, float)[None, :]
@@ -43,7 +44,10 @@ def equilibrium_result(solver, eq):
         result.columns.update(constraint_forces(solver, eq))
         return result
     add_driver_columns(solver, result)
-    return add_reactions(solver, result)
+    # loads whose value is an expression: at t = 0 with the parameters the
+    # equilibrium was solved with (the inputs' start values, the planned references)
+    return add_reactions(solver, result, loads=RecordLoads(solver.plan, solver.put_params,
+                                                           turns=False))
 
 
 def constraint_forces(solver, eq) -> dict[str, np.ndarray]:

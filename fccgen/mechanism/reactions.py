@@ -24,9 +24,10 @@ e.g. a planar four-bar of revolutes) the reactions are not unique and the
 minimum-norm x (in N and N m together) is reported, with
 ``info["reactions"]["unique"]`` false.
 
-Applied loads are attributed to bodies: gravity, forces and torques on a body, torsion
-springs on their two bodies, point springs on the bodies that carry their ends, a
-joint's linear spring on the joint's two bodies at its points J_a, J_b. A
+Applied loads are attributed to bodies: gravity, forces and torques on a body (those
+whose value is an expression with the values the run held at each record, from the
+caller: :func:`reactions`, ``loads``), torsion springs on their two bodies, point
+springs on the bodies that carry their ends, a joint's linear spring on the joint's two bodies at its points J_a, J_b. A
 load that acts on a triple shared by two bodies, or on one that no body carries, and
 section-2 ties that act as hidden joints (constraints not made by a joint, a point or
 vector shared by bodies or a fixed one a body uses outside a joint) cannot be
@@ -71,8 +72,9 @@ def carriers(model) -> dict[str, set[str]]:
     return out
 
 
-def check_attributable(plan) -> None:
-    """ModelError for the first item whose force the body balance cannot place."""
+def check_attributable(plan, loads=None) -> None:
+    """ModelError for the first item whose force the body balance cannot place.
+    loads: what the run held at each record (:func:`reactions`), or None."""
     model, lowering = plan.model, plan.model.mechanism
     joint_labels = {lab for labs in lowering.labels.values() for lab in labs}
     held = carriers(model)
@@ -102,12 +104,16 @@ def check_attributable(plan) -> None:
         elif not isinstance(ld, (Force, Torque, TorsionSpring, LinearSpring)):
             raise _refuse(ld.where, f"loads[{k}]", "no body balance is known for this "
                           "load type", ld.type)
-        elif isinstance(ld, (Force, Torque)) and ld.function:
-            # its value depends on t or on joint quantities: the balance below takes
-            # constant force and torque values only
-            raise _refuse(ld.where, f"loads[{k}]", "its value is an expression (of t or "
-                          "of joint quantities), which the reaction balance does not "
-                          "evaluate yet", expressions_of(ld.function.split("|")[-1]))
+        elif isinstance(ld, (Force, Torque)) and ld.function and loads is None:
+            # its value depends on t, joint quantities or inputs: what the run held at
+            # the records (inputs, turns) comes from the solver that ran it
+            inputs = _element(plan, k).cls.inputs
+            why = (f"it reads the input {inputs[0]}, whose values over the run"
+                   if inputs else "its value is an expression, whose values at the "
+                   "records (joint angles counted over turns)")
+            why += " only the run knows (simulate and statics compute these reactions)"
+            raise _refuse(ld.where, f"loads[{k}]", why,
+                          expressions_of(ld.function.split("|")[-1]))
 
 
 def _moving(plan, body: str) -> bool:
@@ -143,10 +149,13 @@ def _driven_body(plan, held, row, k) -> str:
     return bodies[0]
 
 
-def applied(plan, motion: Motion, index: dict[str, int], turns=None) -> np.ndarray:
+def applied(plan, motion: Motion, index: dict[str, int], turns=None,
+            values=None) -> np.ndarray:
     """(n, 6 n_b) applied forces and torques about each moving body's mass centre.
     turns: per torsion spring, the unwrapped angle of the record before the first of
-    ``motion`` (updated in place; None: these records start the run)."""
+    ``motion`` (updated in place; None: these records start the run). values: load
+    index -> (n, 3) global force or torque of each load whose value is an expression
+    (:func:`reactions`)."""
     model = plan.model
     out = np.zeros((motion.n, 6 * len(index)))
     centres = {b: motion.centre(b)[0] for b in index}
@@ -169,9 +178,9 @@ def applied(plan, motion: Motion, index: dict[str, int], turns=None) -> np.ndarr
         if isinstance(ld, Force) and ld.body in index:
             at = (motion.centre(ld.body)[0] if ld.at is None else
                   motion.body(ld.body).point(ld.at)[0])
-            add(ld.body, force=np.tile(ld.value, (motion.n, 1)), at=at)
+            add(ld.body, force=_value(ld, k, values, motion.n), at=at)
         elif isinstance(ld, Torque):
-            add(ld.body, torque=np.tile(ld.value, (motion.n, 1)))
+            add(ld.body, torque=_value(ld, k, values, motion.n))
         elif isinstance(ld, Spring):
             _spring(plan, motion, held, ld, k, add)
         elif isinstance(ld, TorsionSpring):
@@ -181,8 +190,20 @@ def applied(plan, motion: Motion, index: dict[str, int], turns=None) -> np.ndarr
     return out
 
 
+def _value(ld, k: int, values, n: int) -> np.ndarray:
+    """(n, 3) value of force or torque load k: its expression's values at the records
+    (``values``), else its constant value."""
+    if ld.function:
+        return values[k]
+    return np.tile(ld.value, (n, 1))
+
+
+def _element(plan, k: int):
+    return next(e for e in plan.elements if e.label == f"loads[{k}]")
+
+
 def _params(plan, k: int) -> dict[str, float]:
-    el = next(e for e in plan.elements if e.label == f"loads[{k}]")
+    el = _element(plan, k)
     return dict(zip(el.cls.param_names, el.params))
 
 
@@ -248,8 +269,8 @@ def _joint_bodies(plan, point_a: str) -> tuple[str, str]:
                 if jl.joint.name == joint)
 
 
-def reactions(solver, result, sparse: bool | None = None,
-              held=None) -> tuple[dict[str, np.ndarray], dict]:
+def reactions(solver, result, sparse: bool | None = None, held=None,
+              loads=None) -> tuple[dict[str, np.ndarray], dict]:
     """(columns, info) of the joint reactions over the rows of ``result``; ModelError
     when a load or constraint cannot be attributed to a body (module docstring).
 
@@ -258,9 +279,25 @@ def reactions(solver, result, sparse: bool | None = None,
     None picks the way by size, True/False forces the sparse or the dense way).
     held: the rows the run's events held (fccgen.runs.held_rows.HeldRows; None: no
     events): at a record where a lock holds a joint, the accelerations are those with
-    its rows held and the joint's reaction gains the held direction's torque (force)."""
+    its rows held and the joint's reaction gains the held direction's torque (force).
+    loads: what the run held at each record (fccgen.numeric.record_loads.RecordLoads;
+    None: loads whose value is an expression are refused): ``loads.chunk(t, q, v)``
+    takes a chunk of records (their angles counted over turns), ``loads.hold(k, q,
+    v)`` sets the solver's parameters to those of its record k (inputs, angle
+    references) and returns the expression loads' values there, ``loads.restore()``
+    the planned parameters again."""
     plan = solver.plan
-    check_attributable(plan)
+    check_attributable(plan, loads)
+    if loads is None:
+        return _reactions(solver, result, sparse, held, None)
+    try:
+        return _reactions(solver, result, sparse, held, loads)
+    finally:
+        loads.restore()
+
+
+def _reactions(solver, result, sparse, held, loads):
+    plan = solver.plan
     index = {name: k for k, (name, _) in enumerate(plan.bodies)}
     drivers = _coordinate_drivers(plan)
     names = [name for name, _ in plan.triples]
@@ -276,15 +313,21 @@ def reactions(solver, result, sparse: bool | None = None,
         v = np.column_stack([result.columns[f"{t}.v{c}"][rows] for t in names
                              for c in "xyz"])
         a = np.empty_like(q)
+        values = {}
+        if loads is not None:
+            loads.chunk(result.t[rows], q, v)
         for k, t in enumerate(result.t[rows]):
             solver.set_time(float(t))          # a driven model's q'' depends on t
+            if loads is not None:              # and the run's inputs, turns, loads
+                for j, value in loads.hold(k, q[k], v[k]).items():
+                    values.setdefault(j, np.empty((len(a), 3)))[k] = value
             a[k] = (held.accelerations(q[k], v[k], keys) if keys
                     else solver.accelerations(q[k], v[k]))
         motion = Motion(plan, q, v, a)
         at = [(body, e, motion.triple(point)[0] - motion.centre(body)[0])
               for body, e, point in drivers]
-        balance = system(plan, motion, index, applied(plan, motion, index, turns), at,
-                         keys)
+        balance = system(plan, motion, index,
+                         applied(plan, motion, index, turns, values), at, keys)
         x, rank, solved_dense, res = solve_records(balance, sparse, patterns)
         ranks.append(rank)
         unknowns, dense, worst = (max(unknowns, balance.shape[1]), dense + solved_dense,
@@ -350,14 +393,15 @@ def minimum_norm_note(info: dict) -> str:
             "are undetermined); the minimum-norm set is reported")
 
 
-def add_reactions(solver, result, held=None):
+def add_reactions(solver, result, held=None, loads=None):
     """Add the reaction columns to ``result`` of a mechanism-level model (in place);
     ``result.info["reactions"]`` says whether they are unique, or why they are absent.
-    held: the rows the run's events held (:func:`reactions`)."""
+    held: the rows the run's events held; loads: what the run held at each record
+    (:func:`reactions`)."""
     if getattr(solver.plan.model, "mechanism", None) is None or len(result.t) == 0:
         return result
     try:
-        cols, info = reactions(solver, result, held=held)
+        cols, info = reactions(solver, result, held=held, loads=loads)
     except (ModelError, SimulationError, np.linalg.LinAlgError, MemoryError,
             RuntimeError, ValueError) as exc:
         # the run itself succeeded: keep it, and say why it has no reactions

@@ -104,20 +104,45 @@ def _trees(text: str) -> tuple[ast.AST, ...]:
 
 # -- joint quantities with their gradients --------------------------------------------
 
-def _angle(x, prefix: str):
-    """(angle, rate, d angle/dq, d rate/dq) over the element's q."""
+def _dot(a, b):
+    """a . b of 3-vectors, or of stacks of them with the components first (3, n)."""
+    return (a * b).sum(axis=0)
+
+
+def _hinge(x, prefix: str):
+    """The hinge measure's parts: (u, u', p_A, p_B, p_A', p_B', D, P, D', P'); the
+    vectors may be stacks (3, n) of records, components first."""
     pos = {n: x.pos[prefix + n] for n in ("A.ri", "A.rj", "B.ri", "B.rj", "u")}
     vel = {n: x.vel[prefix + n] for n in pos}
-    s = x.s
-    la, lb = s[prefix + "lA"], s[prefix + "lB"]
-    c0, s0 = turned(s, prefix)
+    la, lb = x.s[prefix + "lA"], x.s[prefix + "lB"]
     u, du = pos["u"], vel["u"]
     pa, pb = pos["A.rj"] - pos["A.ri"] - la * u, pos["B.rj"] - pos["B.ri"] - lb * u
     va, vb = vel["A.rj"] - vel["A.ri"] - la * du, vel["B.rj"] - vel["B.ri"] - lb * du
+    D, P = _dot(u, cross(pa, pb)), _dot(pa, pb)
+    Dd = _dot(du, cross(pa, pb)) + _dot(u, cross(va, pb)) + _dot(u, cross(pa, vb))
+    Pd = _dot(va, pb) + _dot(pa, vb)
+    return u, du, pa, pb, va, vb, D, P, Dd, Pd
+
+
+def angle_rate(x, prefix: str):
+    """(angle, rate) of the hinge ``prefix`` without their gradients (as :func:`_angle`
+    gives them: th + atan2(S, C) and (C S' - S C') / N); arrays over the records when
+    x's vectors are stacks (3, n)."""
+    s = x.s
+    c0, s0 = turned(s, prefix)
+    *_, D, P, Dd, Pd = _hinge(x, prefix)
+    S, C = c0 * D - s0 * P, c0 * P + s0 * D
+    Sd, Cd = c0 * Dd - s0 * Pd, c0 * Pd + s0 * Dd
+    return s[prefix + "th"] + np.arctan2(S, C), (C * Sd - S * Cd) / (S * S + C * C)
+
+
+def _angle(x, prefix: str):
+    """(angle, rate, d angle/dq, d rate/dq) over the element's q."""
+    s = x.s
+    la, lb = s[prefix + "lA"], s[prefix + "lB"]
+    c0, s0 = turned(s, prefix)
+    u, du, pa, pb, va, vb, D, P, Dd, Pd = _hinge(x, prefix)
     zero = np.zeros(3)
-    D, P = u @ cross(pa, pb), pa @ pb
-    Dd = du @ cross(pa, pb) + u @ cross(va, pb) + u @ cross(pa, vb)
-    Pd = va @ pb + pa @ vb
     # gradients on (u, p_A, p_B)
     gD, gP = (cross(pa, pb), cross(pb, u), cross(u, pa)), (zero, pb, pa)
     gDd = (cross(va, pb) + cross(pa, vb), cross(pb, du) + cross(vb, u),

@@ -18,6 +18,7 @@ from ..mechanism.driver_forces import add_driver_columns, driver_rows
 from ..mechanism.initial_positions import assemble_at_joints
 from ..mechanism.initial_speeds import initial_speeds
 from ..mechanism.reactions import add_reactions
+from . import record_loads
 from ..settings.run import linear_solver_choice, solver_tolerances
 from ..errors import FccgenError, SimulationError
 from ..progress import run_reporter
@@ -95,6 +96,14 @@ class NumericSolver:
             for name in el.cls.inputs:
                 self._params[k][el.cls.param_names.index(input_parameter(name))] = \
                     row[held.names.index(name)]
+
+    def put_params(self, slots, values) -> None:
+        """Write values[i] into the concatenated element parameters at slots[i] (as
+        the compiled assembler's put_params)."""
+        starts = np.cumsum([0] + [len(p) for p in self._params])
+        for slot, value in zip(np.asarray(slots, int), np.asarray(values, float)):
+            e = int(np.searchsorted(starts, slot, side="right")) - 1
+            self._params[e][slot - starts[e]] = value
 
     def set_time(self, t) -> None:
         """Evaluate the kernels at the time t from now on (models with drivers)."""
@@ -402,7 +411,10 @@ class NumericSolver:
         check_constraint_drift(self, result, project)
         check_energy(result, self.plan, kinetic_peak(self, result, None), kept.get("work"),
                      untracked)
-        return add_reactions(self, result, locks) if reactions else result
+        if not reactions:
+            return result
+        return add_reactions(self, result, locks, record_loads.of_run(
+            self.plan, self.put_params, self._held, sched))
 
     def _context(self, m, sched, project, q0, v0, event_tol, rest_speed):
         """(the numeric.runs.RunContext of a run of method m, why its work is not

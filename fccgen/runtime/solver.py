@@ -18,6 +18,7 @@ from .. import rank as rank_rule
 from ..runs.explain import explained
 from ..runs.locate import step_setting
 from ..numeric.elements import element_kernels
+from ..numeric import record_loads
 from ..mechanism.driver_branch import check_driver_branches
 from ..mechanism.driver_forces import add_driver_columns, driver_rows
 from ..mechanism.initial_positions import assemble_at_joints
@@ -192,6 +193,11 @@ class CompiledSolver:
     def constraint_rate(self, q) -> np.ndarray:
         """Partial dg/dt at the time of :meth:`set_time` (zero without drivers)."""
         return self._get("constraint_rate", q)
+
+    def put_params(self, slots, values) -> None:
+        """Write values[i] into the concatenated element parameters at slots[i]: later
+        kernel calls read them (the model's inputs, angle references)."""
+        self._asm.put_params(slots, values)
 
     def set_time(self, t) -> None:
         """Evaluate the kernels at the time t from now on (models with drivers; the
@@ -513,7 +519,10 @@ class CompiledSolver:
             sensitivity_run.attach(self, result, keys, sens, m.name)
             if m.name == "dopri5":
                 result.info["sensitivity_error_control"] = bool(sens_error)
-        return add_reactions(self, result, locks) if reactions else result
+        if not reactions:
+            return result
+        return add_reactions(self, result, locks, record_loads.of_run(
+            self.plan, self.put_params, held, sched, m.name in REBASING))
 
     def dense_engine(self):
         """The dense path's engine (the solver's own unless it takes the sparse one)."""
