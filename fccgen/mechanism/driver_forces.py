@@ -27,6 +27,8 @@ from .lowering import driver_column, driver_label
 # Singular values of B^T below this fraction of the largest count as zero in the
 # minimum-norm solve: the rank tolerance of the solvers (fccgen.rank).
 RCOND = 1e-10
+# Records whose turns are counted at once (fccgen.numeric.record_loads).
+CHUNK = 1024
 
 
 def driver_rows(plan) -> dict[str, tuple[int, object]]:
@@ -67,9 +69,12 @@ def multipliers(solver, t: float, q: np.ndarray, v: np.ndarray, held=None,
     return np.linalg.lstsq(B.T, rhs, rcond=RCOND)[0]
 
 
-def add_driver_columns(solver, result, held=None) -> None:
+def add_driver_columns(solver, result, held=None, loads=None) -> None:
     """Append the drivers' generalized forces to ``result`` (in place); held: the
-    rows the run's events held (:func:`multipliers`)."""
+    rows the run's events held (:func:`multipliers`); loads: what the run held at
+    each record (fccgen.numeric.record_loads.RecordLoads: its inputs and the angle
+    references of the kernels that count turns, so that a spring wound past half a
+    turn pulls as it did in the run; None: the planned parameters)."""
     rows = driver_rows(solver.plan)
     if not rows or len(result.t) == 0:
         return
@@ -83,13 +88,28 @@ def add_driver_columns(solver, result, held=None) -> None:
     for start, stop, held_keys in held.segments if held is not None else ():
         keys[start:stop] = [held_keys] * (stop - start)
     known = len(result.t) if held is None else held.known
-    for k, t in enumerate(result.t[:known]):
-        lam = multipliers(solver, float(t), q[k], v[k], held, keys[k])
-        for col, (row, slope) in rows.items():
-            values[col][k] = -slope(float(t)) * lam[row]
+    reason = held.unknown_reason(result.t) if known < len(result.t) else ""
+    try:
+        for start in range(0, known, CHUNK):
+            stop = min(known, start + CHUNK)
+            if loads is not None:
+                try:
+                    loads.chunk(result.t[start:stop], q[start:stop], v[start:stop])
+                except ValueError as exc:      # turns that the records cannot count
+                    known, reason = start, str(exc)
+                    break
+            for k in range(start, stop):
+                if loads is not None:
+                    loads.hold(k - start, q[k], v[k])
+                t = float(result.t[k])
+                lam = multipliers(solver, t, q[k], v[k], held, keys[k])
+                for col, (row, slope) in rows.items():
+                    values[col][k] = -slope(t) * lam[row]
+    finally:
+        if loads is not None:
+            loads.restore()
     result.columns.update(values)
     if known < len(result.t):
-        text = (f"the driver forces are NaN from t = {result.t[known]:.9g} s on: "
-                + held.unknown_reason(result.t))
+        text = f"the driver forces are NaN from t = {result.t[known]:.9g} s on: {reason}"
         result.info.setdefault("warnings", []).append(text)
         warnings.warn(text, RunWarning, stacklevel=3)

@@ -401,7 +401,8 @@ class NumericSolver:
             finish_events(result, ctx.events)
         locks = None if ctx.events is None else held_rows.of_run(
             self, result, held_quantities(ctx.events))
-        add_driver_columns(self, result, locks)
+        loads = record_loads.of_run(self.plan, self.put_params, self._held, sched)
+        add_driver_columns(self, result, locks, loads)
         check_driver_branches(self.plan, result)
         rank_rule.report_run(result, decision, self._rank.stats,
                              driven=bool(driver_rows(self.plan)))
@@ -413,8 +414,7 @@ class NumericSolver:
                      untracked)
         if not reactions:
             return result
-        return add_reactions(self, result, locks, record_loads.of_run(
-            self.plan, self.put_params, self._held, sched))
+        return add_reactions(self, result, locks, loads)
 
     def _context(self, m, sched, project, q0, v0, event_tol, rest_speed):
         """(the numeric.runs.RunContext of a run of method m, why its work is not

@@ -504,7 +504,9 @@ class CompiledSolver:
         stats = used.rank_statistics()
         locks = (None if events is None or not events.n_events else
                  held_rows.of_run(self, result, self._held_quantities(events), dropped))
-        add_driver_columns(self, result, locks)
+        loads = record_loads.of_run(self.plan, self.put_params, held, sched,
+                                    m.name in REBASING)
+        add_driver_columns(self, result, locks, loads)
         check_driver_branches(self.plan, result)
         rank_rule.report_run(result, decision, stats,
                              driven=bool(driver_rows(self.plan)))
@@ -521,8 +523,7 @@ class CompiledSolver:
                 result.info["sensitivity_error_control"] = bool(sens_error)
         if not reactions:
             return result
-        return add_reactions(self, result, locks, record_loads.of_run(
-            self.plan, self.put_params, held, sched, m.name in REBASING))
+        return add_reactions(self, result, locks, loads)
 
     def dense_engine(self):
         """The dense path's engine (the solver's own unless it takes the sparse one)."""
