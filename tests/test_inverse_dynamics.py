@@ -127,3 +127,32 @@ def test_numeric_and_compiled_inverse_agree(inverse, numeric):
     assert len(r.t) == 11
     for name in ("motor.torque", "O.tz", "C.fx", "C.fy"):
         assert np.max(np.abs(r[name] - inverse[name][:11])) <= 1e-10, name
+
+
+def test_a_motor_winding_a_spring_past_half_a_turn(tmp_path):
+    """The motor of tests/test_driven_reactions.py (3 rad/s against a 2 N m/rad
+    torsion spring, no gravity) driven to 9 rad: it holds k theta at every row, and so
+    does the hinge. Before, the inverse run's driver forces read the spring at its
+    planned reference, theta - 2 pi past pi: -3.57 N m at 4.5 rad instead of 9.
+    1e-9 N m: the rows' kinematic projection and the least-squares multipliers."""
+    from test_driven_reactions import WOUND
+    r = fccgen.inverse_dynamics(write(tmp_path, WOUND))
+    assert r["H.angle"][-1] == pytest.approx(9.0)
+    assert np.abs(r["motor.torque"] - 2.0 * r["H.angle"]).max() < 1e-9
+    assert np.abs(r["H.tz"] - 2.0 * r["H.angle"]).max() < 1e-9
+
+
+def test_an_expression_torque_of_the_joint_angle_over_turns(tmp_path):
+    """The same motor against the spring written as a torque of the joint angle,
+    -2 H.angle about z on the arm: the rows give the load its angle over turns, so the
+    motor holds 2 theta to 9 rad, as with the spring (1e-9 N m, as above). Before,
+    the inverse run left the reactions of such a load out."""
+    from test_driven_reactions import WOUND
+    text = WOUND.replace(
+        "  - {type: torsion_spring, joint: H, stiffness: 2.0, angle: 0.0, damping: 0.0}",
+        '  - {type: torque, body: arm, value: ["0", "0", "-2.0*H.angle"]}')
+    assert text != WOUND
+    r = fccgen.inverse_dynamics(write(tmp_path, text))
+    assert r.info["reactions"]["computed"]
+    assert np.abs(r["motor.torque"] - 2.0 * r["H.angle"]).max() < 1e-9
+    assert np.abs(r["H.tz"] - 2.0 * r["H.angle"]).max() < 1e-9

@@ -101,6 +101,7 @@ def solve_inverse(solver, t_end=None, dt=None, progress=None):
     from ..mechanism.driver_forces import add_driver_columns
     from ..mechanism.outputs import add_joint_columns
     from ..mechanism.reactions import add_reactions
+    from ..numeric.record_loads import RecordLoads
     from ..progress import run_reporter
     from ..results.provenance import provenance
     from ..results.result import result_from_arrays
@@ -124,8 +125,11 @@ def solve_inverse(solver, t_end=None, dt=None, progress=None):
                                 arrays["constraint_error"], info)
     if getattr(solver.plan.model, "mechanism", None) is not None:
         add_joint_columns(solver.plan, result)
-    add_driver_columns(solver, result)
-    add_reactions(solver, result)
+    # the turns of the springs and the expression loads' values at each row, counted
+    # from the rows as after a run (the inputs at their start values)
+    loads = RecordLoads(solver.plan, solver.put_params)
+    add_driver_columns(solver, result, None, loads)
+    add_reactions(solver, result, loads=loads)
     result.info["wall_time"] = time.perf_counter() - start
     return result
 
