@@ -27,8 +27,8 @@ minimum-norm x (in N and N m together) is reported, with
 Applied loads are attributed to bodies: gravity, forces and torques on a body (those
 whose value is an expression with the values the run held at each record, from the
 caller: :func:`reactions`, ``loads``), torsion springs on their two bodies, point
-springs on the bodies that carry their ends, a joint's linear spring on the joint's two bodies at its points J_a, J_b. A
-load that acts on a triple shared by two bodies, or on one that no body carries, and
+springs on the bodies that carry their ends, a joint's linear spring on the joint's
+two bodies at its points J_a, J_b. A load that acts on a triple shared by two bodies, or on one that no body carries, and
 section-2 ties that act as hidden joints (constraints not made by a joint, a point or
 vector shared by bodies or a fixed one a body uses outside a joint) cannot be
 attributed: reactions are refused with a :class:`~fccgen.errors.ModelError` naming the
@@ -111,7 +111,8 @@ def check_attributable(plan, loads=None) -> None:
             why = (f"it reads the input {inputs[0]}, whose values over the run"
                    if inputs else "its value is an expression, whose values at the "
                    "records (joint angles counted over turns)")
-            why += " only the run knows (simulate and statics compute these reactions)"
+            why += (" only the run knows (simulate, statics and inverse compute these "
+                    "reactions)")
             raise _refuse(ld.where, f"loads[{k}]", why,
                           expressions_of(ld.function.split("|")[-1]))
 
