@@ -63,6 +63,7 @@ class RecordLoads:
                 prefix + REFERENCE_SCALARS[0]) + i
              for e, prefix in self.sources for i in range(3)], np.intc)
         self.previous = None           # (t, angles, rates) of the last record
+        self.impacts = np.zeros(0)     # the run's event times (of_run)
         self.t, self.angles = np.zeros(0), np.zeros((len(self.sources), 0))
         self.touched: set[int] = set()
 
@@ -121,6 +122,11 @@ class RecordLoads:
             rates = np.concatenate([r0, rate], axis=1)
             dt, w = np.diff(ts), np.diff(before, axis=1)
             step = w + TURN * np.round((rates[:, :-1] * dt - w) / TURN)
+            # an event between two records (an impact, a lock) breaks the rates: there
+            # the nearest branch, the rule of the joint angle columns (numpy.unwrap)
+            struck = (np.searchsorted(self.impacts, ts[1:], side="right")
+                      > np.searchsorted(self.impacts, ts[:-1], side="right"))
+            step[:, struck] = (w - TURN * np.round(w / TURN))[:, struck]
             if self.previous is None:
                 step[:, 0] = 0.0
             angles = a0 + np.cumsum(step, axis=1)
@@ -128,7 +134,7 @@ class RecordLoads:
             counted = np.concatenate([a0, angles], axis=1)
             trapezoid = 0.5 * (rates[:, :-1] + rates[:, 1:]) * dt
             off = np.abs(np.diff(counted, axis=1) - trapezoid)
-            far = off > 0.5 * math.pi
+            far = (off > 0.5 * math.pi) & ~struck
             if far.any():                          # the first record, then its angle
                 k = int(np.argmax(far.any(axis=0)))
                 j = int(np.argmax(far[:, k]))
@@ -189,8 +195,11 @@ class RecordLoads:
         self.previous = None
 
 
-def of_run(plan, put, inputs, sched, turns: bool = True) -> RecordLoads:
+def of_run(plan, put, inputs, sched, turns: bool = True, events=()) -> RecordLoads:
     """The RecordLoads of a run with the schedule ``sched`` and the inputs ``inputs``
-    (fccgen.runs.inputs.input_run; None: the model has none)."""
+    (fccgen.runs.inputs.input_run; None: the model has none); events: its event
+    table (fccgen.events.table.event_rows)."""
     times = None if inputs is None or inputs.constant else record_times(sched)
-    return RecordLoads(plan, put, inputs, times, turns)
+    loads = RecordLoads(plan, put, inputs, times, turns)
+    loads.impacts = np.array(sorted(e["t"] for e in events), float)
+    return loads

@@ -401,7 +401,8 @@ class NumericSolver:
             finish_events(result, ctx.events)
         locks = None if ctx.events is None else held_rows.of_run(
             self, result, held_quantities(ctx.events))
-        loads = record_loads.of_run(self.plan, self.put_params, self._held, sched)
+        loads = record_loads.of_run(self.plan, self.put_params, self._held, sched,
+                                    events=result.events or ())
         add_driver_columns(self, result, locks, loads)
         check_driver_branches(self.plan, result)
         rank_rule.report_run(result, decision, self._rank.stats,

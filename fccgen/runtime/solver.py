@@ -505,7 +505,7 @@ class CompiledSolver:
         locks = (None if events is None or not events.n_events else
                  held_rows.of_run(self, result, self._held_quantities(events), dropped))
         loads = record_loads.of_run(self.plan, self.put_params, held, sched,
-                                    m.name in REBASING)
+                                    m.name in REBASING, result.events or ())
         add_driver_columns(self, result, locks, loads)
         check_driver_branches(self.plan, result)
         rank_rule.report_run(result, decision, stats,

@@ -461,21 +461,35 @@ static void flush(fcc_engine *e, fcc_dopri5 *r)
     }
 }
 
+/* An accepted step after its records (rc: accept's or step_records'): held there
+ * (a pause), or its end. Returns 1 with *status what the advance returns (an error,
+ * the pause, a stop event's end), 0 to step on. */
+static int close_step(fcc_engine *e, fcc_dopri5 *r, int rc, int *status)
+{
+    if (rc != 0) {
+        *status = rc < 0 ? FCC_RUN_ERROR : FCC_RUN_PAUSE;
+        return 1;
+    }
+    if (finish_step(e, r) < 0) {
+        *status = FCC_RUN_ERROR;
+        return 1;
+    }
+    if (r->stopped) {
+        *status = FCC_RUN_DONE;
+        return 1;
+    }
+    r->h = r->h_next;
+    r->last_rejected = 0;
+    return 0;
+}
+
 int fcc_dopri5_advance(fcc_engine *e, fcc_dopri5 *r)
 {
     double h, err, fac;
-    int rc;
-    if (r->held) {                /* a step held after its records: more, or its end */
-        rc = step_records(e, r);
-        if (rc != 0)
-            return rc < 0 ? FCC_RUN_ERROR : FCC_RUN_PAUSE;
-        if (finish_step(e, r) < 0)
-            return FCC_RUN_ERROR;
-        if (r->stopped)
-            return FCC_RUN_DONE;
-        r->h = r->h_next;
-        r->last_rejected = 0;
-    }
+    int status;
+    /* a step held after its records: more of them, or its end */
+    if (r->held && close_step(e, r, step_records(e, r), &status))
+        return status;
     while (r->t < r->t_end) {
         h = fmin(r->h, r->t_end - r->t);
         if (0.1 * h <= fabs(r->t) * UROUND || h <= 0.0) {
@@ -495,15 +509,8 @@ int fcc_dopri5_advance(fcc_engine *e, fcc_dopri5 *r)
                 fac = 1.0;
             r->h = h;
             r->h_next = h * fac;
-            rc = accept(e, r, h);
-            if (rc != 0)
-                return rc < 0 ? FCC_RUN_ERROR : FCC_RUN_PAUSE;
-            if (finish_step(e, r) < 0)
-                return FCC_RUN_ERROR;
-            if (r->stopped)
-                return FCC_RUN_DONE;
-            r->h = r->h_next;
-            r->last_rejected = 0;
+            if (close_step(e, r, accept(e, r, h), &status))
+                return status;
         } else {
             /* NaN fails "err <= 1" too and shrinks the step by FACMIN */
             fac = !(err == err) ? FACMIN : fmax(FACMIN, SAFETY * pow(err, -0.2));
