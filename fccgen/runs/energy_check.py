@@ -46,6 +46,10 @@ CONSERVATIVE = {"body": ("gx", "gy", "gz"), "force": ("Fx", "Fy", "Fz"),
                 "point_force": ("Fx", "Fy", "Fz")}
 # Loads without any potential: all their force does work.
 NO_POTENTIAL = ("torque", "force_t", "torque_t", "force_q", "torque_q", "point_force_t")
+# Positions that move by at most this fraction of their size (1 m floor) over a run:
+# the bodies stayed at rest, and the energy's changes are rounding (a kinetic energy
+# of 1e-32 J is no scale to measure them by).
+AT_REST = 1e-12
 RECORDS_FOR_PEAK = 2000    # records read for the kinetic energy peak (evenly spread)
 
 
@@ -152,6 +156,9 @@ def check_energy(result, plan, kinetic: float | None, work=None,
         last = result.events[-1]["t"]
         balance = balance[np.asarray(result.t) <= last]
         check["until"] = last
+    if _at_rest(result, plan):
+        check["at_rest"] = True
+        return
     drift = np.abs(balance - balance[0])
     k = int(np.argmax(drift))
     fraction = float(drift[k]) / float(kinetic)
@@ -174,3 +181,16 @@ def check_energy(result, plan, kinetic: float | None, work=None,
             f"(docs/reliability.md, \"Energy\")")
     info.setdefault("warnings", []).append(text)
     warnings.warn(text, RunWarning, stacklevel=3)
+
+
+def _at_rest(result, plan) -> bool:
+    """No coordinate of the run's records moved by more than AT_REST of the largest
+    (at least 1): the bodies stayed where they started."""
+    moved, size = 0.0, 1.0
+    for name, _ in plan.triples:
+        for c in "xyz":
+            x = np.asarray(result.columns.get(f"{name}.{c}", ()), float)
+            if x.size:
+                moved = max(moved, float(np.max(np.abs(x - x[0]))))
+                size = max(size, float(np.max(np.abs(x))))
+    return moved <= AT_REST * size
