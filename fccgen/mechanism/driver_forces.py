@@ -61,12 +61,22 @@ def multipliers(solver, t: float, q: np.ndarray, v: np.ndarray, held=None,
     solver.set_time(t)
     B = solver.constraint_jacobian(q)
     if keys:
-        a = held.accelerations(q, v, keys)
-        B = np.vstack([B, held.rows(q, v, sorted(keys))[0]])
+        a, G = held.solve(q, v, keys)
+        B = np.vstack([B, G])
     else:
         a = solver.accelerations(q, v)
     rhs = solver.applied_forces(q, v) - solver.h_vector(q, v) - solver.mass_matrix(q) @ a
     return np.linalg.lstsq(B.T, rhs, rcond=RCOND)[0]
+
+
+def record_chunks(n: int, size: int, held):
+    """(slice of records, held rows) of the first n records, in chunks of at most
+    ``size`` records in order, each within one segment of constant held rows
+    (fccgen.runs.held_rows; held None: none held)."""
+    for start, stop, keys in held.segments if held is not None else [(0, n, frozenset())]:
+        stop = min(stop, n)
+        for first in range(start, stop, size):
+            yield slice(first, min(stop, first + size)), keys
 
 
 def add_driver_columns(solver, result, held=None, loads=None) -> None:
@@ -84,25 +94,21 @@ def add_driver_columns(solver, result, held=None, loads=None) -> None:
     v = np.column_stack([result.columns[f"{name}.v{c}"] for name, _ in plan.triples
                          for c in "xyz"])
     values = {col: np.full(len(result.t), np.nan) for col in rows}
-    keys = [frozenset()] * len(result.t)
-    for start, stop, held_keys in held.segments if held is not None else ():
-        keys[start:stop] = [held_keys] * (stop - start)
     known = len(result.t) if held is None else held.known
     reason = held.unknown_reason(result.t) if known < len(result.t) else ""
     try:
-        for start in range(0, known, CHUNK):
-            stop = min(known, start + CHUNK)
+        for part, keys in record_chunks(known, CHUNK, held):
             if loads is not None:
                 try:
-                    loads.chunk(result.t[start:stop], q[start:stop], v[start:stop])
+                    loads.chunk(result.t[part], q[part], v[part])
                 except ValueError as exc:      # turns that the records cannot count
-                    known, reason = start, str(exc)
+                    known, reason = part.start, str(exc)
                     break
-            for k in range(start, stop):
+            for k in range(part.start, part.stop):
                 if loads is not None:
-                    loads.hold(k - start, q[k], v[k])
+                    loads.hold(k - part.start, q[k], v[k])
                 t = float(result.t[k])
-                lam = multipliers(solver, t, q[k], v[k], held, keys[k])
+                lam = multipliers(solver, t, q[k], v[k], held, keys)
                 for col, (row, slope) in rows.items():
                     values[col][k] = -slope(t) * lam[row]
     finally:

@@ -44,6 +44,7 @@ from ..errors import ModelError, RunWarning, SimulationError
 from ..model.types import (GROUND, Attached, BodyPoint, DriverRow, Force,
                            LinearSpring, Spring, Torque, TorsionSpring)
 from .body_motion import Motion
+from .driver_forces import record_chunks
 from .reaction_bases import COMPONENTS
 from ..expressions.named_tables import expressions_of
 from .reaction_solve import solve_records
@@ -309,7 +310,7 @@ def _reactions(solver, result, sparse, held, loads):
     turns: dict[int, float] = {}
     ranks, unknowns, dense, worst, patterns, missing = [], 0, 0, 0.0, {}, 0
     known = n if held is None else held.known     # records whose held rows are known
-    for rows, keys in _chunks(known, chunk, held):
+    for rows, keys in record_chunks(known, chunk, held):
         q = np.column_stack([result.columns[f"{t}.{c}"][rows] for t in names for c in "xyz"])
         v = np.column_stack([result.columns[f"{t}.v{c}"][rows] for t in names
                              for c in "xyz"])
@@ -345,15 +346,6 @@ def _reactions(solver, result, sparse, held, loads):
         info["unknown_from"] = float(result.t[known])
         info["unknown_reason"] = held.unknown_reason(result.t)
     return cols, info
-
-
-def _chunks(n: int, chunk: int, held):
-    """(slice of records, held rows) of the first n records, in chunks of at most
-    ``chunk`` records, each within one segment of constant held rows."""
-    for start, stop, keys in held.segments if held is not None else [(0, n, frozenset())]:
-        stop = min(stop, n)
-        for first in range(start, stop, chunk):
-            yield slice(first, min(stop, first + chunk)), keys
 
 
 def chunk_records(plan, n_bodies: int) -> int:

@@ -123,10 +123,15 @@ class HeldRows:
     def accelerations(self, q, v, keys) -> np.ndarray:
         """q'' at (q, q') with the rows ``keys`` held (module docstring), at the
         solver's time (set by the caller)."""
+        return self.solve(q, v, keys)[0]
+
+    def solve(self, q, v, keys) -> tuple[np.ndarray, np.ndarray]:
+        """(q'', G): :meth:`accelerations` and the held rows' gradients (k, n), in the
+        order of sorted(keys), that they hold."""
         s = self.solver
         a0 = s.accelerations(q, v)
         if not keys:
-            return a0
+            return a0, np.zeros((0, len(q)))
         G, bias = self.rows(q, v, sorted(keys))
         Z = self._responses(q, G)
         S = G @ Z
@@ -140,7 +145,7 @@ class HeldRows:
                 f"the held joint rows {', '.join(f'{j}.{k}' for j, k in sorted(keys))}"
                 f" cannot hold at this record (their accelerations are left at "
                 f"{left:.3g} against {scale:.3g})")
-        return a
+        return a, G
 
     def _responses(self, q, G: np.ndarray) -> np.ndarray:
         """(n, k): the constrained responses z_j to the forces G_j^T."""
