@@ -39,6 +39,15 @@ EXPRESSION_KINDS = ("force_t", "torque_t", "force_q", "torque_q")
 TURN = 2.0 * math.pi
 
 
+class UncountedTurns(ValueError):
+    """The records are too far apart to count an angle's turns; ``record``: the
+    chunk's first record that cannot be placed on a turn (those before it are)."""
+
+    def __init__(self, message: str, record: int):
+        super().__init__(message)
+        self.record = record
+
+
 class RecordLoads:
     """Per record (in order), the values of the expression loads and the parameters
     the run held. plan: the solver's plan; put(slots, values): writes values into
@@ -140,18 +149,20 @@ class RecordLoads:
                 j = int(np.argmax(far[:, k]))
                 e, prefix = self.sources[j]
                 name = prefix.split(".")[0] or self.plan.elements[e].label
-                raise ValueError(
+                self.angles = angles           # the records before it are placed
+                raise UncountedTurns(
                     f"the angle of {name} moved {abs(step[j, k]):.3g} rad between the "
                     f"records at t = {ts[k]:.9g} and {ts[k + 1]:.9g} s, too far to count "
-                    "its turns from the records; record more often (output_dt)")
+                    "its turns from the records; record more often (output_dt)", k)
         if n:
             self.previous = (self.t[-1:], angles[:, -1:], rate[:, -1:])
         self.angles = angles
 
-    def hold(self, k: int, q, v) -> dict[int, np.ndarray]:
+    def hold(self, k: int, q, v, values: bool = True) -> dict[int, np.ndarray]:
         """The values (global force or torque) of the expression loads at record k of
         the chunk (q, v its coordinates and speeds); the solver's parameters set to the
-        record's (inputs, references)."""
+        record's (inputs, references). values False: the parameters only (an empty
+        dict; the driver forces and the energy read the solver, not the loads)."""
         t = float(self.t[k])
         q, v = np.asarray(q, float), np.asarray(v, float)
         angles = self.angles[:, k]
@@ -167,7 +178,7 @@ class RecordLoads:
             self.put(slots, np.concatenate(values))
             self.touched.update(slots.tolist())
         out = {}
-        for j, e in self.loads.items():
+        for j, e in self.loads.items() if values else ():
             el = self.plan.elements[e]
             names = el.cls.param_names
             p = np.array(el.params, float)
@@ -193,6 +204,34 @@ class RecordLoads:
             self.put(slots, plan_params[slots])
         self.touched = set()
         self.previous = None
+
+
+def energies(solver, t, q, v, loads: RecordLoads, chunk: int = 1024):
+    """(energy at each record, records known, why not the rest) of the records (t, q,
+    v: one row each, in order of time, from the run's start), each with the angle
+    references and inputs the run held there (``loads``, which is restored after),
+    so that a torsion spring wound past half a turn stores k phi^2 / 2 of its angle
+    over turns, not of the angle within half a turn of its planned reference. Where
+    the records are too far apart to count the turns (:meth:`RecordLoads.chunk`),
+    the energy is NaN from there on and the reason is returned."""
+    n = len(t)
+    out, known, reason = np.full(n, np.nan), n, ""
+    try:
+        for first in range(0, n, chunk):
+            part = slice(first, min(n, first + chunk))
+            try:
+                loads.chunk(t[part], q[part], v[part])
+            except UncountedTurns as exc:
+                known, reason = first + exc.record, str(exc)
+            for k in range(part.start, min(part.stop, known)):
+                loads.hold(k - first, q[k], v[k], values=False)
+                solver.set_time(float(t[k]))
+                out[k] = solver.energy(q[k], v[k])
+            if known < n:
+                break
+    finally:
+        loads.restore()
+    return out, known, reason
 
 
 def of_run(plan, put, inputs, sched, turns: bool = True, events=()) -> RecordLoads:
