@@ -89,19 +89,6 @@ def test_cli_writes_the_sensitivity_columns(build_dir, tmp_path, capsys):
     assert code == 2 and "no body named 'rod9'" in capsys.readouterr().err
 
 
-SPUN = """\
-name: spun_spring
-bodies:
-  arm: {mass: 1.0, center: [0.5, 0, 0], inertia: [0.001, 0.1, 0.1]}
-joints:
-  - {name: H, type: revolute, bodies: [ground, arm], at: [0, 0, 0], axis: [0, 0, 1]}
-loads:
-  - {type: torsion_spring, joint: H, stiffness: 0.5, angle: -0.3, damping: 0.0}
-initial:
-  joints: {H: {rate: 6.0}}
-simulate: {t_end: 1.5, dt: 1.0e-3, output_dt: 0.05}
-"""
-
 
 def test_the_energy_of_a_spring_wound_past_half_a_turn_has_its_derivative(
         build_dir, tmp_path):
@@ -112,10 +99,11 @@ def test_the_energy_of_a_spring_wound_past_half_a_turn_has_its_derivative(
     read the spring within half a turn of its planned reference: -1.9 at 3.8 rad and
     12.7 at the end. 1e-9: RK4 at 1 ms keeps this energy to about 1e-10 J, and the
     chain rule's Richardson differences are good to about 1e-12 relative."""
+    from test_angle_turns import SPUN
     path = tmp_path / "spun.yaml"
     path.write_text(SPUN)
     r = fccgen.load(path, build_dir=build_dir).simulate(
-        sensitivities=["loads[0].stiffness"], reactions=False)
+        t_end=1.5, output_dt=0.05, sensitivities=["loads[0].stiffness"], reactions=False)
     assert r["H.angle"].max() > 4.5
     d = r.sensitivity("energy", "loads[0].stiffness")
     assert np.abs(d - 0.5 * 0.3 ** 2).max() < 1e-9

@@ -34,6 +34,7 @@ from ..plan.classes import REFERENCE_SCALARS, input_parameter
 from ..runs.inputs import input_slots, record_times
 from .elements import element_kernels
 from .joint_loads import angle_rate
+from ..mechanism.turns import count_turns
 
 EXPRESSION_KINDS = ("force_t", "torque_t", "force_q", "torque_q")
 TURN = 2.0 * math.pi
@@ -118,42 +119,19 @@ class RecordLoads:
             for name in REFERENCE_SCALARS:
                 x.s[prefix + name] = 0.0 if name != "cr" else 1.0
             raw[j], rate[j] = angle_rate(x, prefix)
-        if self.previous is None:                  # the run's start: references 0
-            angles = raw.copy()
-            t0, a0, r0 = self.t[:1], raw[:, :1], rate[:, :1]
-        else:
-            t0, a0, r0 = self.previous
-            angles = np.empty_like(raw)
-        if n and self.sources:
-            # each increment on the branch nearest the rate's advance ...
-            ts = np.concatenate([t0, self.t])
-            before = np.concatenate([a0, raw], axis=1)
-            rates = np.concatenate([r0, rate], axis=1)
-            dt, w = np.diff(ts), np.diff(before, axis=1)
-            step = w + TURN * np.round((rates[:, :-1] * dt - w) / TURN)
-            # an event between two records (an impact, a lock) breaks the rates: there
-            # the nearest branch, the rule of the joint angle columns (numpy.unwrap)
-            struck = (np.searchsorted(self.impacts, ts[1:], side="right")
-                      > np.searchsorted(self.impacts, ts[:-1], side="right"))
-            step[:, struck] = (w - TURN * np.round(w / TURN))[:, struck]
-            if self.previous is None:
-                step[:, 0] = 0.0
-            angles = a0 + np.cumsum(step, axis=1)
-            # ... and checked against the trapezoid of the rates
-            counted = np.concatenate([a0, angles], axis=1)
-            trapezoid = 0.5 * (rates[:, :-1] + rates[:, 1:]) * dt
-            off = np.abs(np.diff(counted, axis=1) - trapezoid)
-            far = (off > 0.5 * math.pi) & ~struck
-            if far.any():                          # the first record, then its angle
-                k = int(np.argmax(far.any(axis=0)))
-                j = int(np.argmax(far[:, k]))
-                e, prefix = self.sources[j]
-                name = prefix.split(".")[0] or self.plan.elements[e].label
-                self.angles = angles           # the records before it are placed
-                raise UncountedTurns(
-                    f"the angle of {name} moved {abs(step[j, k]):.3g} rad between the "
-                    f"records at t = {ts[k]:.9g} and {ts[k + 1]:.9g} s, too far to count "
-                    "its turns from the records; record more often (output_dt)", k)
+        angles, known, step = count_turns(raw, rate, self.t, self.impacts, self.previous)
+        if n and self.sources and known.min() < n:   # the first record, then its angle
+            j = int(np.argmin(known))
+            k = int(known[j])
+            ts = np.concatenate([self.t[:1] if self.previous is None else
+                                 self.previous[0], self.t])
+            e, prefix = self.sources[j]
+            name = prefix.split(".")[0] or self.plan.elements[e].label
+            self.angles = angles           # the records before it are placed
+            raise UncountedTurns(
+                f"the angle of {name} moved {abs(step[j, k]):.3g} rad between the "
+                f"records at t = {ts[k]:.9g} and {ts[k + 1]:.9g} s, too far to count "
+                "its turns from the records; record more often (output_dt)", k)
         if n:
             self.previous = (self.t[-1:], angles[:, -1:], rate[:, -1:])
         self.angles = angles

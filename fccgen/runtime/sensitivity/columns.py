@@ -57,7 +57,8 @@ def _columns(solver, t, q, v, impacts) -> dict[str, np.ndarray]:
     plan = solver.plan
     body = np.array(body).reshape(len(t), len(plan.bodies), 6)
     r = result_from_arrays(plan, t, q, v, body, np.array(energy), np.zeros(len(t)))
-    return _with_joint_columns(plan, r).columns
+    r.events = [{"t": float(x)} for x in impacts]      # the angles' turns across them
+    return _with_joint_columns(plan, r, warn=False).columns
 
 
 def column_sensitivities(solver, result, key: str, S: np.ndarray, dP_j: np.ndarray):
