@@ -12,18 +12,19 @@ accelerations of the balance are the run's too.
 
 Angles over turns: a run re-bases every reference after each accepted step
 (docs/elements.md, "Angles over turns"), from 0 at its start; here the references
-follow the records instead. Each record's angle is taken on the branch nearest to the
-previous angle advanced by its rate (a rotor turning fast between records keeps its
+follow the records instead, by the rule of the joint angle columns
+(:mod:`fccgen.mechanism.turns`). Each record's angle is taken on the branch nearest to
+the previous angle advanced by its rate (a rotor turning fast between records keeps its
 turns), and checked against the trapezoid of the two rates: a record where they differ
-by more than a quarter turn cannot be placed on a turn, and the reactions are refused
-(record more often). The angles of a chunk of records are measured at once
+by more than a quarter turn cannot be placed on a turn (:class:`UncountedTurns`), and
+the reactions are refused, the driver forces and the energy NaN from there (record
+more often). The angles of a chunk of records are measured at once
 (:func:`fccgen.numeric.joint_loads.angle_rate` on stacks of records). A method that
 does not re-base (ali3p) measures its angles within half a turn of the planned
 references: they are left as planned.
 """
 from __future__ import annotations
 
-import math
 import re
 from types import SimpleNamespace
 
@@ -37,7 +38,6 @@ from .joint_loads import angle_rate
 from ..mechanism.turns import count_turns
 
 EXPRESSION_KINDS = ("force_t", "torque_t", "force_q", "torque_q")
-TURN = 2.0 * math.pi
 
 
 class UncountedTurns(ValueError):
