@@ -233,13 +233,20 @@ def test_records_too_far_apart_to_count_turns_leave_no_reactions(tmp_path):
     """A stiff spring-like torque swings the arm through 16 rad every 0.3 s; recorded
     every 0.1 s the turns between records cannot be told from the records (the
     branch nearest the rate's advance and the trapezoid of the rates disagree): no
-    reaction columns, the reason and a warning, never a guessed branch. Recorded every
+    reaction columns, the reason and a warning, never a guessed branch; the joint
+    angle column is NaN from the same record on, with its own warning. Recorded every
     step, the same run has them."""
     path = model(tmp_path, '  - {type: torque, body: arm, value: [0, 0, '
                  '"200*(8.0 - H.angle)"]}')
     solver = fccgen.load(path)
-    with pytest.warns(fccgen.errors.RunWarning, match="too far to count its turns"):
+    with pytest.warns(fccgen.errors.RunWarning) as caught:
         r = solver.simulate(t_end=1.0, output_dt=0.1)
+    said = [str(w.message) for w in caught]
+    assert any("too far to count its turns" in w for w in said), said
+    lost = r.info["angle_turns_lost"]["H.angle"]
+    assert any(w.startswith(f"H.angle is NaN from t = {lost:.9g} s on") for w in said)
+    k = int(np.searchsorted(r.t, lost))
+    assert np.isfinite(r["H.angle"][:k]).all() and np.isnan(r["H.angle"][k:]).all()
     assert not r.info["reactions"]["computed"]
     assert "record more often" in r.info["reactions"]["reason"]
     assert "H.fx" not in r.columns

@@ -10,7 +10,7 @@ import fccgen
 from conftest import EXAMPLES
 from fccgen.analysis.inverse import output_times
 from fccgen.cli import main
-from fccgen.errors import ModelError
+from fccgen.errors import ModelError, RunWarning
 from fccgen.results.result import Result
 from test_drivers import OMEGA, SLIDER, THETA0, minimal_torque
 from test_joints import write
@@ -156,3 +156,41 @@ def test_an_expression_torque_of_the_joint_angle_over_turns(tmp_path):
     assert r.info["reactions"]["computed"]
     assert np.abs(r["motor.torque"] - 2.0 * r["H.angle"]).max() < 1e-9
     assert np.abs(r["H.tz"] - 2.0 * r["H.angle"]).max() < 1e-9
+
+
+def test_the_energy_of_a_spring_wound_past_half_a_turn(tmp_path):
+    """The wound motor's rows store the spring's k theta^2 / 2 of the angle over
+    turns, plus the arm's kinetic energy (I = 0.1 + 1 * 0.5^2 about the hinge, at
+    3 rad/s), as `simulate` records it. Before, the inverse run read the spring at its
+    planned reference: 4.75 J at 4.5 rad instead of 21.8. 1e-9 J: the rows' projection
+    to the solver's tolerance."""
+    from test_driven_reactions import WOUND
+    r = fccgen.inverse_dynamics(write(tmp_path, WOUND))
+    theta = r["H.angle"]
+    assert theta[-1] == pytest.approx(9.0)
+    assert np.abs(r["energy"] - (0.5 * 0.35 * 9.0 + theta ** 2)).max() < 1e-9
+    assert r.info["energy_drift"] == pytest.approx(81.0)
+
+
+def test_rows_too_far_apart_to_count_turns_leave_the_energy_nan(tmp_path):
+    """A motor speeding up as t^3, read once a second: from 1 s to 2 s the angle moves
+    7 rad while the rates' trapezoid says 7.5 and their advance 3, so the turn of the
+    row at 2 s cannot be counted. The energy and the motor torque are NaN from there,
+    each with a warning that says so, and kept before it: at 0 and 1 s the arm's
+    kinetic energy (I = 0.35 kg m^2 at 3 t^2 rad/s) plus the spring's t^6 (1e-9 J,
+    as above)."""
+    from test_driven_reactions import WOUND
+    text = WOUND.replace('angle: "3*t"', 'angle: "t**3"')
+    assert text != WOUND
+    with pytest.warns(RunWarning) as caught:
+        r = fccgen.inverse_dynamics(write(tmp_path, text), t_end=3.0, dt=1.0)
+    said = [str(w.message) for w in caught]
+    assert any(w.startswith("the energy is NaN from t = 2 s on") for w in said), said
+    assert any(w.startswith("the driver forces are NaN from t = 2 s on") for w in said)
+    assert any("energy is NaN" in w for w in r.info["warnings"])
+    t = r.t[:2]
+    closed = 0.5 * 0.35 * (3 * t ** 2) ** 2 + t ** 6
+    assert np.abs(r["energy"][:2] - closed).max() < 1e-9
+    assert np.isnan(r["energy"][2:]).all()
+    assert np.isfinite(r["motor.torque"][:2]).all()
+    assert np.isnan(r["motor.torque"][2:]).all()

@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+import fccgen
+
 from conftest import EXAMPLES
 
 from fccgen.cli import main
@@ -85,3 +87,23 @@ def test_cli_writes_the_sensitivity_columns(build_dir, tmp_path, capsys):
     code = main(["sensitivity", str(EXAMPLES / "double_pendulum.yaml"), "--params",
                  "bodies.rod9.mass", "--build-dir", str(build_dir), "-q"])
     assert code == 2 and "no body named 'rod9'" in capsys.readouterr().err
+
+
+
+def test_the_energy_of_a_spring_wound_past_half_a_turn_has_its_derivative(
+        build_dir, tmp_path):
+    """An arm spun at 6 rad/s against a weak torsion spring (0.5 N m/rad, 0.3 rad
+    wound at the start) winds it to about 5 rad. The energy is conserved, so its
+    derivative with respect to the stiffness is that of the start's k phi0^2 / 2:
+    phi0^2 / 2 = 0.045 J per N m/rad at every record. Before, the energy's chain rule
+    read the spring within half a turn of its planned reference: -1.9 at 3.8 rad and
+    12.7 at the end. 1e-9: RK4 at 1 ms keeps this energy to about 1e-10 J, and the
+    chain rule's Richardson differences are good to about 1e-12 relative."""
+    from test_angle_turns import SPUN
+    path = tmp_path / "spun.yaml"
+    path.write_text(SPUN)
+    r = fccgen.load(path, build_dir=build_dir).simulate(
+        t_end=1.5, output_dt=0.05, sensitivities=["loads[0].stiffness"], reactions=False)
+    assert r["H.angle"].max() > 4.5
+    d = r.sensitivity("energy", "loads[0].stiffness")
+    assert np.abs(d - 0.5 * 0.3 ** 2).max() < 1e-9

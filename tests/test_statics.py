@@ -172,3 +172,55 @@ def test_no_equilibrium_is_an_error_naming_the_way_out(tmp_path):
     solver = fccgen.load_numeric(write(tmp_path, text, "falling_body"))
     with pytest.raises(SimulationError, match="no equilibrium.*--about initial"):
         statics(solver, max_iterations=4, min_load_step=0.25)
+
+
+PRELOADED = """\
+name: preloaded
+bodies:
+  arm: {mass: 1.0, center: [0.5, 0, 0], inertia: [0.001, 0.1, 0.1]}
+joints:
+  - {name: H, type: revolute, bodies: [ground, arm], at: [0, 0, 0], axis: [0, 0, 1]}
+loads:
+  - {type: torsion_spring, joint: H, stiffness: 20.0, angle: 4.5, damping: 0.0}
+gravity: [0, -9.81, 0]
+"""
+
+
+@pytest.mark.parametrize("numeric", [False, True])
+def test_a_spring_preloaded_past_half_a_turn_has_the_static_reactions(numeric, tmp_path):
+    """An arm on a hinge spring free at 4.5 rad, stowed at 0: the equilibrium is where
+    the spring, read within half a turn of its free angle as the kernels read it
+    outside a run, holds the weight's moment (k (4.5 - theta) = m g D cos theta,
+    theta = 4.541 rad, the arm below the hinge). The hinge carries the weight alone,
+    F = (0, m g, 0), and no torque across its axis. Before, the reactions read the
+    spring within half a turn of the stowed angle (-1.74 rad, 6.2 rad from its free
+    angle, a torque of 125 N m) and reported F = (49.5, 1.27, 0) N with exit 0.
+    1e-9 N: the equilibrium is solved to about 1e-12."""
+    path = write(tmp_path, PRELOADED, "preloaded")
+    eq, r = fccgen.api.equilibrium(path, numeric=numeric)
+    theta = float(np.arctan2(eq.q[1], eq.q[0])) + 2 * np.pi
+    assert abs(20.0 * (4.5 - theta) - 9.81 * 0.5 * np.cos(theta)) < 1e-9
+    info = r.info["reactions"]
+    assert info["computed"] and info["balanced"] and info["residual"] < 1e-9
+    force = [r[f"H.f{c}"][0] for c in "xyz"]
+    torque = [r[f"H.t{c}"][0] for c in "xyz"]
+    assert np.abs(np.subtract(force, [0.0, 9.81, 0.0])).max() < 1e-9
+    assert np.abs(torque).max() < 1e-9
+
+
+def test_reactions_that_do_not_balance_the_bodies_warn(tmp_path):
+    """The guard on the reactions: the same equilibrium with the spring read on the
+    stowed angle's branch (as the reactions did before) leaves 125 N m of the arm's
+    balance unexplained. The reactions say so, with a warning, and mark themselves
+    unbalanced (the least squares leave O(1) of the largest term)."""
+    from fccgen.mechanism.reactions import add_reactions
+    from fccgen.numeric.record_loads import RecordLoads
+    path = write(tmp_path, PRELOADED, "preloaded")
+    solver = fccgen.load_numeric(path)
+    eq, r = fccgen.api.equilibrium(path, numeric=True)
+    loads = RecordLoads(solver.plan, solver.put_params, turns=False)
+    with pytest.warns(fccgen.errors.RunWarning, match="leave an imbalance of"):
+        add_reactions(solver, r, loads=loads, references=False)
+    info = r.info["reactions"]
+    assert not info["balanced"] and info["residual"] > 0.1 * info["balance_scale"]
+    assert any("not to be trusted" in w for w in r.info["warnings"])

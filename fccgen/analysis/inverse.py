@@ -24,10 +24,11 @@ the output spacing: there is no truncation error.
 from __future__ import annotations
 
 import time
+import warnings
 
 import numpy as np
 
-from ..errors import ModelError
+from ..errors import ModelError, RunWarning
 
 METHOD = "inverse"
 REPORT_EVERY = 0.5       # seconds of wall time between progress events of a run
@@ -60,11 +61,11 @@ def output_times(t_end: float, dt: float) -> np.ndarray:
 
 
 def kinematics(solver, times: np.ndarray, q, v, report=None) -> tuple[dict, dict]:
-    """(arrays t, q, v, body, energy, constraint_error; stats) of the driven motion at
+    """(arrays t, q, v, body, constraint_error; stats) of the driven motion at
     ``times`` from the consistent state (q, v) at t = 0 (module docstring); ``report``:
     a :class:`~fccgen.progress.RunReporter`, called about every REPORT_EVERY s."""
     a = np.zeros_like(q)
-    rows = {k: [] for k in ("q", "v", "body", "energy", "constraint_error")}
+    rows = {k: [] for k in ("q", "v", "body", "constraint_error")}
     newton = max_newton = 0
     t_prev, last = 0.0, time.perf_counter()
     for t in times:
@@ -75,7 +76,6 @@ def kinematics(solver, times: np.ndarray, q, v, report=None) -> tuple[dict, dict
         a = solver.accelerations(q, v)
         newton, max_newton = newton + iterations, max(max_newton, iterations)
         for key, value in (("q", q), ("v", v), ("body", solver.body_outputs(q, v)),
-                           ("energy", solver.energy(q, v)),
                            ("constraint_error",
                             float(np.max(np.abs(solver.constraints(q)), initial=0.0)))):
             rows[key].append(np.array(value, float))
@@ -101,7 +101,7 @@ def solve_inverse(solver, t_end=None, dt=None, progress=None):
     from ..mechanism.driver_forces import add_driver_columns
     from ..mechanism.outputs import add_joint_columns
     from ..mechanism.reactions import add_reactions
-    from ..numeric.record_loads import RecordLoads
+    from ..numeric.record_loads import RecordLoads, energies
     from ..progress import run_reporter
     from ..results.provenance import provenance
     from ..results.result import result_from_arrays
@@ -115,19 +115,28 @@ def solve_inverse(solver, t_end=None, dt=None, progress=None):
     start = time.perf_counter()
     arrays, stats = kinematics(solver, times, init.q, init.v,
                                run_reporter(progress, t_end, "inverse"))
+    # the turns of the springs and the expression loads' values at each row, counted
+    # from the rows as after a run (the inputs at their start values)
+    loads = RecordLoads(solver.plan, solver.put_params)
+    # a spring's energy of its angle over turns, as a run records it (not of the
+    # angle within half a turn of the planned reference)
+    arrays["energy"], known, reason = energies(solver, arrays["t"], arrays["q"],
+                                               arrays["v"], loads)
     info = provenance(solver.plan, solver.settings())
+    energy = arrays["energy"][:known]
     info.update(method=METHOD, kind="kinematic", steps=len(times) - 1,
                 rhs_evaluations=len(times), rejected_steps=0, t_end=t_end, output_dt=dt,
-                energy_drift=float(np.max(np.abs(arrays["energy"] - arrays["energy"][0]))),
+                energy_drift=float(np.max(np.abs(energy - energy[0]), initial=0.0)),
                 rank=rank, dof=0, **stats)
+    if known < len(times):
+        text = f"the energy is NaN from t = {times[known]:.9g} s on: {reason}"
+        info.setdefault("warnings", []).append(text)
+        warnings.warn(text, RunWarning, stacklevel=2)
     result = result_from_arrays(solver.plan, arrays["t"], arrays["q"], arrays["v"],
                                 arrays["body"], arrays["energy"],
                                 arrays["constraint_error"], info)
     if getattr(solver.plan.model, "mechanism", None) is not None:
         add_joint_columns(solver.plan, result)
-    # the turns of the springs and the expression loads' values at each row, counted
-    # from the rows as after a run (the inputs at their start values)
-    loads = RecordLoads(solver.plan, solver.put_params)
     add_driver_columns(solver, result, None, loads)
     add_reactions(solver, result, loads=loads)
     result.info["wall_time"] = time.perf_counter() - start

@@ -44,10 +44,12 @@ def equilibrium_result(solver, eq):
         result.columns.update(constraint_forces(solver, eq))
         return result
     add_driver_columns(solver, result)
-    # loads whose value is an expression: at t = 0 with the parameters the
-    # equilibrium was solved with (the inputs' start values, the planned references)
+    # loads whose value is an expression and torsion springs: at t = 0 with the
+    # parameters the equilibrium was solved with (the inputs' start values, the
+    # planned references: a spring preloaded past half a turn is read as the
+    # equilibrium's kernels read it)
     return add_reactions(solver, result, loads=RecordLoads(solver.plan, solver.put_params,
-                                                           turns=False))
+                                                           turns=False), references=True)
 
 
 def constraint_forces(solver, eq) -> dict[str, np.ndarray]:

@@ -3,10 +3,11 @@
 The columns are those of ``fccgen simulate`` (docs/design.md §4) that the engine's
 state gives at a time: points and vectors (position, speed), bodies (centre and
 angular velocity), energy, constraint_error, and the joints' angle, rate, position and
-speed (the formulas of :mod:`fccgen.mechanism.outputs`, unwrapped from one read to the
-next). The joints' reactions and the drivers' forces need the constraint multipliers,
-which fccgen computes after a run with a dense least-squares solve per row; a
-standalone export has no LAPACK, so it leaves them out (:data:`LEFT_OUT` names them).
+speed (the formulas of :mod:`fccgen.mechanism.outputs`, counted over turns from one
+read to the next by the rule of :mod:`fccgen.mechanism.turns`). The joints' reactions
+and the drivers' forces need the constraint multipliers, which fccgen computes after a
+run with a dense least-squares solve per row; a standalone export has no LAPACK, so it
+leaves them out (:data:`LEFT_OUT` names them).
 The members' strain and curvature columns (fccgen.mechanism.cable_outputs) are
 computed after a run too and left out; their node positions and slopes are columns.
 """

@@ -220,10 +220,14 @@ def golden_header(result, table: OutputTable) -> str:
     n = len(result.t)
     rows = sorted({int(round(k * (n - 1) / (GOLDEN_ROWS - 1))) for k in range(GOLDEN_ROWS)})
     names = [c for c, _, _ in table.columns]
-    values = [result.columns[c][r] for r in rows for c in names]
+    values = np.array([result.columns[c][r] for r in rows for c in names], float)
+    # a value the run could not give (an angle whose turns its records lost) is NaN
+    # there and must be NaN in the replay: marked, and written as 0
+    unknown = np.isnan(values)
     return (c_data.define("N_GOLDEN", len(rows))
             + c_data.c_array("double", "GOLDEN_T", [result.t[r] for r in rows])
-            + c_data.c_array("double", "GOLDEN", values))
+            + c_data.c_array("double", "GOLDEN", np.where(unknown, 0.0, values))
+            + c_data.c_array("int", "GOLDEN_NAN", unknown.astype(int)))
 
 
 def export_columns(solver, result) -> list[str]:

@@ -98,19 +98,23 @@ def add_driver_columns(solver, result, held=None, loads=None) -> None:
     reason = held.unknown_reason(result.t) if known < len(result.t) else ""
     try:
         for part, keys in record_chunks(known, CHUNK, held):
+            stop = part.stop
             if loads is not None:
                 try:
                     loads.chunk(result.t[part], q[part], v[part])
                 except ValueError as exc:      # turns that the records cannot count
-                    known, reason = part.start, str(exc)
-                    break
-            for k in range(part.start, part.stop):
+                    # (RecordLoads.chunk: its records before ``record`` are placed)
+                    known = stop = part.start + getattr(exc, "record", 0)
+                    reason = str(exc)
+            for k in range(part.start, stop):
                 if loads is not None:
-                    loads.hold(k - part.start, q[k], v[k])
+                    loads.hold(k - part.start, q[k], v[k], values=False)
                 t = float(result.t[k])
                 lam = multipliers(solver, t, q[k], v[k], held, keys)
                 for col, (row, slope) in rows.items():
                     values[col][k] = -slope(t) * lam[row]
+            if stop < part.stop:
+                break
     finally:
         if loads is not None:
             loads.restore()

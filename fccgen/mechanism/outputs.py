@@ -4,9 +4,10 @@ run from the recorded coordinates and speeds, vectorised over the output samples
 * ``J.angle`` (revolute, cylindrical): the rotation of body B relative to body A
   about the joint axis, right-handed, 0 in the configuration the model file writes
   (plan.q0: 0 at t = 0 unless ``initial: joints:`` gives an angle, which it then
-  starts at), unwrapped over turns. With C = R_A^T R_B (B's frame seen from A's) and
-  D = C C_0^T (C_0 as written), a_A the axis in A's frame
-  (as written) and n1 a unit vector perpendicular to it: angle = atan2(a_A.(n1 x D n1), n1.D n1).
+  starts at), counted over turns along the records (:mod:`.turns`). With
+  C = R_A^T R_B (B's frame seen from A's) and D = C C_0^T (C_0 as written), a_A the
+  axis in A's frame (as written) and n1 a unit vector perpendicular to it:
+  angle = atan2(a_A.(n1 x D n1), n1.D n1).
 * ``J.rate``: (w_B - w_A).a, a = R_A a_A the axis now.
 * ``J.position`` (prismatic, cylindrical): (r_Jb - r_Ja).a, the slide of B's joint
   point from A's along the axis (0 at t = 0); ``J.speed``: (v_Jb - v_Ja).a, exact on
@@ -16,8 +17,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import RunWarning
 from ..model.types import GROUND
 from .joints import ANGLE_TYPES, SLIDE_TYPES, perpendiculars
+from .turns import count_turns
 
 
 class _Series:
@@ -56,9 +59,16 @@ class _Series:
 
 
 def joint_columns(plan, columns: dict[str, np.ndarray], n: int, *,
-                  near_given: bool = True) -> dict[str, np.ndarray]:
+                  near_given: bool = True, t=None, impacts=(),
+                  lost: dict | None = None, raw: dict | None = None
+                  ) -> dict[str, np.ndarray]:
     """The joint columns of a lowered model's result (empty without joints);
-    near_given=False: angles not moved by whole turns towards the initial ones."""
+    near_given=False: angles not moved by whole turns towards the initial ones.
+    t: the records' times, whose angles are counted over turns with their rates
+    (:func:`fccgen.mechanism.turns.count_turns`; None: numpy.unwrap's nearest
+    branch, for states that are not records of a motion); impacts: the run's event
+    times; lost: filled with {angle column: time from which its turns are not
+    known}; raw: filled with {angle column: (angles within half a turn, rates)}."""
     lowering = getattr(plan.model, "mechanism", None)
     if lowering is None or n == 0:
         return {}
@@ -75,17 +85,33 @@ def joint_columns(plan, columns: dict[str, np.ndarray], n: int, *,
             D = np.einsum("nij,kj->nik", C, written.rotation(A)[0].T @ written.rotation(B)[0])
             Dn = D @ n1
             angle = np.arctan2(np.cross(n1, Dn) @ a_A, Dn @ n1)
-            angle = np.unwrap(angle)
+            a = RA @ a_A
+            rate = np.einsum("ni,ni->n", s.omega(B) - s.omega(A), a)
+            if raw is not None:
+                raw[f"{j.name}.angle"] = (angle, rate)
+            if t is None:
+                angle = np.unwrap(angle)
+            else:
+                counted, known, _ = count_turns(angle[None], rate[None], t, impacts)
+                angle, known = counted[0], int(known[0])
+                if known < n:
+                    angle[known:] = np.nan
+                    if lost is not None:
+                        lost[f"{j.name}.angle"] = float(t[known])
             out[f"{j.name}.angle"] = _near_given(plan, j.name, angle) if near_given \
                 else angle
-            a = RA @ a_A
-            out[f"{j.name}.rate"] = np.einsum("ni,ni->n", s.omega(B) - s.omega(A), a)
+            out[f"{j.name}.rate"] = rate
         if j.type in SLIDE_TYPES:
             (ra, va), (rb, vb) = s.triple(f"{j.name}_a"), s.triple(f"{j.name}_b")
             a = s.triple(f"{j.name}_axis")[0]
             out[f"{j.name}.position"] = np.einsum("ni,ni->n", rb - ra, a)
             out[f"{j.name}.speed"] = np.einsum("ni,ni->n", vb - va, a)
     return out
+
+
+def _warn(text: str) -> None:
+    import warnings
+    warnings.warn(text, RunWarning, stacklevel=4)
 
 
 def _written(plan) -> _Series:
@@ -107,6 +133,55 @@ def _near_given(plan, joint: str, angle: np.ndarray) -> np.ndarray:
     return angle + 2 * np.pi * np.round((given[1] - angle[0]) / (2 * np.pi))
 
 
-def add_joint_columns(plan, result) -> None:
-    """Append the joint columns to ``result`` (in place)."""
-    result.columns.update(joint_columns(plan, result.columns, len(result.t)))
+def add_joint_columns(plan, result, warn: bool = True) -> None:
+    """Append the joint columns to ``result`` (in place), its angles counted over turns
+    along its records and across its events (``result.events``). An angle whose turns
+    the records are too far apart to count is NaN from there, named with the time in
+    ``info["angle_turns_lost"]`` and, with ``warn``, in a warning."""
+    lost: dict[str, float] = {}
+    raw: dict[str, tuple] = {}
+    impacts = sorted(e["t"] for e in getattr(result, "events", None) or ())
+    result.columns.update(joint_columns(plan, result.columns, len(result.t),
+                                        t=result.t, impacts=impacts, lost=lost, raw=raw))
+    result.angles_within_a_turn = raw        # for settle_turns
+    _note_lost(result, lost, warn)
+
+
+def _note_lost(result, lost: dict[str, float], warn: bool) -> None:
+    result.info.pop("angle_turns_lost", None)
+    if lost:
+        result.info["angle_turns_lost"] = lost
+    if warn:
+        warn_turns_lost(result)
+
+
+def settle_turns(plan, result) -> None:
+    """After a run whose joint columns were made without warnings, and once its
+    events are known: the angles counted again across the events (which break the
+    rates), from the angles and rates the columns were made of, and the warnings
+    of the angles whose turns are lost."""
+    raw = getattr(result, "angles_within_a_turn", None)
+    if not getattr(result, "events", None) or raw is None:
+        warn_turns_lost(result)
+        return
+    impacts = sorted(e["t"] for e in result.events)
+    lost: dict[str, float] = {}
+    for name, (angle, rate) in raw.items():
+        counted, known, _ = count_turns(angle[None], rate[None], result.t, impacts)
+        counted, known = counted[0], int(known[0])
+        if known < len(result.t):
+            counted[known:] = np.nan
+            lost[name] = float(result.t[known])
+        result.columns[name] = _near_given(plan, name[:-len(".angle")], counted)
+    _note_lost(result, lost, True)
+
+
+def warn_turns_lost(result) -> None:
+    for name, t in (result.info.get("angle_turns_lost") or {}).items():
+        text = (f"{name} is NaN from t = {t:.9g} s on: the records are too far apart "
+                "to count its turns (it moved more than a quarter turn from what its "
+                "rates say); record more often (output_dt)")
+        said = result.info.setdefault("warnings", [])
+        if text not in said:
+            said.append(text)
+            _warn(text)

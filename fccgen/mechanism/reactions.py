@@ -50,6 +50,13 @@ from ..expressions.named_tables import expressions_of
 from .reaction_solve import solve_records
 from .reaction_system import system
 
+# The largest imbalance of the bodies' Newton-Euler balance that the reactions may
+# leave, relative to its largest load or inertial term. What the least-squares solve
+# leaves in a consistent balance is rounding and the recorded constraint error
+# (1e-10 of it and less); a balance whose loads, accelerations and joints disagree
+# (a load read on another branch than the dynamics read it) leaves O(1).
+IMBALANCE = 1e-3
+
 # Bytes of working arrays per chunk of records (body frames, the balance's blocks and
 # right-hand sides): the records are solved a chunk at a time, so that the memory of
 # the reactions does not grow with the length of the run.
@@ -272,7 +279,7 @@ def _joint_bodies(plan, point_a: str) -> tuple[str, str]:
 
 
 def reactions(solver, result, sparse: bool | None = None, held=None,
-              loads=None) -> tuple[dict[str, np.ndarray], dict]:
+              loads=None, references: bool = False) -> tuple[dict[str, np.ndarray], dict]:
     """(columns, info) of the joint reactions over the rows of ``result``; ModelError
     when a load or constraint cannot be attributed to a body (module docstring).
 
@@ -287,18 +294,28 @@ def reactions(solver, result, sparse: bool | None = None, held=None,
     takes a chunk of records (their angles counted over turns), ``loads.hold(k, q,
     v)`` sets the solver's parameters to those of its record k (inputs, angle
     references) and returns the expression loads' values there, ``loads.restore()``
-    the planned parameters again."""
+    the planned parameters again. references: the records are states outside a run
+    (statics), whose torsion springs read their angles within half a turn of the
+    kernels' planned references, as the kernels that found the state read them
+    (docs/elements.md, "Angles over turns"); False: a run's records, whose angles are
+    counted over turns from 0 at the first."""
     plan = solver.plan
     check_attributable(plan, loads)
     if loads is None:
-        return _reactions(solver, result, sparse, held, None)
+        return _reactions(solver, result, sparse, held, None, references)
     try:
-        return _reactions(solver, result, sparse, held, loads)
+        return _reactions(solver, result, sparse, held, loads, references)
     finally:
         loads.restore()
 
 
-def _reactions(solver, result, sparse, held, loads):
+def _planned_turns(plan) -> dict[int, float]:
+    """Per torsion spring (load index), its kernel's planned angle reference th."""
+    return {k: _params(plan, k)["th"] for k, ld in enumerate(plan.model.loads)
+            if isinstance(ld, TorsionSpring)}
+
+
+def _reactions(solver, result, sparse, held, loads, references=False):
     plan = solver.plan
     index = {name: k for k, (name, _) in enumerate(plan.bodies)}
     drivers = _coordinate_drivers(plan)
@@ -307,8 +324,9 @@ def _reactions(solver, result, sparse, held, loads):
     chunk = chunk_records(plan, len(index))
     cols = {f"{jl.joint.name}.{c}": np.full(n, np.nan)
             for jl in plan.model.mechanism.joints for c in COMPONENTS}
-    turns: dict[int, float] = {}
+    turns: dict[int, float] = _planned_turns(plan) if references else {}
     ranks, unknowns, dense, worst, patterns, missing = [], 0, 0, 0.0, {}, 0
+    scale = 0.0                         # the largest load or inertial term balanced
     known = n if held is None else held.known     # records whose held rows are known
     for rows, keys in record_chunks(known, chunk, held):
         q = np.column_stack([result.columns[f"{t}.{c}"][rows] for t in names for c in "xyz"])
@@ -328,8 +346,10 @@ def _reactions(solver, result, sparse, held, loads):
         motion = Motion(plan, q, v, a)
         at = [(body, e, motion.triple(point)[0] - motion.centre(body)[0])
               for body, e, point in drivers]
-        balance = system(plan, motion, index,
-                         applied(plan, motion, index, turns, values), at, keys)
+        loads_on = applied(plan, motion, index, turns, values)
+        balance = system(plan, motion, index, loads_on, at, keys)
+        scale = max(scale, float(np.max(np.abs(loads_on), initial=0.0)),
+                    float(np.max(np.abs(balance.b), initial=0.0)))
         x, rank, solved_dense, res = solve_records(balance, sparse, patterns)
         ranks.append(rank)
         unknowns, dense, worst = (max(unknowns, balance.shape[1]), dense + solved_dense,
@@ -340,7 +360,8 @@ def _reactions(solver, result, sparse, held, loads):
     rank = np.concatenate(ranks) if ranks else np.zeros(0, int)
     info = dict(computed=True, unknowns=int(unknowns),
                 rank=int(rank.min()) if len(rank) else 0, undetermined=missing,
-                unique=missing == 0, residual=worst,
+                unique=missing == 0, residual=worst, balance_scale=scale,
+                balanced=bool(worst <= IMBALANCE * scale),
                 dense_records=int(dense), records=int(n))
     if known < n:
         info["unknown_from"] = float(result.t[known])
@@ -386,15 +407,17 @@ def minimum_norm_note(info: dict) -> str:
             "are undetermined); the minimum-norm set is reported")
 
 
-def add_reactions(solver, result, held=None, loads=None):
+def add_reactions(solver, result, held=None, loads=None, references: bool = False):
     """Add the reaction columns to ``result`` of a mechanism-level model (in place);
     ``result.info["reactions"]`` says whether they are unique, or why they are absent.
-    held: the rows the run's events held; loads: what the run held at each record
-    (:func:`reactions`)."""
+    held: the rows the run's events held; loads: what the run held at each record;
+    references: records outside a run (:func:`reactions`). Reactions that do not
+    balance the bodies (info ``balanced`` false) are kept with a warning."""
     if getattr(solver.plan.model, "mechanism", None) is None or len(result.t) == 0:
         return result
     try:
-        cols, info = reactions(solver, result, held=held, loads=loads)
+        cols, info = reactions(solver, result, held=held, loads=loads,
+                               references=references)
     except (ModelError, SimulationError, np.linalg.LinAlgError, MemoryError,
             RuntimeError, ValueError) as exc:
         # the run itself succeeded: keep it, and say why it has no reactions
@@ -409,6 +432,14 @@ def add_reactions(solver, result, held=None, loads=None):
     result.columns.update(cols)
     if not info["unique"]:
         info["note"] = minimum_norm_note(info)
+    if not info["balanced"]:
+        text = (f"the joint reactions leave an imbalance of {info['residual']:.3g} in "
+                "the bodies' Newton-Euler balance (its largest term "
+                f"{info['balance_scale']:.3g}): the applied loads, the accelerations "
+                "and the joints disagree at some record, so the reactions are not to "
+                "be trusted")
+        result.info.setdefault("warnings", []).append(text)
+        warnings.warn(text, RunWarning, stacklevel=3)
     if "unknown_reason" in info:
         text = (f"the joint reactions are NaN from t = {info['unknown_from']:.9g} s on: "
                 + info["unknown_reason"])

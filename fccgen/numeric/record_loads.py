@@ -12,18 +12,19 @@ accelerations of the balance are the run's too.
 
 Angles over turns: a run re-bases every reference after each accepted step
 (docs/elements.md, "Angles over turns"), from 0 at its start; here the references
-follow the records instead. Each record's angle is taken on the branch nearest to the
-previous angle advanced by its rate (a rotor turning fast between records keeps its
+follow the records instead, by the rule of the joint angle columns
+(:mod:`fccgen.mechanism.turns`). Each record's angle is taken on the branch nearest to
+the previous angle advanced by its rate (a rotor turning fast between records keeps its
 turns), and checked against the trapezoid of the two rates: a record where they differ
-by more than a quarter turn cannot be placed on a turn, and the reactions are refused
-(record more often). The angles of a chunk of records are measured at once
+by more than a quarter turn cannot be placed on a turn (:class:`UncountedTurns`), and
+the reactions are refused, the driver forces and the energy NaN from there (record
+more often). The angles of a chunk of records are measured at once
 (:func:`fccgen.numeric.joint_loads.angle_rate` on stacks of records). A method that
 does not re-base (ali3p) measures its angles within half a turn of the planned
 references: they are left as planned.
 """
 from __future__ import annotations
 
-import math
 import re
 from types import SimpleNamespace
 
@@ -34,9 +35,18 @@ from ..plan.classes import REFERENCE_SCALARS, input_parameter
 from ..runs.inputs import input_slots, record_times
 from .elements import element_kernels
 from .joint_loads import angle_rate
+from ..mechanism.turns import count_turns
 
 EXPRESSION_KINDS = ("force_t", "torque_t", "force_q", "torque_q")
-TURN = 2.0 * math.pi
+
+
+class UncountedTurns(ValueError):
+    """The records are too far apart to count an angle's turns; ``record``: the
+    chunk's first record that cannot be placed on a turn (those before it are)."""
+
+    def __init__(self, message: str, record: int):
+        super().__init__(message)
+        self.record = record
 
 
 class RecordLoads:
@@ -109,49 +119,28 @@ class RecordLoads:
             for name in REFERENCE_SCALARS:
                 x.s[prefix + name] = 0.0 if name != "cr" else 1.0
             raw[j], rate[j] = angle_rate(x, prefix)
-        if self.previous is None:                  # the run's start: references 0
-            angles = raw.copy()
-            t0, a0, r0 = self.t[:1], raw[:, :1], rate[:, :1]
-        else:
-            t0, a0, r0 = self.previous
-            angles = np.empty_like(raw)
-        if n and self.sources:
-            # each increment on the branch nearest the rate's advance ...
-            ts = np.concatenate([t0, self.t])
-            before = np.concatenate([a0, raw], axis=1)
-            rates = np.concatenate([r0, rate], axis=1)
-            dt, w = np.diff(ts), np.diff(before, axis=1)
-            step = w + TURN * np.round((rates[:, :-1] * dt - w) / TURN)
-            # an event between two records (an impact, a lock) breaks the rates: there
-            # the nearest branch, the rule of the joint angle columns (numpy.unwrap)
-            struck = (np.searchsorted(self.impacts, ts[1:], side="right")
-                      > np.searchsorted(self.impacts, ts[:-1], side="right"))
-            step[:, struck] = (w - TURN * np.round(w / TURN))[:, struck]
-            if self.previous is None:
-                step[:, 0] = 0.0
-            angles = a0 + np.cumsum(step, axis=1)
-            # ... and checked against the trapezoid of the rates
-            counted = np.concatenate([a0, angles], axis=1)
-            trapezoid = 0.5 * (rates[:, :-1] + rates[:, 1:]) * dt
-            off = np.abs(np.diff(counted, axis=1) - trapezoid)
-            far = (off > 0.5 * math.pi) & ~struck
-            if far.any():                          # the first record, then its angle
-                k = int(np.argmax(far.any(axis=0)))
-                j = int(np.argmax(far[:, k]))
-                e, prefix = self.sources[j]
-                name = prefix.split(".")[0] or self.plan.elements[e].label
-                raise ValueError(
-                    f"the angle of {name} moved {abs(step[j, k]):.3g} rad between the "
-                    f"records at t = {ts[k]:.9g} and {ts[k + 1]:.9g} s, too far to count "
-                    "its turns from the records; record more often (output_dt)")
+        angles, known, step = count_turns(raw, rate, self.t, self.impacts, self.previous)
+        if n and self.sources and known.min() < n:   # the first record, then its angle
+            j = int(np.argmin(known))
+            k = int(known[j])
+            ts = np.concatenate([self.t[:1] if self.previous is None else
+                                 self.previous[0], self.t])
+            e, prefix = self.sources[j]
+            name = prefix.split(".")[0] or self.plan.elements[e].label
+            self.angles = angles           # the records before it are placed
+            raise UncountedTurns(
+                f"the angle of {name} moved {abs(step[j, k]):.3g} rad between the "
+                f"records at t = {ts[k]:.9g} and {ts[k + 1]:.9g} s, too far to count "
+                "its turns from the records; record more often (output_dt)", k)
         if n:
             self.previous = (self.t[-1:], angles[:, -1:], rate[:, -1:])
         self.angles = angles
 
-    def hold(self, k: int, q, v) -> dict[int, np.ndarray]:
+    def hold(self, k: int, q, v, values: bool = True) -> dict[int, np.ndarray]:
         """The values (global force or torque) of the expression loads at record k of
         the chunk (q, v its coordinates and speeds); the solver's parameters set to the
-        record's (inputs, references)."""
+        record's (inputs, references). values False: the parameters only (an empty
+        dict; the driver forces and the energy read the solver, not the loads)."""
         t = float(self.t[k])
         q, v = np.asarray(q, float), np.asarray(v, float)
         angles = self.angles[:, k]
@@ -167,7 +156,7 @@ class RecordLoads:
             self.put(slots, np.concatenate(values))
             self.touched.update(slots.tolist())
         out = {}
-        for j, e in self.loads.items():
+        for j, e in self.loads.items() if values else ():
             el = self.plan.elements[e]
             names = el.cls.param_names
             p = np.array(el.params, float)
@@ -193,6 +182,34 @@ class RecordLoads:
             self.put(slots, plan_params[slots])
         self.touched = set()
         self.previous = None
+
+
+def energies(solver, t, q, v, loads: RecordLoads, chunk: int = 1024):
+    """(energy at each record, records known, why not the rest) of the records (t, q,
+    v: one row each, in order of time, from the run's start), each with the angle
+    references and inputs the run held there (``loads``, which is restored after),
+    so that a torsion spring wound past half a turn stores k phi^2 / 2 of its angle
+    over turns, not of the angle within half a turn of its planned reference. Where
+    the records are too far apart to count the turns (:meth:`RecordLoads.chunk`),
+    the energy is NaN from there on and the reason is returned."""
+    n = len(t)
+    out, known, reason = np.full(n, np.nan), n, ""
+    try:
+        for first in range(0, n, chunk):
+            part = slice(first, min(n, first + chunk))
+            try:
+                loads.chunk(t[part], q[part], v[part])
+            except UncountedTurns as exc:
+                known, reason = first + exc.record, str(exc)
+            for k in range(part.start, min(part.stop, known)):
+                loads.hold(k - first, q[k], v[k], values=False)
+                solver.set_time(float(t[k]))
+                out[k] = solver.energy(q[k], v[k])
+            if known < n:
+                break
+    finally:
+        loads.restore()
+    return out, known, reason
 
 
 def of_run(plan, put, inputs, sched, turns: bool = True, events=()) -> RecordLoads:

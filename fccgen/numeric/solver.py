@@ -15,6 +15,7 @@ from ..runs.explain import explained
 from ..runs.locate import step_setting
 from ..mechanism.driver_branch import check_driver_branches
 from ..mechanism.driver_forces import add_driver_columns, driver_rows
+from ..mechanism.outputs import settle_turns
 from ..mechanism.initial_positions import assemble_at_joints
 from ..mechanism.initial_speeds import initial_speeds
 from ..mechanism.reactions import add_reactions
@@ -403,6 +404,7 @@ class NumericSolver:
             self, result, held_quantities(ctx.events))
         loads = record_loads.of_run(self.plan, self.put_params, self._held, sched,
                                     events=result.events or ())
+        settle_turns(self.plan, result)
         add_driver_columns(self, result, locks, loads)
         check_driver_branches(self.plan, result)
         rank_rule.report_run(result, decision, self._rank.stats,

@@ -275,15 +275,18 @@ def timed_run(plan, method, sched, options, project, run, settings=None) -> Resu
     result = result_from_arrays(plan, arrays["t"], arrays["q"], arrays["v"],
                                 arrays["body"], arrays["energy"],
                                 arrays["constraint_error"], info)
-    return _with_joint_columns(plan, result)
+    # the angles' lost turns are said once the run's events are known
+    # (fccgen.mechanism.outputs.settle_turns)
+    return _with_joint_columns(plan, result, warn=False)
 
 
-def _with_joint_columns(plan, result):
+def _with_joint_columns(plan, result, warn: bool = True):
     """Add the joint columns (J.angle, J.rate, ...) of a mechanism-level model, and
-    the strain and curvature at the nodes of flexible members."""
+    the strain and curvature at the nodes of flexible members; warn: say which
+    angles' turns the records cannot count (else only in info)."""
     if getattr(plan.model, "mechanism", None) is not None:
         from ..mechanism.outputs import add_joint_columns
-        add_joint_columns(plan, result)
+        add_joint_columns(plan, result, warn)
     if getattr(plan.model, "cables", None):
         from ..mechanism.cable_outputs import add_cable_columns
         add_cable_columns(plan, result)
@@ -328,4 +331,4 @@ def _attach_partial(plan, method, sched, options, project, start, exc, settings=
     info.update(partial=True, stopped_by=why.splitlines()[0] if why else type(exc).__name__)
     exc.partial_result = _with_joint_columns(plan, result_from_arrays(
         plan, arrays["t"], arrays["q"], arrays["v"], arrays["body"], arrays["energy"],
-        arrays["constraint_error"], info))
+        arrays["constraint_error"], info), warn=False)

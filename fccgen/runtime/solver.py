@@ -21,6 +21,7 @@ from ..numeric.elements import element_kernels
 from ..numeric import record_loads
 from ..mechanism.driver_branch import check_driver_branches
 from ..mechanism.driver_forces import add_driver_columns, driver_rows
+from ..mechanism.outputs import settle_turns
 from ..mechanism.initial_positions import assemble_at_joints
 from ..mechanism.initial_speeds import initial_speeds
 from ..mechanism.reactions import add_reactions
@@ -506,6 +507,7 @@ class CompiledSolver:
                  held_rows.of_run(self, result, self._held_quantities(events), dropped))
         loads = record_loads.of_run(self.plan, self.put_params, held, sched,
                                     m.name in REBASING, result.events or ())
+        settle_turns(self.plan, result)
         add_driver_columns(self, result, locks, loads)
         check_driver_branches(self.plan, result)
         rank_rule.report_run(result, decision, stats,

@@ -17,6 +17,7 @@ import dataclasses
 
 import numpy as np
 
+from ...numeric.record_loads import RecordLoads, energies
 from ...results.result import _with_joint_columns, result_from_arrays
 
 NO_SENSITIVITY = ("constraint_error",)
@@ -42,16 +43,22 @@ def _shifted_solver(solver, dP_j: np.ndarray, eps: float):
     return type(solver)(plan, solver.module, **solver_options(solver))
 
 
-def _columns(solver, t, q, v) -> dict[str, np.ndarray]:
-    body, energy = [], []
+def _columns(solver, t, q, v, impacts) -> dict[str, np.ndarray]:
+    """The columns of the records (t, q, v); impacts: the run's event times. The
+    energy is taken with the angle references counted over turns along the records,
+    as the run had them (a spring wound past half a turn: its angle over turns)."""
+    body = []
     for tk, qk, vk in zip(t, q, v):
         solver.set_time(float(tk))
         body.append(solver.body_outputs(qk, vk))
-        energy.append(solver.energy(qk, vk))
+    loads = RecordLoads(solver.plan, solver.put_params)
+    loads.impacts = impacts
+    energy, _, _ = energies(solver, t, q, v, loads)   # NaN where turns are not counted
     plan = solver.plan
     body = np.array(body).reshape(len(t), len(plan.bodies), 6)
     r = result_from_arrays(plan, t, q, v, body, np.array(energy), np.zeros(len(t)))
-    return _with_joint_columns(plan, r).columns
+    r.events = [{"t": float(x)} for x in impacts]      # the angles' turns across them
+    return _with_joint_columns(plan, r, warn=False).columns
 
 
 def column_sensitivities(solver, result, key: str, S: np.ndarray, dP_j: np.ndarray):
@@ -70,9 +77,11 @@ def column_sensitivities(solver, result, key: str, S: np.ndarray, dP_j: np.ndarr
                            np.max(np.abs(np.concatenate([el.params for el in plan.elements]))),
                            1.0))
 
+    impacts = np.array(sorted(e["t"] for e in result.events), float)
+
     def at(eps):
         return _columns(_shifted_solver(solver, dP_j, eps), result.t, q + eps * sq,
-                        v + eps * sv)
+                        v + eps * sv, impacts)
 
     plus, minus, plus2, minus2 = at(h), at(-h), at(h / 2), at(-h / 2)
     out, worst = {}, 0.0
@@ -82,8 +91,10 @@ def column_sensitivities(solver, result, key: str, S: np.ndarray, dP_j: np.ndarr
         d1 = (plus[col] - minus[col]) / (2 * h)
         d2 = (plus2[col] - minus2[col]) / h
         out[col] = (4 * d2 - d1) / 3
-        scale = max(np.max(np.abs(out[col])), 1e-300)
-        worst = max(worst, float(np.max(np.abs(d2 - d1)) / scale))
+        if np.isnan(out[col]).all():
+            continue
+        scale = max(np.nanmax(np.abs(out[col])), 1e-300)
+        worst = max(worst, float(np.nanmax(np.abs(d2 - d1)) / scale))
     for k, name in enumerate(names):                     # the integrated ones, exact
         out[name] = np.array(sq[:, k])
     for k, (name, _) in enumerate(plan.triples):
