@@ -116,3 +116,15 @@ def test_cli_bad_outputs_stop_before_the_runs(build_dir, tmp_path, capsys, outpu
     for w in words:
         assert w in err
     assert not list(tmp_path.iterdir())           # no table, no partial file
+
+
+def test_a_column_with_values_the_run_could_not_give_has_no_time_of_its_extremes():
+    """A column NaN from some record on (an angle whose turns the records lost, a
+    driver force past a dropped event log) has no max, min or time of either: NaN,
+    not the time of its first NaN, which numpy's argmax gives."""
+    from fccgen.sweep.outputs import _column_stat
+    t = np.array([0.0, 1.0, 2.0, 3.0])
+    x = np.array([0.0, 5.0, np.nan, np.nan])
+    for stat in ("max", "min", "tmax", "tmin"):
+        assert np.isnan(_column_stat(t, x, stat)), stat
+    assert _column_stat(t, x, "initial") == 0.0

@@ -150,6 +150,8 @@ def _column_stat(t, x, stat: str):
         return float(np.min(x))
     if stat == "absmax":
         return float(np.max(np.abs(x)))
+    if np.isnan(x).any():     # a value the run could not give: when is unknown too
+        return float("nan")   # (argmax would name the first NaN's time)
     k = int(np.argmax(x) if stat == "tmax" else np.argmin(x))
     return float(t[k])
 
