@@ -96,3 +96,27 @@ def test_requests_the_fmu_cannot_answer_are_refused(build_dir, tmp_path):
                  str(tmp_path / "c"), "--sensitivities", "gravity[1]", "--build-dir",
                  str(build_dir), "-q"])
     assert code != 0 and not (tmp_path / "c").exists()
+
+
+def test_a_driven_model_s_fmu_has_its_motor_torque_but_not_its_derivative(
+        build_dir, tmp_path, compiled_sparse):
+    """four_bar_driven exports its motor's torque (a second solve at each read), which
+    has no sensitivity, as in simulate: the FMU outputs motor.torque and the other
+    columns' derivatives, not d(motor.torque)/d(KEY); FMPy runs it, and the torque
+    equals simulate's to 1e-10 of its largest (the multipliers' accuracy,
+    tests/test_export_c.py)."""
+    from fmpy.validation import validate_fmu
+    key = "bodies.coupler.mass"
+    path = export_fmu(EXAMPLES / "four_bar_driven.yaml", tmp_path / "fbd.fmu", build_dir,
+                      sensitivities=key)
+    assert validate_fmu(str(path)) == []
+    description = fmpy.read_model_description(str(path))
+    outputs = [v.name for v in description.modelVariables if v.causality == "output"]
+    assert "motor.torque" in outputs and "d(O.angle)/d(bodies.coupler.mass)" in outputs
+    assert not any(n.startswith("d(motor.torque)") for n in outputs)
+    rows = fmpy.simulate_fmu(str(path), output=["motor.torque"], stop_time=0.5,
+                             output_interval=0.01)
+    result = compiled_sparse("four_bar_driven").simulate(t_end=0.5, output_dt=0.01,
+                                                        reactions=False)
+    want = result["motor.torque"]
+    assert np.abs(rows["motor.torque"] - want).max() <= 1e-10 * np.abs(want).max()

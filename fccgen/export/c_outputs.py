@@ -5,9 +5,10 @@ state gives at a time: points and vectors (position, speed), bodies (centre and
 angular velocity), energy, constraint_error, and the joints' angle, rate, position and
 speed (the formulas of :mod:`fccgen.mechanism.outputs`, counted over turns from one
 read to the next by the rule of :mod:`fccgen.mechanism.turns`). The joints' reactions
-and the drivers' forces need the constraint multipliers, which fccgen computes after a
-run with a dense least-squares solve per row; a standalone export has no LAPACK, so it
-leaves them out (:data:`LEFT_OUT` names them).
+the drivers' forces (angle and position drivers of models without events: the
+multipliers of a second engine's solve at the state read, :func:`exported_drivers`).
+The joints' reactions need a least-squares solve of the bodies' balance, which a
+standalone export without LAPACK leaves out with the rest of :data:`LEFT_OUT`.
 The members' strain and curvature columns (fccgen.mechanism.cable_outputs) are
 computed after a run too and left out; their node positions and slopes are columns.
 """
@@ -22,9 +23,26 @@ from ..mechanism.outputs import _written, joint_columns
 from ..model.types import GROUND
 
 # kind codes (the C side's enum in the api template)
-Q, V, BODY, ENERGY, CERR, ANGLE, RATE, SLIDE, SLIDE_SPEED = range(9)
-LEFT_OUT = ("joint reactions (J.fx ... J.tz), driver forces and the members' strain "
-            "and curvature (m.n<k>.strain, m.n<k>.curvature)")
+Q, V, BODY, ENERGY, CERR, ANGLE, RATE, SLIDE, SLIDE_SPEED, DRIVER = range(10)
+LEFT_OUT = ("joint reactions (J.fx ... J.tz), the forces of distance drivers and of "
+            "the drivers of models with events, and the members' strain and curvature "
+            "(m.n<k>.strain, m.n<k>.curvature)")
+
+
+def exported_drivers(plan) -> dict[str, int]:
+    """{result column: constraint row} of the drivers whose force the export computes:
+    -lambda of the row (fccgen.mechanism.driver_forces), for angle and position
+    drivers (a distance driver's slope, 2 f(t), is not in the C tables) of models
+    without events (after a lock the held rows' multipliers join the solve, which the
+    export's second engine does not hold)."""
+    from ..mechanism.driver_forces import driver_rows
+    from ..mechanism.lowering import driver_column
+    lowering = getattr(plan.model, "mechanism", None)
+    if lowering is None or plan.model.events:
+        return {}
+    rows = driver_rows(plan)
+    return {driver_column(d): rows[driver_column(d)][0]
+            for d in lowering.drivers or [] if d.quantity != "distance"}
 
 
 class OutputTable:
@@ -38,6 +56,7 @@ class OutputTable:
         self._frame_of: dict[str, int] = {}
         self.angles: list[dict] = []
         self.slides: list[dict] = []
+        self.drivers = exported_drivers(plan)            # column -> constraint row
         self._joint_kinds(plan)
         body_row = {name: b for b, (name, _) in enumerate(plan.bodies)}
         triple_row = {name: k for k, (name, _) in enumerate(plan.triples)}
@@ -50,6 +69,8 @@ class OutputTable:
             return ENERGY, 0
         if name == "constraint_error":
             return CERR, 0
+        if name in self.drivers:
+            return DRIVER, self.drivers[name]
         stem, _, part = name.rpartition(".")
         if stem in triple_row and part in ("x", "y", "z"):
             return Q, 3 * triple_row[stem] + "xyz".index(part)

@@ -22,7 +22,7 @@ from ..version import __version__
 from ..errors import FccgenError
 from ..render.escape import c_identifier
 from . import c_data, c_events, c_sens
-from .c_outputs import LEFT_OUT, OutputTable
+from .c_outputs import DRIVER, LEFT_OUT, OutputTable
 from .c_params import parameter_map
 
 RUNTIME = Path(__file__).resolve().parents[1] / "runtime"
@@ -177,7 +177,8 @@ def data_header(solver, result, table: OutputTable, keys, inputs, found=None) ->
             c_data.c_array("double", "INPUT_START", [x for _, x, _ in inputs]),
             c_data.c_array("int", "INPUT_PTR", iptr), c_data.c_array("int", "INPUT_SLOT", islots)]
     # outputs
-    out += [c_data.define("N_OUTPUTS", len(table.columns)),
+    out += [c_data.define("N_DRIVER_OUT", sum(k == DRIVER for _, k, _ in table.columns)),
+            c_data.define("N_OUTPUTS", len(table.columns)),
             c_data.define("N_OUTPUTS_ALLOC", max(1, len(table.columns))),
             c_data.c_strings("OUT_NAMES", [n for n, _, _ in table.columns]),
             c_data.c_array("int", "OUT_KIND", [k for _, k, _ in table.columns]),
@@ -234,7 +235,8 @@ def export_columns(solver, result) -> list[str]:
     """The result columns the export computes: all of simulate's but LEFT_OUT's."""
     from ..mechanism.driver_forces import driver_rows
     from ..model.cables import node_names
-    drivers = set(driver_rows(solver.plan))
+    from .c_outputs import exported_drivers
+    drivers = set(driver_rows(solver.plan)) - set(exported_drivers(solver.plan))
     lowering = getattr(solver.plan.model, "mechanism", None)
     reactions = set()
     if lowering is not None:
@@ -258,6 +260,7 @@ class Project:
     output_dt: float
     sensitivities: list = None     # the keys with sensitivities (None: exported without)
     event_names: list = None       # the model's events, NAME_event_name's order
+    forces: list = None            # the driver-force columns (no sensitivity)
 
 
 def c_project_files(model_path, build_dir="generated", *, progress=None,
@@ -310,7 +313,8 @@ def c_project_files(model_path, build_dir="generated", *, progress=None,
                    float(d.t_end), float(d.output_dt if d.output_dt is not None else d.dt),
                    None if found is None else [k for k, _, _ in found],
                    [] if solver.events_module is None
-                   else list(solver.events_module.EVENT_NAMES))
+                   else list(solver.events_module.EVENT_NAMES),
+                   [c for c, kind, _ in table.columns if kind == DRIVER])
 
 
 def export_c(model_path, out_dir, build_dir="generated", *, progress=None,

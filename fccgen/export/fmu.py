@@ -5,7 +5,7 @@ The FMU is the C project of :mod:`fccgen.export.c_project` plus an FMI 2.0 layer
 (``<name>_fmu.c`` over the model's C API, ``fccgen_fmi2.h`` with the types and
 function declarations written from the FMI 2.0 standard) and ``modelDescription.xml``.
 Its variables: the outputs are the export's result columns (those of fccgen simulate
-but the joint reactions and driver forces), the parameters the with_parameters keys
+but the joint reactions, and the driver forces the export leaves out), the parameters the with_parameters keys
 the export can set, the inputs the model file's ``inputs:``, for a model with
 events the event outputs of :mod:`fccgen.export.fmu_events`, and for an FMU exported
 with sensitivities the outputs ``d(COLUMN)/d(KEY)`` of :mod:`fccgen.export.fmu_sens`. The shared library is
@@ -155,8 +155,9 @@ def export_fmu(model_path, fmu_path, build_dir="generated", *, progress=None,
         raise ExportError(f"{model_path}: the FMU's event output {taken} is already a "
                           "variable of the model (rename the item that makes it)")
     env = environment()
-    sens_rows = per_key_rows(project.columns, bool(events))
-    sens_outputs = sensitivity_outputs(project.columns, sens_keys, bool(events))
+    forces = project.forces or ()
+    sens_rows = per_key_rows(project.columns, bool(events), forces)
+    sens_outputs = sensitivity_outputs(project.columns, sens_keys, bool(events), forces)
     ctx = dict(n=name, version=__version__, has_events=bool(events),
                event_outputs=[v.field for v in EVENT_OUTPUTS],
                event_integer=[v.type != "Real" for v in EVENT_OUTPUTS], actions=list(ACTIONS),

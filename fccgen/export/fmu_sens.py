@@ -62,15 +62,17 @@ def chosen_keys(model_path, project, sensitivities) -> list[str]:
     return chosen
 
 
-def per_key_rows(columns, has_events: bool) -> list[int]:
+def per_key_rows(columns, has_events: bool, forces=()) -> list[int]:
     """What each key's outputs read, in order: output indices, then -1 (the latest
-    event's time) for a model with events."""
-    rows = [k for k, c in enumerate(columns) if c not in NO_SENSITIVITY]
+    event's time) for a model with events. forces: the driver-force columns, which
+    have no sensitivity (as in fccgen simulate)."""
+    rows = [k for k, c in enumerate(columns) if c not in NO_SENSITIVITY
+            and c not in forces]
     return rows + ([-1] if has_events else [])
 
 
-def sensitivity_outputs(columns, keys, has_events: bool) -> list[SensOutput]:
+def sensitivity_outputs(columns, keys, has_events: bool, forces=()) -> list[SensOutput]:
     """The FMU's sensitivity outputs in value-reference order (key-major)."""
-    rows = per_key_rows(columns, has_events)
+    rows = per_key_rows(columns, has_events, forces)
     return [SensOutput(EVENT_TIME if r < 0 else columns[r], key, r)
             for key in keys for r in rows]
