@@ -4,11 +4,11 @@ The columns are those of ``fccgen simulate`` (docs/design.md §4) that the engin
 state gives at a time: points and vectors (position, speed), bodies (centre and
 angular velocity), energy, constraint_error, and the joints' angle, rate, position and
 speed (the formulas of :mod:`fccgen.mechanism.outputs`, counted over turns from one
-read to the next by the rule of :mod:`fccgen.mechanism.turns`). The joints' reactions
-the drivers' forces (angle and position drivers of models without events: the
-multipliers of a second engine's solve at the state read, :func:`exported_drivers`).
-The joints' reactions need a least-squares solve of the bodies' balance, which a
-standalone export without LAPACK leaves out with the rest of :data:`LEFT_OUT`.
+read to the next by the rule of :mod:`fccgen.mechanism.turns`), and the drivers'
+forces (angle and position drivers of models without events: the multipliers of a
+second engine's solve at the state read, :func:`exported_drivers`). The joints'
+reactions need a least-squares solve of the bodies' balance, which a standalone
+export without LAPACK leaves out with the rest of :data:`LEFT_OUT`.
 The members' strain and curvature columns (fccgen.mechanism.cable_outputs) are
 computed after a run too and left out; their node positions and slopes are columns.
 """

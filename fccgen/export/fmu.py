@@ -4,13 +4,14 @@ linux64 with its sources inside (docs/export.md).
 The FMU is the C project of :mod:`fccgen.export.c_project` plus an FMI 2.0 layer
 (``<name>_fmu.c`` over the model's C API, ``fccgen_fmi2.h`` with the types and
 function declarations written from the FMI 2.0 standard) and ``modelDescription.xml``.
-Its variables: the outputs are the export's result columns (those of fccgen simulate
-but the joint reactions, and the driver forces the export leaves out), the parameters the with_parameters keys
-the export can set, the inputs the model file's ``inputs:``, for a model with
-events the event outputs of :mod:`fccgen.export.fmu_events`, and for an FMU exported
-with sensitivities the outputs ``d(COLUMN)/d(KEY)`` of :mod:`fccgen.export.fmu_sens`. The shared library is
-built with the system C compiler in a subprocess (cwd: a fresh folder; the compiler's
-output is shown when it fails) and cached by the hash of its sources.
+Its variables: the outputs are the export's result columns (those of fccgen simulate but
+the joint reactions, and the driver forces the export leaves out), the parameters the
+with_parameters keys the export can set, the inputs the model file's ``inputs:``, for a
+model with events the event outputs of :mod:`fccgen.export.fmu_events`, and for an FMU
+exported with sensitivities the outputs ``d(COLUMN)/d(KEY)`` of
+:mod:`fccgen.export.fmu_sens`. The shared library is built with the system C compiler in
+a subprocess (cwd: a fresh folder; the compiler's output is shown when it fails) and
+cached by the hash of its sources.
 """
 from __future__ import annotations
 

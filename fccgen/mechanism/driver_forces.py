@@ -96,28 +96,20 @@ def add_driver_columns(solver, result, held=None, loads=None) -> None:
     values = {col: np.full(len(result.t), np.nan) for col in rows}
     known = len(result.t) if held is None else held.known
     reason = held.unknown_reason(result.t) if known < len(result.t) else ""
+    parts = record_chunks(known, CHUNK, held)
+    records = (((k, keys) for part, keys in parts for k in range(part.start, part.stop))
+               if loads is None else loads.placed(result.t, q, v, parts))
     try:
-        for part, keys in record_chunks(known, CHUNK, held):
-            stop = part.stop
-            if loads is not None:
-                try:
-                    loads.chunk(result.t[part], q[part], v[part])
-                except ValueError as exc:      # turns that the records cannot count
-                    # (RecordLoads.chunk: its records before ``record`` are placed)
-                    known = stop = part.start + getattr(exc, "record", 0)
-                    reason = str(exc)
-            for k in range(part.start, stop):
-                if loads is not None:
-                    loads.hold(k - part.start, q[k], v[k], values=False)
-                t = float(result.t[k])
-                lam = multipliers(solver, t, q[k], v[k], held, keys)
-                for col, (row, slope) in rows.items():
-                    values[col][k] = -slope(t) * lam[row]
-            if stop < part.stop:
-                break
+        for k, keys in records:    # with loads: the parameters held at the record's
+            t = float(result.t[k])
+            lam = multipliers(solver, t, q[k], v[k], held, keys)
+            for col, (row, slope) in rows.items():
+                values[col][k] = -slope(t) * lam[row]
     finally:
         if loads is not None:
             loads.restore()
+    if loads is not None and loads.lost is not None:    # turns the records cannot count
+        known, reason = loads.lost
     result.columns.update(values)
     if known < len(result.t):
         text = f"the driver forces are NaN from t = {result.t[known]:.9g} s on: {reason}"

@@ -15,6 +15,8 @@ run from the recorded coordinates and speeds, vectorised over the output samples
 """
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from ..errors import RunWarning
@@ -59,16 +61,13 @@ class _Series:
 
 
 def joint_columns(plan, columns: dict[str, np.ndarray], n: int, *,
-                  near_given: bool = True, t=None, impacts=(),
-                  lost: dict | None = None, raw: dict | None = None
+                  near_given: bool = True, raw: dict | None = None
                   ) -> dict[str, np.ndarray]:
-    """The joint columns of a lowered model's result (empty without joints);
-    near_given=False: angles not moved by whole turns towards the initial ones.
-    t: the records' times, whose angles are counted over turns with their rates
-    (:func:`fccgen.mechanism.turns.count_turns`; None: numpy.unwrap's nearest
-    branch, for states that are not records of a motion); impacts: the run's event
-    times; lost: filled with {angle column: time from which its turns are not
-    known}; raw: filled with {angle column: (angles within half a turn, rates)}."""
+    """The joint columns of a lowered model's result (empty without joints), angles
+    unwrapped by numpy.unwrap's nearest branch (records of a run count them with
+    their rates instead: :func:`add_joint_columns`); near_given=False: angles not
+    moved by whole turns towards the initial ones. raw: filled with {angle column:
+    (angles within half a turn, rates)}."""
     lowering = getattr(plan.model, "mechanism", None)
     if lowering is None or n == 0:
         return {}
@@ -89,15 +88,7 @@ def joint_columns(plan, columns: dict[str, np.ndarray], n: int, *,
             rate = np.einsum("ni,ni->n", s.omega(B) - s.omega(A), a)
             if raw is not None:
                 raw[f"{j.name}.angle"] = (angle, rate)
-            if t is None:
-                angle = np.unwrap(angle)
-            else:
-                counted, known, _ = count_turns(angle[None], rate[None], t, impacts)
-                angle, known = counted[0], int(known[0])
-                if known < n:
-                    angle[known:] = np.nan
-                    if lost is not None:
-                        lost[f"{j.name}.angle"] = float(t[known])
+            angle = np.unwrap(angle)
             out[f"{j.name}.angle"] = _near_given(plan, j.name, angle) if near_given \
                 else angle
             out[f"{j.name}.rate"] = rate
@@ -107,11 +98,6 @@ def joint_columns(plan, columns: dict[str, np.ndarray], n: int, *,
             out[f"{j.name}.position"] = np.einsum("ni,ni->n", rb - ra, a)
             out[f"{j.name}.speed"] = np.einsum("ni,ni->n", vb - va, a)
     return out
-
-
-def _warn(text: str) -> None:
-    import warnings
-    warnings.warn(text, RunWarning, stacklevel=4)
 
 
 def _written(plan) -> _Series:
@@ -138,16 +124,25 @@ def add_joint_columns(plan, result, warn: bool = True) -> None:
     along its records and across its events (``result.events``). An angle whose turns
     the records are too far apart to count is NaN from there, named with the time in
     ``info["angle_turns_lost"]`` and, with ``warn``, in a warning."""
-    lost: dict[str, float] = {}
     raw: dict[str, tuple] = {}
-    impacts = sorted(e["t"] for e in getattr(result, "events", None) or ())
-    result.columns.update(joint_columns(plan, result.columns, len(result.t),
-                                        t=result.t, impacts=impacts, lost=lost, raw=raw))
+    result.columns.update(joint_columns(plan, result.columns, len(result.t), raw=raw))
     result.angles_within_a_turn = raw        # for settle_turns
-    _note_lost(result, lost, warn)
+    _count_angles(plan, result, warn)
 
 
-def _note_lost(result, lost: dict[str, float], warn: bool) -> None:
+def _count_angles(plan, result, warn: bool) -> None:
+    """The angle columns of ``result`` counted over turns along its records
+    (:func:`fccgen.mechanism.turns.count_turns`) from the angles within half a turn
+    and the rates its columns were made of, across its events."""
+    impacts = sorted(e["t"] for e in getattr(result, "events", None) or ())
+    lost: dict[str, float] = {}
+    for name, (angle, rate) in result.angles_within_a_turn.items():
+        counted, known, _ = count_turns(angle[None], rate[None], result.t, impacts)
+        counted, known = counted[0], int(known[0])
+        if known < len(result.t):
+            counted[known:] = np.nan
+            lost[name] = float(result.t[known])
+        result.columns[name] = _near_given(plan, name[:-len(".angle")], counted)
     result.info.pop("angle_turns_lost", None)
     if lost:
         result.info["angle_turns_lost"] = lost
@@ -158,22 +153,11 @@ def _note_lost(result, lost: dict[str, float], warn: bool) -> None:
 def settle_turns(plan, result) -> None:
     """After a run whose joint columns were made without warnings, and once its
     events are known: the angles counted again across the events (which break the
-    rates), from the angles and rates the columns were made of, and the warnings
-    of the angles whose turns are lost."""
-    raw = getattr(result, "angles_within_a_turn", None)
-    if not getattr(result, "events", None) or raw is None:
+    rates), and the warnings of the angles whose turns are lost."""
+    if getattr(result, "events", None) and hasattr(result, "angles_within_a_turn"):
+        _count_angles(plan, result, True)
+    else:
         warn_turns_lost(result)
-        return
-    impacts = sorted(e["t"] for e in result.events)
-    lost: dict[str, float] = {}
-    for name, (angle, rate) in raw.items():
-        counted, known, _ = count_turns(angle[None], rate[None], result.t, impacts)
-        counted, known = counted[0], int(known[0])
-        if known < len(result.t):
-            counted[known:] = np.nan
-            lost[name] = float(result.t[known])
-        result.columns[name] = _near_given(plan, name[:-len(".angle")], counted)
-    _note_lost(result, lost, True)
 
 
 def warn_turns_lost(result) -> None:
@@ -184,4 +168,4 @@ def warn_turns_lost(result) -> None:
         said = result.info.setdefault("warnings", [])
         if text not in said:
             said.append(text)
-            _warn(text)
+            warnings.warn(text, RunWarning, stacklevel=3)

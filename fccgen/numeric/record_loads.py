@@ -35,6 +35,7 @@ from ..plan.classes import REFERENCE_SCALARS, input_parameter
 from ..runs.inputs import input_slots, record_times
 from .elements import element_kernels
 from .joint_loads import angle_rate
+from ..mechanism.driver_forces import record_chunks
 from ..mechanism.turns import count_turns
 
 EXPRESSION_KINDS = ("force_t", "torque_t", "force_q", "torque_q")
@@ -74,6 +75,7 @@ class RecordLoads:
              for e, prefix in self.sources for i in range(3)], np.intc)
         self.previous = None           # (t, angles, rates) of the last record
         self.impacts = np.zeros(0)     # the run's event times (of_run)
+        self.lost = None               # (record, why) where placed() stopped
         self.t, self.angles = np.zeros(0), np.zeros((len(self.sources), 0))
         self.touched: set[int] = set()
 
@@ -173,6 +175,26 @@ class RecordLoads:
             out[j] = np.array([kernels.x.s[n] for n in kernels.names])
         return out
 
+    def placed(self, t, q, v, parts):
+        """The records of ``parts`` ((slice of records, tag) in order of time, from the
+        run's start) that can be placed on a turn, as (record, tag), each yielded with
+        the solver's parameters held at the record's (:meth:`hold`, without the loads'
+        values). At a record that cannot be placed (:class:`UncountedTurns`) it
+        stops, with ``lost`` (that record, why); else ``lost`` is None."""
+        self.lost = None
+        for part, tag in parts:
+            stop = part.stop
+            try:
+                self.chunk(t[part], q[part], v[part])
+            except UncountedTurns as exc:          # the records before it are placed
+                stop = part.start + exc.record
+                self.lost = (stop, str(exc))
+            for k in range(part.start, stop):
+                self.hold(k - part.start, q[k], v[k], values=False)
+                yield k, tag
+            if self.lost is not None:
+                return
+
     def restore(self) -> None:
         """The planned values again in every parameter :meth:`hold` wrote."""
         if self.touched:
@@ -190,25 +212,17 @@ def energies(solver, t, q, v, loads: RecordLoads, chunk: int = 1024):
     references and inputs the run held there (``loads``, which is restored after),
     so that a torsion spring wound past half a turn stores k phi^2 / 2 of its angle
     over turns, not of the angle within half a turn of its planned reference. Where
-    the records are too far apart to count the turns (:meth:`RecordLoads.chunk`),
+    the records are too far apart to count the turns (:meth:`RecordLoads.placed`),
     the energy is NaN from there on and the reason is returned."""
     n = len(t)
-    out, known, reason = np.full(n, np.nan), n, ""
+    out = np.full(n, np.nan)
     try:
-        for first in range(0, n, chunk):
-            part = slice(first, min(n, first + chunk))
-            try:
-                loads.chunk(t[part], q[part], v[part])
-            except UncountedTurns as exc:
-                known, reason = first + exc.record, str(exc)
-            for k in range(part.start, min(part.stop, known)):
-                loads.hold(k - first, q[k], v[k], values=False)
-                solver.set_time(float(t[k]))
-                out[k] = solver.energy(q[k], v[k])
-            if known < n:
-                break
+        for k, _ in loads.placed(t, q, v, record_chunks(n, chunk, None)):
+            solver.set_time(float(t[k]))
+            out[k] = solver.energy(q[k], v[k])
     finally:
         loads.restore()
+    known, reason = loads.lost or (n, "")
     return out, known, reason
 
 

@@ -59,35 +59,13 @@ int fcc_sens_solve_from(fcc_engine *e, const double *Q, const double *b, double 
     return 0;
 }
 
-/* The acceleration solve's lambda is accurate to about RHO eps of itself only (its
- * last augmented-Lagrangian update multiplies the rounding of B x - b by alpha), which
- * the stages' dB[s_q]^T lambda would carry into s_a (4e-10 of the sensitivities on the
- * double pendulum). One correction removes it: r1 = r - M a - B^T lambda is formed
- * directly (rounding of f, not alpha times rounding of B x), about -B^T dlam with dlam
- * the error, and one augmented-Lagrangian step of M dx + B^T dlam = r1, B dx = 0 from
- * zero, dx = A^{-1} r1, dlam = alpha B dx, recovers dlam but for 1 / (1 + t) of it
- * (t = alpha sigma^2 / m: 1e-7 where the rows are well conditioned, 1/43 along the
- * scissor mast's weakest direction): lambda then accurate to RHO eps times that. A
- * refinement to rounding would chase r1's own rounding (its right-hand side is
- * rounding-sized: 4.5 solves with A per stage on the scissor boom, against one). One
- * solve per stage, whatever the number of parameters. */
+/* The sensitivities' stage multipliers: fcc_sp_correct_multipliers on the stage's
+ * acceleration solve. One solve per stage, whatever the number of parameters. */
 int fcc_sens_sparse_stage_lam(fcc_engine *e, fcc_sens *s, const double *a)
 {
-    int i, n = e->n;
     fcc_sparse *sp = &e->sp;
-    const fcc_pattern *P = sp->pat;
     if (!sp->warm_valid)            /* the acceleration solve did not converge */
         return 0;
     memcpy(s->lam, sp->lam_warm, (size_t)e->m * sizeof(double));
-    fcc_sp_mult_m_full(e, a, s->rhs, 0);
-    fcc_sp_mult_bt(e, s->lam, NULL, s->rhs);
-    for (i = 0; i < n; i++)
-        s->y[i] = s->r[i] - s->rhs[i];
-    for (i = 0; i < P->n_pinned; i++)     /* pinned coordinates: dx stays 0 there */
-        s->y[P->pinned[i]] = 0.0;
-    fcc_sp_solve_a(e, s->y);
-    fcc_sp_mult_b(e, s->y, s->b);
-    for (i = 0; i < e->m; i++)
-        s->lam[i] += sp->alpha[i] * s->b[i];
-    return fcc_finite(s->lam, e->m);
+    return fcc_sp_correct_multipliers(e, s->r, a, s->lam, s->y, s->b);
 }

@@ -247,6 +247,9 @@ int fcc_sp_kkt_solve_from(struct fcc_engine *e, const double *Q, const double *w
 /* -- the sparse engine (fcc_sparse_engine.c, fcc_sparse_watch.c) ----------------- */
 int fcc_sp_accelerations(struct fcc_engine *e, const double *q, const double *v,
                          double *a, int reuse);
+/* lam of the acceleration solve just made, corrected once (fcc_sparse_engine.c) */
+int fcc_sp_correct_multipliers(struct fcc_engine *e, const double *r, const double *a,
+                               double *lam, double *y, double *b);
 int fcc_sp_baumgarte(struct fcc_engine *e, const double *q, const double *v, double *a,
                      double alpha, double beta);
 void fcc_sp_assemble_constraints(struct fcc_engine *e, const double *q, int flags);

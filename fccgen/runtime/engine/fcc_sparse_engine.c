@@ -324,3 +324,36 @@ int fcc_sp_project_velocities(fcc_engine *e, const double *q, double *v, int hav
     fcc_sp_watch_rank(e);
     return 0;
 }
+
+/* The multipliers of the acceleration solve just made, corrected once. That solve's
+ * lambda is accurate to about RHO eps of itself only (its last augmented-Lagrangian
+ * update multiplies the rounding of B x - b by alpha), which the sensitivities'
+ * stages would carry into s_a through dB[s_q]^T lambda (4e-10 of them on the double
+ * pendulum) and which a driver force is. One correction removes it: r1 = r - M a -
+ * B^T lambda is formed directly (rounding of f, not alpha times rounding of B x),
+ * about -B^T dlam with dlam the error, and one augmented-Lagrangian step of
+ * M dx + B^T dlam = r1, B dx = 0 from zero, dx = A^{-1} r1, dlam = alpha B dx,
+ * recovers dlam but for 1 / (1 + t) of it (t = alpha sigma^2 / m: 1e-7 where the rows
+ * are well conditioned, 1/43 along the scissor mast's weakest direction): lambda then
+ * accurate to RHO eps times that. A refinement to rounding would chase r1's own
+ * rounding (its right-hand side is rounding-sized: 4.5 solves with A per stage on the
+ * scissor boom, against one). r: f - h (+ G^T mu of held rows) at the solve's state,
+ * a: its accelerations, lam: its converged multipliers (sp.lam_warm, or a copy),
+ * corrected in place; y (n) and b (m) are work. Returns whether lam is finite. */
+int fcc_sp_correct_multipliers(fcc_engine *e, const double *r, const double *a,
+                               double *lam, double *y, double *b)
+{
+    int i, n = e->n;
+    const fcc_pattern *P = e->sp.pat;
+    fcc_sp_mult_m_full(e, a, y, 0);
+    fcc_sp_mult_bt(e, lam, NULL, y);
+    for (i = 0; i < n; i++)
+        y[i] = r[i] - y[i];
+    for (i = 0; i < P->n_pinned; i++)     /* pinned coordinates: dx stays 0 there */
+        y[P->pinned[i]] = 0.0;
+    fcc_sp_solve_a(e, y);
+    fcc_sp_mult_b(e, y, b);
+    for (i = 0; i < e->m; i++)
+        lam[i] += e->sp.alpha[i] * b[i];
+    return fcc_finite(lam, e->m);
+}
